@@ -1,0 +1,42 @@
+# dgt-kit: two commands do all set-up.
+#   make reproduce   run the whole pipeline (DGT_PROFILE, default demo)
+#   make test        unit tests + every notebook under nbmake (smoke profile)
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+PROFILE ?= $(or $(DGT_PROFILE),demo)
+STAMP := $(VENV)/.installed
+
+.PHONY: reproduce test lint venv clean-data
+
+venv: $(STAMP)
+
+# The venv is (re)built when pyproject.toml changes. Without CUDA we install the
+# CPU torch wheel first (torch==2.13.0), so the range in pyproject is already
+# satisfied and pip never downloads a multi-GB CUDA build.
+$(STAMP): pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@if command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L >/dev/null 2>&1; then \
+	    echo "CUDA GPU found: installing the default torch build"; \
+	    $(PY) -m pip install -q torch; \
+	else \
+	    echo "no CUDA GPU: installing the CPU torch build (torch==2.13.0)"; \
+	    { $(PY) -m pip install -q --no-index --no-deps torch==2.13.0 2>/dev/null \
+	      && $(PY) -m pip install -q torch==2.13.0; } \
+	    || $(PY) -m pip install -q torch==2.13.0 --index-url https://download.pytorch.org/whl/cpu; \
+	fi
+	$(PY) -m pip install -q -e '.[dev]'
+	@touch $(STAMP)
+
+reproduce: $(STAMP)
+	MUJOCO_GL=egl $(VENV)/bin/dgt reproduce --profile $(PROFILE)
+
+test: $(STAMP)
+	DGT_PROFILE=smoke MUJOCO_GL=egl $(PY) -m pytest -n 2 --dist loadfile tests notebooks --nbmake --nbmake-timeout=900
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check dgt_lib tests benchmarks
+
+clean-data:
+	rm -rf data/smoke data/demo data/paper

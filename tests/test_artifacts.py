@@ -1,0 +1,137 @@
+import json
+
+import numpy as np
+import pytest
+
+from dgt_lib import artifacts
+from dgt_lib.config import get_profile
+
+
+@pytest.fixture(autouse=True)
+def data_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    return tmp_path
+
+
+class Builder:
+    """Counts builds, returns a known array."""
+
+    def __init__(self, value=1.0):
+        self.calls = 0
+        self.value = value
+
+    def __call__(self):
+        self.calls += 1
+        return {"x": np.full((4, 3), self.value, dtype=np.float32)}
+
+
+def test_artifacts_live_under_data_profile(data_dir):
+    build = Builder()
+    artifacts.ensure("stage/out.npz", {"a": 1}, build, profile="smoke")
+    assert (data_dir / "smoke" / "stage" / "out.npz").exists()
+    meta = json.loads((data_dir / "smoke" / "stage" / "out.npz.meta.json").read_text())
+    assert meta["config_hash"] == artifacts.config_hash({"a": 1})
+
+
+def test_second_call_loads_instead_of_building():
+    build = Builder()
+    a = artifacts.ensure("out.npz", {"a": 1}, build, profile="smoke")
+    b = artifacts.ensure("out.npz", {"a": 1}, build, profile="smoke")
+    assert build.calls == 1
+    np.testing.assert_array_equal(a["x"], b["x"])
+
+
+def test_changed_config_rebuilds_with_a_one_line_message():
+    messages = []
+    artifacts.ensure("out.npz", {"a": 1}, Builder(1.0), profile="smoke", log=messages.append)
+    rebuilt = Builder(2.0)
+    out = artifacts.ensure("out.npz", {"a": 2}, rebuilt, profile="smoke", log=messages.append)
+    assert rebuilt.calls == 1 and out["x"][0, 0] == 2.0
+    assert len(messages) == 1 and "configuration changed" in messages[0]
+    assert "\n" not in messages[0]
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "flip_byte"])
+def test_corrupt_file_is_reported_and_rebuilt_never_used(data_dir, damage):
+    artifacts.ensure("out.npz", {"a": 1}, Builder(1.0), profile="smoke")
+    path = data_dir / "smoke" / "out.npz"
+    raw = path.read_bytes()
+    if damage == "truncate":
+        path.write_bytes(raw[: len(raw) // 2])
+    elif damage == "garbage":
+        path.write_bytes(b"not a zip file at all")
+    else:
+        path.write_bytes(raw[:-10] + bytes([raw[-10] ^ 0xFF]) + raw[-9:])
+    messages = []
+    rebuilt = Builder(3.0)
+    out = artifacts.ensure("out.npz", {"a": 1}, rebuilt, profile="smoke", log=messages.append)
+    assert rebuilt.calls == 1 and out["x"][0, 0] == 3.0
+    assert "corrupt" in messages[0]
+    # and the rebuilt artifact is valid again
+    again = Builder()
+    artifacts.ensure("out.npz", {"a": 1}, again, profile="smoke")
+    assert again.calls == 0
+
+
+def test_unreadable_file_with_matching_checksum_is_rebuilt(data_dir):
+    """A file whose metadata matches but which cannot be parsed (e.g. written by a bug)."""
+    path = data_dir / "smoke" / "out.pkl"
+    artifacts.ensure("out.pkl", {"a": 1}, lambda: {"ok": True}, profile="smoke")
+    path.write_bytes(b"\x80\x05garbage")
+    meta_path = path.with_name("out.pkl.meta.json")
+    meta = json.loads(meta_path.read_text())
+    meta["size"] = path.stat().st_size
+    meta["sha256"] = artifacts._file_digest(path)
+    meta_path.write_text(json.dumps(meta))
+    messages = []
+    out = artifacts.ensure("out.pkl", {"a": 1}, lambda: {"ok": 2}, profile="smoke",
+                           log=messages.append)
+    assert out == {"ok": 2} and "corrupt" in messages[0]
+
+
+def test_missing_metadata_rebuilds(data_dir):
+    artifacts.ensure("out.json", {"a": 1}, lambda: {"v": 1}, profile="smoke")
+    (data_dir / "smoke" / "out.json.meta.json").unlink()
+    messages = []
+    out = artifacts.ensure("out.json", {"a": 1}, lambda: {"v": 2}, profile="smoke",
+                           log=messages.append)
+    assert out == {"v": 2} and "no metadata" in messages[0]
+
+
+def test_crash_during_build_or_write_leaves_no_artifact(data_dir):
+    def failing():
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        artifacts.ensure("out.npz", {"a": 1}, failing, profile="smoke")
+    assert not (data_dir / "smoke" / "out.npz").exists()
+
+    with pytest.raises(TypeError):  # np.savez cannot store an object that is not a mapping
+        artifacts.ensure("bad.npz", {"a": 1}, lambda: 42, profile="smoke")
+    leftovers = [p.name for p in (data_dir / "smoke").iterdir()]
+    assert leftovers == [], leftovers  # no half-written file, no temporary file
+
+
+def test_config_hash_is_stable_and_sensitive():
+    p = get_profile("smoke")
+    assert artifacts.config_hash(p) == artifacts.config_hash(get_profile("smoke"))
+    assert artifacts.config_hash(p) != artifacts.config_hash(p.with_(seed=1))
+    assert artifacts.config_hash({"b": 1, "a": 2}) == artifacts.config_hash({"a": 2, "b": 1})
+    assert artifacts.config_hash(np.zeros(3)) != artifacts.config_hash(np.ones(3))
+    with pytest.raises(TypeError):
+        artifacts.config_hash(object())
+
+
+@pytest.mark.parametrize("suffix,value", [
+    (".npz", {"a": np.arange(5)}),
+    (".json", {"a": [1, 2]}),
+    (".pkl", {"a": (1, "x")}),
+    (".pt", {"w": np.ones(2)}),
+])
+def test_formats_round_trip(tmp_path, suffix, value):
+    path = tmp_path / f"f{suffix}"
+    artifacts.save(path, value)
+    back = artifacts.load(path)
+    assert set(back) == set(value)
+    for k in value:
+        np.testing.assert_array_equal(np.asarray(back[k]), np.asarray(value[k]))

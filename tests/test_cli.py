@@ -1,0 +1,42 @@
+import subprocess
+import sys
+
+from dgt_lib import pipeline
+from dgt_lib.cli import main
+
+
+def test_reproduce_runs_and_summarises(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [])
+    assert main(["reproduce", "--profile", "smoke"]) == 0
+    out = capsys.readouterr().out
+    assert "profile 'smoke'" in out and str(tmp_path / "smoke") in out
+    assert "no stages yet" in out
+
+
+def test_reproduce_runs_registered_stages_in_order_with_summary(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    stages = [
+        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
+        pipeline.Stage("second", "tests.stage_examples:second", "reads it"),
+    ]
+    monkeypatch.setattr(pipeline, "STAGES", stages)
+    assert main(["reproduce", "--profile", "smoke", "--stages", "second", "first"]) == 0
+    out = capsys.readouterr().out
+    assert out.index("first") < out.index("second")  # pipeline order, not argument order
+    assert "wrote 1 file" in out and str(tmp_path / "smoke" / "example.json") in out
+
+
+def test_unknown_stage_and_profile_are_clear_errors(capsys, monkeypatch):
+    monkeypatch.setattr(pipeline, "STAGES", [pipeline.Stage("a", "x:y", "d")])
+    assert main(["reproduce", "--stages", "nope"]) == 2
+    assert "unknown stage(s) nope; valid stages: a" in capsys.readouterr().err
+    monkeypatch.setenv("DGT_PROFILE", "huge")
+    assert main(["reproduce"]) == 2
+    assert "valid profiles: smoke, demo, paper" in capsys.readouterr().err
+
+
+def test_python_dash_m_entry_point():
+    done = subprocess.run([sys.executable, "-m", "dgt_lib", "--help"], capture_output=True,
+                          text=True, check=True)
+    assert "reproduce" in done.stdout
