@@ -1,0 +1,299 @@
+"""The global BEV map: back-projection, binning, streaming statistics, gradient."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from dgt_lib import artifacts
+from dgt_lib.bev import (
+    GRADIENT,
+    HEIGHT,
+    HEIGHT_STD,
+    BEVAccumulator,
+    BEVMap,
+    bev_grid,
+    build_bev,
+    height_gradient,
+)
+from dgt_lib.camera import CameraIntrinsics, RGBDFrame
+from dgt_lib.geometry import GridSpec
+
+
+def plane_frame(position, rotation, intr: CameraIntrinsics, slope=(0.0, 0.0, 0.0), rgb=None,
+                max_depth=60.0) -> RGBDFrame:
+    """An exact RGB-D frame of the plane z = a·x + b·y + c seen from a camera pose."""
+    a, b, c = slope
+    f = intr.focal_px
+    cu, cv = intr.principal_point
+    v, u = np.mgrid[0 : intr.height, 0 : intr.width] + 0.5
+    d_cam = np.stack([(u - cu) / f, -(v - cv) / f, -np.ones_like(u)], axis=-1)
+    d = d_cam @ np.asarray(rotation).T
+    px, py, pz = position
+    denom = d[..., 2] - a * d[..., 0] - b * d[..., 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (a * px + b * py + c - pz) / denom  # depth along the view axis (d_cam_z = −1)
+    depth = np.where((t > 0) & (t < max_depth), t, np.nan).astype(np.float32)
+    if rgb is None:
+        rgb = np.full((intr.height, intr.width, 3), 128, dtype=np.uint8)
+    return RGBDFrame(rgb, depth, intr, np.asarray(position, float), np.asarray(rotation, float))
+
+
+def look_rotation(heading: float, pitch_down: float) -> np.ndarray:
+    """world_from_camera for a camera looking along heading, pitched down (−z = view)."""
+    fwd = np.array([np.cos(pitch_down) * np.cos(heading), np.cos(pitch_down) * np.sin(heading),
+                    -np.sin(pitch_down)])
+    z = -fwd
+    x = np.array([np.sin(heading), -np.cos(heading), 0.0])  # image right
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=1)
+
+
+def test_downward_frame_gives_the_expected_cells():
+    # 64×64 px looking straight down from 5 m with tan(fovy/2) = 0.8: an 8 m × 8 m
+    # footprint centred on (10, 10), i.e. exactly cells 15..34 of a 0.4 m grid.
+    intr = CameraIntrinsics(64, 64, 2 * np.arctan(0.8))
+    rgb = np.zeros((64, 64, 3), dtype=np.uint8)
+    rgb[:, :32, 0] = 255  # left half of the image red
+    rgb[:32, :, 1] = 255  # top half green
+    frame = plane_frame((10.0, 10.0, 5.0), np.eye(3), intr, rgb=rgb)
+    grid = GridSpec((0.0, 0.0), 0.4, (50, 50))
+    bev = build_bev(grid, [frame])
+
+    expected = np.zeros((50, 50), bool)
+    expected[15:35, 15:35] = True
+    assert np.array_equal(bev.observed, expected)
+    assert bev.counts.sum() == 64 * 64
+    x, y = grid.cell_centers()
+    obs = bev.observed
+    assert np.allclose(bev.channels[0][obs], (x < 10)[obs])  # image left = west (camera x = +x)
+    assert np.allclose(bev.channels[1][obs], (y > 10)[obs])  # image top = north
+    assert np.allclose(bev.channels[2], 0.0)
+    assert np.allclose(bev.channels[HEIGHT:][:, obs], 0.0, atol=1e-6)
+    assert np.all(bev.channels[:, ~obs] == 0.0)
+
+
+def test_tilted_frame_over_a_slope_recovers_height_and_gradient():
+    slope = (0.2, 0.05, 1.0)
+    intr = CameraIntrinsics(160, 120, np.deg2rad(60))
+    heading = 0.7
+    position = (30.0, 30.0, 1.0 + 0.2 * 30 + 0.05 * 30 + 2.0)  # 2 m above the ground
+    frame = plane_frame(position, look_rotation(heading, np.deg2rad(30)), intr, slope=slope)
+    grid = GridSpec((0.0, 0.0), 0.4, (150, 150))
+    bev = build_bev(grid, [frame], max_depth_m=20.0)
+
+    obs = bev.observed
+    assert obs.sum() > 300
+    x, y = grid.cell_centers()
+    ahead = (x - position[0]) * np.cos(heading) + (y - position[1]) * np.sin(heading)
+    assert np.all(ahead[obs] > 0), "points land in front of the camera"
+    truth = 0.2 * x + 0.05 * y + 1.0
+    # Mean of the points in a cell ≈ plane at the points' mean position (≤ 0.2 m off centre).
+    assert np.abs(bev.mean_height - truth)[obs].max() < 0.06
+    assert bev.height_std[obs].max() < 0.06
+    # Central differences of H̄ recover the slope magnitude (m/m) where sampling is dense.
+    dense = obs & (bev.counts >= 20)
+    assert dense.sum() > 50
+    assert np.median(bev.gradient[dense]) == pytest.approx(np.hypot(0.2, 0.05), abs=0.02)
+
+
+def test_points_outside_grid_and_nonfinite_are_dropped():
+    grid = GridSpec((-2.0, -2.0), 0.4, (10, 10))
+    acc = BEVAccumulator(grid)
+    pts = np.array([[0.1, 0.1, 1.0], [-2.1, 0.0, 5.0], [0.0, 1.99, 2.0], [0.0, 2.0, 9.0],
+                    [np.nan, 0.0, 1.0], [0.1, 0.1, np.inf]])
+    added = acc.add_points(pts, np.full_like(pts, 0.5))
+    assert added == 2 and acc.n_points == 2
+    bev = acc.result()
+    assert bev.observed.sum() == 2
+    r, c = grid.xy_to_cell(0.1, 0.1)
+    assert bev.mean_height[r, c] == pytest.approx(1.0)
+    assert bev.height_std[r, c] == 0.0  # a single point has std 0
+
+
+def test_statistics_match_numpy_and_streaming_equals_one_shot():
+    rng = np.random.default_rng(3)
+    grid = GridSpec((0.0, 0.0), 0.4, (5, 6))
+    pts = np.column_stack([rng.uniform(0, 2.4, 5000), rng.uniform(0, 2.0, 5000),
+                           rng.normal(100.0, 0.3, 5000)])  # far from 0: tests precision too
+    cols = rng.uniform(0, 1, (5000, 3))
+    one = BEVAccumulator(grid)
+    one.add_points(pts, cols)
+    one_shot = one.result()
+
+    halves = [BEVAccumulator(grid), BEVAccumulator(grid)]
+    split = rng.uniform(size=5000) < 0.5
+    halves[0].add_points(pts[split], cols[split])
+    for chunk in np.array_split(np.flatnonzero(~split), 7):  # streamed in chunks
+        halves[1].add_points(pts[chunk], cols[chunk])
+    merged = halves[0].merge(halves[1]).result()
+    assert np.array_equal(merged.counts, one_shot.counts)
+    assert np.allclose(merged.channels, one_shot.channels, atol=1e-5)
+
+    r, c = grid.xy_to_cell(pts[:, 0], pts[:, 1])
+    sel = (r == 2) & (c == 3)
+    assert one_shot.mean_height[2, 3] == pytest.approx(pts[sel, 2].mean(), abs=1e-4)
+    assert one_shot.height_std[2, 3] == pytest.approx(pts[sel, 2].std(), abs=1e-4)
+    assert np.allclose(one_shot.channels[:3, 2, 3], cols[sel].mean(axis=0), atol=1e-6)
+
+
+def test_gradient_on_a_plane_with_holes_and_borders():
+    grid = GridSpec((0.0, 0.0), 0.4, (12, 15))
+    x, y = grid.cell_centers()
+    h = 0.3 * x - 0.1 * y
+    observed = np.ones(grid.shape, bool)
+    observed[4:7, 5:9] = False  # a hole
+    observed[0, 0] = False
+    observed[9, 12] = False
+    observed[10, 3] = False  # cell (11, 3) now has no observed neighbour along y
+    grad = height_gradient(np.where(observed, h, 0.0), observed, 0.4)
+    # Central differences inside, one-sided at borders and at the hole: exact on a plane.
+    ok = observed.copy()
+    ok[11, 3] = False
+    assert np.allclose(grad[ok], np.hypot(0.3, 0.1), atol=1e-5)
+    assert grad[11, 3] == pytest.approx(0.3)  # the y component is 0 there
+    assert np.all(grad[~observed] == 0.0)
+    # An observed cell with no observed neighbour has gradient 0.
+    lone = np.zeros(grid.shape, bool)
+    lone[5, 5] = True
+    assert height_gradient(h, lone, 0.4)[5, 5] == 0.0
+
+
+def tree_scene(rng, trunk_xy, crown_radius: float | None):
+    """Jittered flat-ground points plus a 0.1 m-radius, 4 m trunk (and an optional crown)."""
+    gx, gy = np.meshgrid(np.arange(0.05, 16, 0.1), np.arange(0.05, 16, 0.1))
+    ground = np.column_stack([gx.ravel(), gy.ravel(), rng.normal(0, 0.01, gx.size)])
+    tz = rng.uniform(0, 4, 2000)
+    ta = rng.uniform(0, 2 * np.pi, 2000)
+    trunk = np.column_stack([trunk_xy[0] + 0.1 * np.cos(ta), trunk_xy[1] + 0.1 * np.sin(ta), tz])
+    parts = [ground, trunk]
+    if crown_radius is not None:  # upper hemisphere of a crown centred 4 m up
+        v = rng.normal(size=(6000, 3))
+        v[:, 2] = np.abs(v[:, 2])
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        parts.append(np.array([trunk_xy[0], trunk_xy[1], 4.0]) + crown_radius * v)
+        # drop ground the crown hides from above
+        d = np.hypot(ground[:, 0] - trunk_xy[0], ground[:, 1] - trunk_xy[1])
+        parts[0] = ground[d > crown_radius]
+    pts = np.concatenate(parts)
+    return pts, np.full_like(pts, 0.4)
+
+
+@pytest.mark.parametrize("crown_radius", [None, 1.5])
+def test_tree_is_enclosed_by_high_gradient(crown_radius):
+    rng = np.random.default_rng(7)
+    grid = GridSpec((0.0, 0.0), 0.4, (40, 40))
+    trunk_xy = (8.2, 7.8)  # centre of cell (19, 20)
+    pts, cols = tree_scene(rng, trunk_xy, crown_radius)
+    acc = BEVAccumulator(grid)
+    acc.add_points(pts, cols)
+    bev = acc.result()
+    r, c = grid.xy_to_cell(*trunk_xy)
+    assert bev.mean_height[r, c] > 1.0 and bev.height_std[r, c] > 0.5
+    tau = 1.0  # a plausible occupancy threshold τ_s [m/m]
+    if crown_radius is None:
+        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):  # a one-cell spike: its 4 neighbours
+            assert bev.gradient[r + dr, c + dc] > 2.0
+    # Flat ground far from the tree is free ...
+    x, y = grid.cell_centers()
+    far = np.hypot(x - trunk_xy[0], y - trunk_xy[1]) > 3.0
+    assert np.all(bev.gradient[far] < 0.2)
+    # ... and no 4-connected free path leads from it to the trunk.
+    labels, _ = ndimage.label(bev.gradient <= tau)
+    assert labels[0, 0] != 0 and labels[r, c] != labels[0, 0]
+
+
+def test_save_load_roundtrip(tmp_path):
+    rng = np.random.default_rng(1)
+    grid = GridSpec((-3.0, 5.0), 0.4, (7, 9))
+    acc = BEVAccumulator(grid)
+    pts = np.column_stack([rng.uniform(-3, 0.6, 300), rng.uniform(5, 7.8, 300),
+                           rng.normal(size=300)])
+    acc.add_points(pts, rng.uniform(size=(300, 3)))
+    bev = acc.result()
+    path = tmp_path / "bev.npz"
+    artifacts.save(path, bev.to_arrays())
+    back = BEVMap.from_arrays(artifacts.load(path))
+    assert back.grid == grid
+    assert np.array_equal(back.channels, bev.channels)
+    assert np.array_equal(back.observed, bev.observed)
+    assert np.array_equal(back.counts, bev.counts)
+    with pytest.raises(ValueError, match="missing"):
+        BEVMap.from_arrays({"channels": bev.channels})
+
+
+def test_bev_grid_covers_an_extent():
+    grid = bev_grid((-10.0, 30.0, 5.0, 25.2))
+    assert grid.origin_xy == (-10.0, 5.0) and grid.resolution == 0.4
+    assert grid.shape == (51, 100)  # 20.2 m → 51 rows (covers y_max), 40 m → 100 columns
+    assert grid.contains(29.99, 25.19) and not grid.contains(30.01, 5.0)
+    with pytest.raises(ValueError):
+        bev_grid((0.0, 0.0, 0.0, 1.0))
+
+
+def test_bevmap_rejects_mismatched_shapes():
+    grid = GridSpec((0.0, 0.0), 0.4, (4, 5))
+    with pytest.raises(ValueError):
+        BEVMap(grid, np.zeros((6, 5, 4), np.float32), np.zeros((4, 5), bool),
+               np.zeros((4, 5), np.int64))
+    with pytest.raises(ValueError):
+        BEVAccumulator(grid).add_points(np.zeros((3, 2)), np.zeros((3, 2)))
+
+
+def test_gradient_channel_is_consistent_with_height_channel():
+    rng = np.random.default_rng(5)
+    grid = GridSpec((0.0, 0.0), 0.4, (20, 20))
+    pts = np.column_stack([rng.uniform(0, 8, 20000), rng.uniform(0, 8, 20000),
+                           rng.normal(size=20000)])
+    acc = BEVAccumulator(grid)
+    acc.add_points(pts, np.zeros_like(pts))
+    bev = acc.result()
+    assert np.array_equal(bev.channels[GRADIENT],
+                          height_gradient(bev.channels[HEIGHT], bev.observed, 0.4))
+    assert np.all(bev.channels[HEIGHT_STD][bev.observed] > 0)
+
+
+def test_bev_from_simulator_frames_matches_the_terrain():
+    """Integration with dgt_lib.sim: a survey of a hilly world by the RGB-D camera."""
+    from dgt_lib.sim import Simulator
+    from dgt_lib.worlds import from_heightmap
+
+    rng = np.random.default_rng(0)
+    heights = ndimage.gaussian_filter(rng.normal(size=(100, 100)), 8) * 40  # ~8 m relief
+    tree_xy = (25.0, 12.0)
+    world = from_heightmap(heights - heights.min(), 0.4, trees=[(*tree_xy, 0.3, 5.0)])
+    sim = Simulator(world, "jeep")
+    try:
+        state = sim.reset(10.0, 30.0, 0.3)
+        onboard = sim.render_rgbd()
+        acc = BEVAccumulator(world.grid)
+        top = float(world.heights.max()) + 12.0
+        for x, y in ((10, 10), (30, 10), (10, 30), (30, 30)):  # nadir views
+            acc.add_frame(sim.render_rgbd((np.array([x, y, top]), np.eye(3))))
+        for x, y in ((0, 0), (40, 0), (40, 40), (0, 40)):  # oblique views toward the centre
+            rot = look_rotation(np.arctan2(20 - y, 20 - x), np.deg2rad(40))
+            acc.add_frame(sim.render_rgbd((np.array([x, y, top]), rot)))
+    finally:
+        sim.close()
+    bev = acc.result()
+
+    # The onboard frame sees the ground ahead of the vehicle, where the terrain is.
+    pts, _ = onboard.points_world()
+    assert len(pts) > 1000
+    ahead = ((pts[:, 0] - state.position[0]) * np.cos(state.yaw)
+             + (pts[:, 1] - state.position[1]) * np.sin(state.yaw))
+    assert np.mean(ahead > 0) > 0.95
+    assert np.median(np.abs(pts[:, 2] - world.height_at(pts[:, 0], pts[:, 1]))) < 0.1
+
+    # Acceptance criterion of the global map: coverage ≥ 95 %, median |H̄ − h| ≤ 0.1 m.
+    x, y = world.grid.cell_centers()
+    x0, x1, y0, y1 = world.interior
+    interior = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+    assert bev.observed[interior].mean() >= 0.95
+    err = np.abs(bev.mean_height - world.heights)[bev.observed]
+    assert np.median(err) <= 0.1
+    # ‖∇H̄‖ follows the terrain slope away from the tree, and the tree stands out.
+    gx, gy = world.gradient()
+    dist = np.hypot(x - tree_xy[0], y - tree_xy[1])
+    away = bev.observed & (dist > 4.0)
+    assert np.median(np.abs(bev.gradient - np.hypot(gx, gy))[away]) < 0.05
+    assert bev.gradient[dist < 2.0].max() > 2.0
