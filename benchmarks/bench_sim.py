@@ -1,0 +1,93 @@
+"""Simulator speed: physics real-time factor per vehicle and RGB-D frames/s.
+
+Run: ``.venv/bin/python benchmarks/bench_sim.py [--profile demo] [--seconds 60]``.
+
+Real-time factor = simulated seconds / wall seconds while driving the training
+world at 5 m/s with the PID speed controller at 25 Hz (the data-collection
+controller), 20 s episodes from random poses, ended early like collection runs
+(immobilized > 10 s, flipped, off the map). RGB-D frames/s at the onboard
+camera's resolution (``sim.CAMERA``), RGB and depth each rendered, on the
+training, hill and ridge worlds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+
+from dgt_lib.config import VEHICLES, get_profile  # noqa: E402
+from dgt_lib.sim import CAMERA, CONTROL_DT_S, Simulator  # noqa: E402
+from dgt_lib.worlds import get_world  # noqa: E402
+
+
+def physics_rtf(world, vehicle: str, sim_seconds: float) -> tuple[float, float, float]:
+    """(real-time factor per wall second, per CPU second, model build seconds) for
+    driving ``sim_seconds`` at 5 m/s."""
+    t0 = time.perf_counter()
+    sim = Simulator(world, vehicle)
+    build_s = time.perf_counter() - t0
+    rng = np.random.default_rng(0)
+    x0, x1, y0, y1 = world.extent
+    simulated, wall, cpu = 0.0, 0.0, 0.0
+    while simulated < sim_seconds:
+        sim.reset(rng.uniform(x0 + 15, x1 - 15), rng.uniform(y0 + 15, y1 - 15),
+                  rng.uniform(0, 2 * np.pi))
+        t, c = time.perf_counter(), time.process_time()
+        for _ in range(int(20.0 / CONTROL_DT_S)):  # 20 s episodes, ended early if done
+            st = sim.step(speed_cmd_mps=5.0, steer=0.2 * np.sin(0.2 * sim.time_s))
+            if st.done or st.immobilized_s > 10.0:  # collection respawns (paper: 10 s)
+                break
+        wall += time.perf_counter() - t
+        cpu += time.process_time() - c
+        simulated += st.time_s
+    return simulated / wall, simulated / cpu, build_s
+
+
+def render_fps(world, frames: int = 30) -> tuple[float, float]:
+    """RGB-D frames per wall second and per CPU second (plus one 25 Hz control step
+    between frames)."""
+    sim = Simulator(world, "jeep")
+    x0, x1, y0, y1 = world.extent
+    sim.reset((x0 + x1) / 2, (y0 + y1) / 2, 0.5)
+    sim.render_rgbd()  # warm-up: creates the GL context and uploads the textures
+    t, c = time.perf_counter(), time.process_time()
+    for _ in range(frames):
+        sim.step(speed_cmd_mps=5.0)
+        sim.render_rgbd()
+    fps = frames / (time.perf_counter() - t), frames / (time.process_time() - c)
+    sim.close()
+    return fps
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default=None, help="smoke | demo | paper (default $DGT_PROFILE)")
+    ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds per vehicle")
+    args = ap.parse_args()
+    profile = get_profile(args.profile)
+    world = get_world("training", profile)
+    print(f"profile {profile.name}: training world {world.grid.shape[1]}×{world.grid.shape[0]} "
+          f"cells at {world.resolution} m, {len(world.trees)} trees")
+    print(f"physics, control at {1 / CONTROL_DT_S:.0f} Hz (PID speed controller):")
+    print("  (per wall second; per CPU second in brackets — the same on an idle machine)")
+    for name in VEHICLES:
+        rtf, rtf_cpu, build_s = physics_rtf(world, name, args.seconds)
+        print(f"  {name:13s} {rtf:5.0f}× real time ({rtf_cpu:4.0f}×)   "
+              f"model build {build_s:.2f} s")
+    print(f"RGB-D frames/s at {CAMERA.width}×{CAMERA.height} (RGB + depth), while driving:")
+    for name in ("training", "hill", "ridge"):
+        w = get_world(name, profile)
+        fps, fps_cpu = render_fps(w)
+        print(f"  {name:9s} ({w.grid.shape[1]}×{w.grid.shape[0]} cells) {fps:5.1f} fps "
+              f"({fps_cpu:5.1f})")
+    print(f"load average: {', '.join(f'{x:.1f}' for x in os.getloadavg())} "
+          f"on {os.cpu_count()} CPUs")
+
+
+if __name__ == "__main__":
+    main()
