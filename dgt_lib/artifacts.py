@@ -185,6 +185,16 @@ def ensure(
     return value
 
 
+def stored_digest(relpath: str | Path, *, profile: str) -> str:
+    """The SHA-256 recorded when ``data/<profile>/<relpath>`` was written: a cheap
+    fingerprint of an artifact for the configuration of the stages built on it."""
+    meta_path = _meta_path(profile_dir(profile) / Path(relpath))
+    try:
+        return json.loads(meta_path.read_text())["sha256"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise FileNotFoundError(f"no valid artifact at {meta_path.with_suffix('')}: {exc}") from exc
+
+
 def is_fresh(relpath: str | Path, config: Any, *, profile: str) -> bool:
     """Whether :func:`ensure` would load (not build) this artifact."""
     return _check(profile_dir(profile) / Path(relpath), config_hash(config)) is None
