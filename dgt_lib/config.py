@@ -166,6 +166,7 @@ def _smoke() -> Profile:
         train=TrainConfig(epochs=2, batch_size=64, width=8, fc_hidden=64),
         experiments=ExperimentsConfig(n_hill=2, n_ridge=2, n_eval_jeep=2, n_eval_vw_van=2,
                                       mppi_batch_size=256),
+        costmap=CostmapConfig(stride=(6, 3), slope_trials=60),
         # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)
         planner=PlannerConfig(heuristic_weight=1.5, max_time_s=10.0),
     )

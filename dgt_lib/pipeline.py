@@ -37,7 +37,20 @@ class Stage:
         return getattr(importlib.import_module(module), func)
 
 
-STAGES: list[Stage] = []
+STAGES: list[Stage] = [
+    Stage("collect", "dgt_lib.collect:stage_collect",
+          "drive every vehicle on the training world (episodes, sparse RGB-D)"),
+    Stage("bev", "dgt_lib.collect:stage_bev",
+          "global BEV maps of the training, hill, ridge and eval worlds"),
+    Stage("dataset", "dgt_lib.dataset:stage_dataset",
+          "heading-aligned patches + locomotion labels, split by trajectory"),
+    Stage("train", "dgt_lib.train:stage_train",
+          "multi-task model and one single-task model per vehicle"),
+    Stage("costmaps", "dgt_lib.inference:stage_costmaps",
+          "directional costmaps of every method, occupancy maps (τ_s)"),
+    Stage("experiments", "dgt_lib.experiments:stage_experiments",
+          "Experiments 1–3 in closed loop: tables, figures, rerun recordings"),
+]
 
 
 class UnknownStageError(ValueError):
