@@ -104,6 +104,18 @@ class BEVMap:
         """(H, W) ‖∇H̄‖ [m/m]."""
         return self.channels[GRADIENT]
 
+    def crop(self, rows: slice, cols: slice) -> BEVMap:
+        """The sub-map of cells ``[rows, cols]`` (unit-step slices), with its own grid."""
+        r0, r1, rs = rows.indices(self.grid.height)
+        c0, c1, cs = cols.indices(self.grid.width)
+        if rs != 1 or cs != 1 or r1 <= r0 or c1 <= c0:
+            raise ValueError(f"crop needs non-empty unit-step slices, got {rows}, {cols}")
+        x0, y0 = self.grid.origin_xy
+        res = self.grid.resolution
+        grid = GridSpec((x0 + c0 * res, y0 + r0 * res), res, (r1 - r0, c1 - c0))
+        return BEVMap(grid, self.channels[:, r0:r1, c0:c1].copy(),
+                      self.observed[r0:r1, c0:c1].copy(), self.counts[r0:r1, c0:c1].copy())
+
     def to_arrays(self) -> dict[str, np.ndarray]:
         """A dict of arrays for an ``.npz`` artifact (:func:`dgt_lib.artifacts.save`)."""
         return {

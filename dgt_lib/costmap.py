@@ -108,6 +108,23 @@ def _predict_windows(windows: np.ndarray, a: np.ndarray, b: np.ndarray, predict:
 def _heading_layer(bev: BEVMap, theta: float, predict: Predictor, stride: tuple[int, int],
                    skip_unobserved: bool, batch_size: int) -> np.ndarray:
     """Locomotion (V, H, W) for one heading, by rotate → slide → average → rotate back."""
+    return explain_heading_layer(bev, theta, predict, stride=stride,
+                                 skip_unobserved=skip_unobserved, batch_size=batch_size)["world"]
+
+
+def explain_heading_layer(bev: BEVMap, theta: float, predict: Predictor, *,
+                          stride: tuple[int, int] = (1, 1), skip_unobserved: bool = False,
+                          batch_size: int = 2048) -> dict[str, np.ndarray]:
+    """One heading of the costmap procedure, with every intermediate (for teaching).
+
+    Returns a dict: ``rotated`` (6, D, D) the BEV rotated so θ points up;
+    ``evaluated`` (n_a, n_b) bool, the windows the network saw (indexed by their
+    top-left pixel); ``field`` (V, n_a, n_b) the prediction of each window (after
+    interpolation from the lattice when ``stride`` > 1); ``averaged`` (V, D, D)
+    the mean over all windows covering each rotated pixel (NaN where none does);
+    ``world`` (V, H, W) locomotion L rotated back onto the BEV grid; and
+    ``transform``, the :class:`~dgt_lib.patches.RotationTransform`.
+    """
     rotated = rotate_map(bev, theta)
     windows = sliding_windows(rotated.channels)  # (6, n_a, n_b, 22, 7) view
     n_a, n_b = windows.shape[1:3]
@@ -128,8 +145,9 @@ def _heading_layer(bev: BEVMap, theta: float, predict: Predictor, stride: tuple[
     else:
         field, valid = _interpolate_lattice(pred_points, a, b, stride, (n_a, n_b), on_map)
     averaged = _average_over_covering_windows(field, valid)  # (V, D, D)
-    back = unrotate_map(np.nan_to_num(averaged, nan=0.0), rotated.transform)
-    return back
+    world = unrotate_map(np.nan_to_num(averaged, nan=0.0), rotated.transform)
+    return {"rotated": rotated.channels, "evaluated": evaluate, "field": field,
+            "averaged": averaged, "world": world, "transform": rotated.transform}
 
 
 def _interpolate_lattice(values: np.ndarray, a: np.ndarray, b: np.ndarray,

@@ -64,11 +64,15 @@ def _check(method: str, vehicle: str) -> None:
 
 
 # ----------------------------------------------------------------------------- models
-def _model(profile: Profile, kind: str, dataset: PatchDataset | None, progress: bool):
+def load_model(profile: Profile | str | None, kind: str = "multitask", *,
+               dataset: PatchDataset | None = None, progress: bool = True):
+    """The trained ``DGTNet`` of ``kind`` ("multitask" or "single:<vehicle>"), trained first
+    (with the dataset, collected first) if the cache does not have it."""
     from .train import ensure_model
 
-    dataset = dataset if dataset is not None else ensure_dataset(profile, progress=progress)
-    return ensure_model(profile, dataset, kind, progress=progress).model
+    prof = _profile(profile)
+    dataset = dataset if dataset is not None else ensure_dataset(prof, progress=progress)
+    return ensure_model(prof, dataset, kind, progress=progress).model
 
 
 def _model_fingerprint(profile: Profile, kind: str) -> str:
@@ -203,7 +207,7 @@ def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = No
     maps: dict[tuple[str, str], np.ndarray] = {}
 
     if {"dgt", "isotropic"} & set(methods):
-        model = _model(prof, "multitask", ds, progress)
+        model = load_model(prof, "multitask", dataset=ds, progress=progress)
         config = _costmap_config(prof, world_name, "dgt", _model_fingerprint(prof, "multitask"))
 
         def build_dgt() -> dict[str, np.ndarray]:
@@ -223,7 +227,7 @@ def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = No
     if "single-task" in methods:
         for v in vehicles:
             kind = f"single:{v}"
-            model = _model(prof, kind, ds, progress)
+            model = load_model(prof, kind, dataset=ds, progress=progress)
             config = _costmap_config(prof, world_name, kind, _model_fingerprint(prof, kind))
 
             def build_st(model=model) -> dict[str, np.ndarray]:

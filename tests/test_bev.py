@@ -297,3 +297,18 @@ def test_bev_from_simulator_frames_matches_the_terrain():
     away = bev.observed & (dist > 4.0)
     assert np.median(np.abs(bev.gradient - np.hypot(gx, gy))[away]) < 0.05
     assert bev.gradient[dist < 2.0].max() > 2.0
+
+
+def test_crop_keeps_cells_and_world_coordinates():
+    from dgt_lib.bev import BEVMap
+    from dgt_lib.geometry import GridSpec
+
+    grid = GridSpec((10.0, -4.0), 0.4, (20, 30))
+    ch = np.random.default_rng(0).random((6, 20, 30)).astype(np.float32)
+    bev = BEVMap(grid, ch, np.ones((20, 30), bool), np.ones((20, 30), np.int64))
+    sub = bev.crop(slice(5, 15), slice(10, 30))
+    assert sub.grid.shape == (10, 20)
+    np.testing.assert_array_equal(sub.channels, ch[:, 5:15, 10:30])
+    np.testing.assert_allclose(sub.grid.cell_to_xy(0, 0), bev.grid.cell_to_xy(5, 10))
+    with pytest.raises(ValueError):
+        bev.crop(slice(5, 5), slice(0, 3))
