@@ -2,6 +2,8 @@
 
     dgt reproduce [--profile P] [--stages a b …]   run the cached pipeline stages
     dgt stages                                     list the stages
+    dgt plan --world W --vehicle V --start x,y,yaw --goal x,y [--method M] [--drive]
+                                                   plan (and drive) one query
 """
 
 from __future__ import annotations
@@ -48,6 +50,51 @@ def _stages(_: argparse.Namespace) -> int:
     return 0
 
 
+def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != n:
+        names = "x,y,yaw" if n == 3 else "x,y"
+        raise argparse.ArgumentTypeError(f"{what} must be {names} in metres (yaw in radians), "
+                                         f"got {text!r}")
+    return values
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from .config import VEHICLES
+    from .planner import InvalidQueryError
+    from .query import plan_query
+    from .train import model_relpath
+
+    profile = get_profile(args.profile)
+    if args.vehicle not in VEHICLES:
+        print(f"dgt: error: unknown vehicle {args.vehicle!r}; valid vehicles: "
+              f"{', '.join(VEHICLES)}", file=sys.stderr)
+        return 2
+    kind = "multitask" if args.method in ("dgt", "isotropic") else f"single:{args.vehicle}"
+    if args.method in ("dgt", "isotropic", "single-task") and not (
+            profile_dir(profile.name) / model_relpath(kind)).exists():
+        print(f"No trained {kind} model for profile {profile.name!r} yet: collecting data and "
+              f"training it first ({TRAINING_TIME.get(profile.name, 'a while')} on a 2-core "
+              "laptop; later queries reuse it).")
+    try:
+        report = plan_query(args.world, args.vehicle, args.start, args.goal,
+                            method=args.method, profile=profile, drive=args.drive,
+                            resolution_m=args.resolution, vertical_scale_m=args.vertical_scale)
+    except (InvalidQueryError, FileNotFoundError, ValueError) as exc:
+        print(f"dgt plan: error: {exc}", file=sys.stderr)
+        return 2
+    print(report.summary())
+    return 0 if report.plan.success else 1
+
+
+TRAINING_TIME = {"smoke": "about a minute", "demo": "about half an hour",
+                 "paper": "a few hours"}
+"""What ``dgt plan`` says when it must build the data and models first (measured, README)."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dgt", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -59,6 +106,23 @@ def build_parser() -> argparse.ArgumentParser:
     rep.set_defaults(func=_reproduce)
     st = sub.add_parser("stages", help="list the pipeline stages")
     st.set_defaults(func=_stages)
+    pl = sub.add_parser("plan", help="plan (and drive) one query on a world or your terrain")
+    pl.add_argument("--world", required=True,
+                    help="hill, ridge, eval, training, or a .npy / 16-bit .png heightmap")
+    pl.add_argument("--vehicle", required=True, help="jeep, vw_van, mercedes_van, carla_cola")
+    pl.add_argument("--start", required=True, type=lambda t: _floats(t, 3, "--start"),
+                    help="x,y,yaw [m, m, rad]")
+    pl.add_argument("--goal", required=True, type=lambda t: _floats(t, 2, "--goal"),
+                    help="x,y [m]")
+    pl.add_argument("--method", default="dgt",
+                    choices=("dgt", "isotropic", "single-task", "slope", "binary"))
+    pl.add_argument("--drive", action="store_true", help="drive the path in MuJoCo")
+    pl.add_argument("--profile", choices=PROFILE_NAMES, default=None)
+    pl.add_argument("--resolution", type=float, default=0.4,
+                    help="heightmap file: metres per pixel (default 0.4)")
+    pl.add_argument("--vertical-scale", type=float, default=None,
+                    help="PNG heightmap: metres at the brightest pixel")
+    pl.set_defaults(func=_plan)
     return parser
 
 

@@ -20,6 +20,7 @@ for isotropic and binary); layer k is heading θ_k = 2πk/K.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -39,7 +40,7 @@ from .costmap import directional_costmap, occupancy_map, select_tau_s
 from .dataset import PatchDataset, ensure_dataset
 from .geometry import GridSpec
 from .pipeline import StageOutput
-from .worlds import get_world, polyline_distance
+from .worlds import WORLD_NAMES, World, get_world, polyline_distance
 
 METHODS: tuple[str, ...] = ("dgt", "isotropic", "single-task", "slope", "binary")
 """The compared methods, in the order of the paper's Table I."""
@@ -54,6 +55,36 @@ TAU_S_ROUTE_CORE_M = 1.5
 
 def _profile(profile: Profile | str | None) -> Profile:
     return profile if isinstance(profile, Profile) else get_profile(profile)
+
+
+def world_bev(world: World | str, profile: Profile | str | None = None, *,
+              progress: bool = True) -> tuple[BEVMap, str]:
+    """The BEV map of a world and its artifact path under ``data/<profile>/``.
+
+    A name of the kit's worlds goes through :func:`dgt_lib.collect.ensure_bev`; any other
+    :class:`World` (your own terrain, ``worlds.from_heightmap``) is surveyed the same way
+    and cached as ``bev/custom/<name>_<hash>.npz`` keyed by its heights, colours and trees.
+    """
+    prof = _profile(profile)
+    if isinstance(world, str) or (world.name in WORLD_NAMES
+                                  and world is get_world(world.name, prof)):
+        name = world if isinstance(world, str) else world.name
+        return ensure_bev(name, prof, progress=progress), bev_relpath(name)
+    from .collect import build_bev
+
+    config = {"stage": "bev", "heights": world.heights, "colors": world.colors,
+              "trees": world.trees, "grid": world.grid, "collect": prof.collect}
+    relpath = f"bev/custom/{world.name}_{artifacts.config_hash(config)[:10]}.npz"
+    arrays = artifacts.ensure(relpath, config,
+                              lambda: build_bev(world, prof.collect, progress=progress)[0]
+                              .to_arrays(), profile=prof.name)
+    return BEVMap.from_arrays(arrays), relpath
+
+
+def _world_key(world: World | str, bev_path: str) -> str:
+    """Folder name of a world's costmaps: its name, plus the BEV hash for custom worlds."""
+    name = world if isinstance(world, str) else world.name
+    return Path(bev_path).stem if bev_path.startswith("bev/custom/") else name
 
 
 def _check(method: str, vehicle: str) -> None:
@@ -145,11 +176,11 @@ def ensure_tau_s(profile: Profile | str | None = None) -> float:
                                   profile=prof.name)["tau_s"])
 
 
-def world_occupancy(world_name: str, profile: Profile | str | None = None
+def world_occupancy(world: World | str, profile: Profile | str | None = None
                     ) -> tuple[np.ndarray, GridSpec]:
     """The occupancy map (H, W) uint8 of a world's BEV with the profile's τ_s, and its grid."""
     prof = _profile(profile)
-    bev = ensure_bev(world_name, prof)
+    bev, _ = world_bev(world, prof)
     return occupancy_map(bev, ensure_tau_s(prof)), bev.grid
 
 
@@ -176,28 +207,31 @@ class WorldMaps:
         return self.costmaps[(method, vehicle)]
 
 
-def _costmap_config(prof: Profile, world_name: str, method: str, source: str) -> dict:
-    return {"stage": "costmap", "world": world_name, "method": method, "source": source,
-            "bev": artifacts.stored_digest(bev_relpath(world_name), profile=prof.name),
+def _costmap_config(prof: Profile, bev_path: str, method: str, source: str) -> dict:
+    return {"stage": "costmap", "bev_path": bev_path, "method": method, "source": source,
+            "bev": artifacts.stored_digest(bev_path, profile=prof.name),
             "costmap": prof.costmap}
 
 
-def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = None,
+def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None = None,
                           profile: Profile | str | None = None, *,
                           methods: tuple[str, ...] = METHODS,
                           progress: bool = True) -> WorldMaps:
-    """The costmaps of ``methods`` for ``vehicles`` (default: the experiment's) on a world.
+    """The costmaps of ``methods`` for ``vehicles`` (default: the experiment's) on a world
+    (a name of the kit's worlds, or any :class:`World`, e.g. your own terrain).
 
     Cached under ``costmaps/<world>/``: the multi-task (``dgt``) and slope maps of
     all four vehicles in one file each (one backbone pass serves every head), one
     file per single-task model. Isotropic and binary are derived on the fly.
     """
     prof = _profile(profile)
+    world_name = world if isinstance(world, str) else world.name
     vehicles = tuple(vehicles or EXPERIMENT_VEHICLES.get(world_name, VEHICLES))
     for m in methods:
         for v in vehicles:
             _check(m, v)
-    bev = ensure_bev(world_name, prof, progress=progress)
+    bev, bev_path = world_bev(world, prof, progress=progress)
+    key = _world_key(world, bev_path)
     ds = None
     if {"dgt", "isotropic", "single-task", "slope"} & set(methods):
         ds = ensure_dataset(prof, progress=progress)
@@ -208,7 +242,7 @@ def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = No
 
     if {"dgt", "isotropic"} & set(methods):
         model = load_model(prof, "multitask", dataset=ds, progress=progress)
-        config = _costmap_config(prof, world_name, "dgt", _model_fingerprint(prof, "multitask"))
+        config = _costmap_config(prof, bev_path, "dgt", _model_fingerprint(prof, "multitask"))
 
         def build_dgt() -> dict[str, np.ndarray]:
             from .train import predict
@@ -217,7 +251,7 @@ def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = No
                                        k, **kwargs)
             return {name: cost[model.head_index(name)] for name in model.vehicles}
 
-        dgt = artifacts.ensure(f"costmaps/{world_name}/dgt.npz", config, build_dgt,
+        dgt = artifacts.ensure(f"costmaps/{key}/dgt.npz", config, build_dgt,
                                profile=prof.name)
         for v in vehicles:
             if "dgt" in methods:
@@ -228,7 +262,7 @@ def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = No
         for v in vehicles:
             kind = f"single:{v}"
             model = load_model(prof, kind, dataset=ds, progress=progress)
-            config = _costmap_config(prof, world_name, kind, _model_fingerprint(prof, kind))
+            config = _costmap_config(prof, bev_path, kind, _model_fingerprint(prof, kind))
 
             def build_st(model=model) -> dict[str, np.ndarray]:
                 from .train import predict
@@ -238,11 +272,11 @@ def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = No
                 return {"cost": cost[0]}
 
             maps[("single-task", v)] = artifacts.ensure(
-                f"costmaps/{world_name}/single_{v}.npz", config, build_st,
+                f"costmaps/{key}/single_{v}.npz", config, build_st,
                 profile=prof.name)["cost"]
     if "slope" in methods:
         slope_models = ensure_slope_models(prof, dataset=ds, progress=progress)
-        config = _costmap_config(prof, world_name, "slope",
+        config = _costmap_config(prof, bev_path, "slope",
                                  artifacts.stored_digest("baselines/slope_models.json",
                                                          profile=prof.name))
 
@@ -250,7 +284,7 @@ def ensure_world_costmaps(world_name: str, vehicles: tuple[str, ...] | None = No
             cost = slope_costmap(bev, [slope_models[v] for v in VEHICLES], k, **kwargs)
             return {name: cost[i] for i, name in enumerate(VEHICLES)}
 
-        slope = artifacts.ensure(f"costmaps/{world_name}/slope.npz", config, build_slope,
+        slope = artifacts.ensure(f"costmaps/{key}/slope.npz", config, build_slope,
                                  profile=prof.name)
         for v in vehicles:
             maps[("slope", v)] = slope[v]

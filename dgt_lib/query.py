@@ -1,0 +1,191 @@
+"""One planning query on any world: the engine of ``dgt plan``.
+
+Maps the world (cached), builds the method's costmap with the profile's trained
+model (training first if needed), plans with Hybrid A*, summarises the path —
+length, cost, time, and where it passes high cost — saves a figure and a rerun
+recording, and optionally drives the path in MuJoCo::
+
+    report = plan_query("hill", "carla_cola", (30, 14, 0.8), (30, 96), method="dgt")
+    print(report.summary())
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import artifacts
+from .config import Profile, get_profile
+from .geometry import nearest_heading_bin
+from .inference import METHOD_LABELS, METHODS, ensure_world_costmaps
+from .outcomes import TrialOutcome
+from .planner import HybridAStar, PlanResult
+from .vehicles import get_vehicle
+from .worlds import WORLD_NAMES, World, get_world, load_heightmap
+
+HIGH_COST = 0.5
+"""Path cells with a directional cost C above this are listed in the summary."""
+
+
+def resolve_world(world: str | World, profile: Profile, *, resolution_m: float = 0.4,
+                  vertical_scale_m: float | None = None) -> World:
+    """A :class:`World` from a kit world's name, a ``.npy``/``.png`` heightmap file, or a World."""
+    if isinstance(world, World):
+        return world
+    if world in WORLD_NAMES:
+        return get_world(world, profile)
+    path = Path(world)
+    if not path.exists():
+        raise FileNotFoundError(f"{world!r} is neither a world ({', '.join(WORLD_NAMES)}) "
+                                "nor an existing .npy/.png heightmap file")
+    return load_heightmap(path, resolution_m, vertical_scale_m=vertical_scale_m)
+
+
+@dataclass
+class QueryReport:
+    """What one query produced: the plan, where it passes high cost, figure, recording,
+    and the closed-loop outcome when driven."""
+
+    world: str
+    vehicle: str
+    method: str
+    start: tuple[float, float, float]
+    goal: tuple[float, float]
+    plan: PlanResult
+    high_cost: list[tuple[float, float, float, float]] = field(default_factory=list)
+    """Stretches of the path above :data:`HIGH_COST`: (x, y, θ_k [deg], max C) at their start."""
+    figure: Path | None = None
+    recording: Path | None = None
+    outcome: TrialOutcome | None = None
+
+    def summary(self) -> str:
+        p = self.plan
+        lines = [f"{METHOD_LABELS[self.method]} plan for {self.vehicle} on {self.world}: "
+                 f"{self.start} → {self.goal}"]
+        if p.success:
+            lines.append(f"  found: length {p.length_m:.1f} m, cost {p.cost:.1f}, "
+                         f"{p.expansions} expansions, {p.time_s:.2f} s")
+            if self.high_cost:
+                lines.append(f"  passes high cost (C > {HIGH_COST}) in {len(self.high_cost)} "
+                             "stretch(es), starting at:")
+                for x, y, th, c in self.high_cost[:8]:
+                    lines.append(f"    ({x:.1f}, {y:.1f}) m heading {th:.0f}°: max C = {c:.2f}")
+            else:
+                lines.append(f"  no cell on the path costs more than {HIGH_COST}")
+        else:
+            lines.append(f"  not found: {p.reason} ({p.expansions} expansions, {p.time_s:.2f} s)")
+        if self.outcome is not None:
+            o = self.outcome
+            lines.append(f"  drive: {'success' if o.success else 'failure'} ({o.reason}) after "
+                         f"{o.duration_s:.1f} s, {o.goal_distance_m:.1f} m from the goal")
+        for label, path in (("figure", self.figure), ("rerun", self.recording)):
+            if path is not None:
+                lines.append(f"  {label}: {path}")
+        return "\n".join(lines)
+
+
+def _high_cost_cells(path: np.ndarray, cost: np.ndarray, grid) -> list:
+    """Stretches of the path whose cost in the travel direction exceeds HIGH_COST:
+    (x, y) where each stretch starts, θ_k [deg] there, and the stretch's highest C."""
+    k_layers = cost.shape[0]
+    rows, cols = grid.xy_to_cell(path[:, 0], path[:, 1])
+    k = nearest_heading_bin(path[:, 2], k_layers) if k_layers > 1 else np.zeros(len(path), int)
+    c = cost[k, rows.clip(0, grid.height - 1), cols.clip(0, grid.width - 1)]
+    high = c > HIGH_COST
+    starts = np.flatnonzero(high & ~np.concatenate([[False], high[:-1]]))
+    ends = np.flatnonzero(high & ~np.concatenate([high[1:], [False]]))
+    return [(float(path[a, 0]), float(path[a, 1]), 360.0 * int(k[a]) / k_layers,
+             float(c[a : b + 1].max())) for a, b in zip(starts, ends, strict=True)]
+
+
+def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "dgt",
+               profile: Profile | str | None = None, drive: bool = False,
+               resolution_m: float = 0.4, vertical_scale_m: float | None = None,
+               out_dir: Path | None = None, progress: bool = True) -> QueryReport:
+    """Plan (and optionally drive) one query; see the module docstring.
+
+    start (x, y, yaw) [m, m, rad], goal (x, y) [m]. Raises
+    :class:`dgt_lib.planner.InvalidQueryError` when the start or goal is off the map
+    or in an obstacle (the message names which).
+    """
+    prof = profile if isinstance(profile, Profile) else get_profile(profile)
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+    spec = get_vehicle(vehicle)
+    w = resolve_world(world, prof, resolution_m=resolution_m, vertical_scale_m=vertical_scale_m)
+    maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
+    cost = maps.costmap(method, vehicle)
+    planner = HybridAStar(cost, maps.occupancy, maps.grid,
+                          min_turn_radius_m=spec.min_turn_radius_m,
+                          footprint=(spec.length_m, spec.width_m), cfg=prof.planner)
+    start = tuple(float(v) for v in start)
+    goal = tuple(float(v) for v in goal)[:2]
+    result = planner.plan(start, goal)
+    report = QueryReport(w.name, vehicle, method, start, goal, result)
+    if result.success:
+        report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
+    out_dir = Path(out_dir) if out_dir else artifacts.profile_dir(prof.name) / "plans"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = f"{w.name}_{vehicle}_{method}"
+    report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
+    if drive and result.success:
+        from .experiments import drive as drive_path
+
+        limit = prof.experiments.time_limit_base_s + (
+            prof.experiments.time_limit_factor * result.length_m / 5.0)
+        outcome, traj, speed = drive_path(w, vehicle, result.path, goal,
+                                          occupancy=maps.occupancy, grid=maps.grid,
+                                          time_limit_s=limit,
+                                          mppi_batch_size=prof.experiments.mppi_batch_size)
+        report.outcome = outcome
+    else:
+        traj = speed = None
+    report.recording = _recording(w, maps, cost, report, traj, speed, out_dir / f"{stem}.rrd")
+    return report
+
+
+def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(13, 6))
+    ax[0].imshow(world.heights, origin="lower", extent=world.grid.extent, cmap="terrain")
+    occ = np.ma.masked_equal(maps.occupancy, 0)
+    ax[0].imshow(occ, origin="lower", extent=maps.grid.extent, cmap="gray_r", vmin=0, vmax=2,
+                 alpha=0.6)
+    ax[0].set_title(f"{world.name}: terrain and occupancy")
+    k = int(nearest_heading_bin(report.start[2], cost.shape[0])) if cost.shape[0] > 1 else 0
+    im = ax[1].imshow(cost[k], origin="lower", extent=maps.grid.extent, cmap="magma", vmin=0,
+                      vmax=1)
+    ax[1].set_title(f"{METHOD_LABELS[report.method]} cost, layer k={k}")
+    plt.colorbar(im, ax=ax[1], shrink=0.8)
+    for a in ax:
+        if report.plan.success:
+            a.plot(report.plan.path[:, 0], report.plan.path[:, 1], "c-", lw=2)
+        a.plot(*report.start[:2], "go")
+        a.plot(*report.goal, "r*", ms=12)
+    fig.suptitle(report.summary().splitlines()[0])
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _recording(world, maps, cost, report, traj, speed, path: Path) -> Path:
+    from . import rr
+
+    with rr.Recording(path, f"plan_{world.name}") as rec:
+        rec.log_terrain(world.heights, world.colors, world.grid)
+        rec.log_occupancy(maps.occupancy)
+        rec.log_costmap(cost, report.vehicle, report.method)
+        if report.plan.success:
+            z = world.height_at(report.plan.path[:, 0], report.plan.path[:, 1]) + 0.5
+            rec.log_path(report.method, np.column_stack([report.plan.path[:, :2], z]))
+        if traj is not None and len(traj):
+            rec.log_trajectory(report.vehicle, traj[:, 0], traj[:, 1:4], {"speed_mps": speed})
+        rec.log_text("summary", "```\n" + report.summary() + "\n```")
+    return path

@@ -1,0 +1,72 @@
+"""Bring your own terrain: a custom world through survey → costmap → `dgt plan`."""
+
+import numpy as np
+import pytest
+
+from dgt_lib import artifacts
+from dgt_lib.baselines import SlopeModel, slope_costmap
+from dgt_lib.cli import main
+from dgt_lib.config import get_profile
+from dgt_lib.inference import world_bev
+from dgt_lib.worlds import from_heightmap
+
+RES = 0.4
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory):
+    path = tmp_path_factory.mktemp("data")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv(artifacts.DATA_ENV_VAR, str(path))
+        yield path
+
+
+def ramp_world() -> object:
+    """A 60 m × 40 m world: flat, then a 15° ramp rising toward +x, then a plateau."""
+    x = (np.arange(150) + 0.5) * RES
+    h = np.clip((x - 15.0) * np.tan(np.radians(15.0)), 0.0, 6.0)
+    return from_heightmap(np.tile(h, (100, 1)).astype(np.float32), RES, name="ramp")
+
+
+def test_custom_ramp_costs_more_uphill_than_downhill_for_carla_cola(data_dir):
+    world = ramp_world()
+    bev, path = world_bev(world, get_profile("smoke"), progress=False)
+    assert path.startswith("bev/custom/ramp_")
+    cola = SlopeModel(theta0=0.0, theta_min=-0.6, theta_max=0.2, p_u=1.0, p_d=2.0)
+    cost = slope_costmap(bev, [cola], 8, progress=False)[0]
+    r, c = bev.grid.xy_to_cell(np.full(5, 30.0), np.linspace(15, 25, 5))  # mid-ramp
+    uphill, downhill = cost[0][r, c].mean(), cost[4][r, c].mean()  # +x vs −x
+    assert uphill > 0.9 and downhill < 0.5
+
+
+def test_dgt_plan_on_a_tiny_custom_world_file(data_dir, tmp_path, capsys):
+    heights = np.zeros((80, 120), np.float32)
+    heights[30:50, 55:65] = 3.0  # a block to drive around
+    np.save(tmp_path / "tiny.npy", heights)
+    args = ["plan", "--world", str(tmp_path / "tiny.npy"), "--vehicle", "jeep",
+            "--start", "8,16,0", "--goal", "40,16", "--method", "binary", "--profile", "smoke"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "found: length" in out and "figure:" in out
+    assert list((data_dir / "smoke" / "plans").glob("*.png"))
+
+
+@pytest.mark.parametrize("start,message", [("500,16,0", "off the map"),
+                                           ("24,16,0", "in an obstacle")])
+def test_dgt_plan_bad_start_is_a_clear_error(data_dir, tmp_path, capsys, start, message):
+    heights = np.zeros((80, 120), np.float32)
+    heights[30:50, 55:65] = 3.0
+    np.save(tmp_path / "tiny.npy", heights)
+    assert main(["plan", "--world", str(tmp_path / "tiny.npy"), "--vehicle", "jeep",
+                 "--start", start, "--goal", "40,16", "--method", "binary",
+                 "--profile", "smoke"]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_dgt_plan_rejects_unknown_world_and_bad_numbers(data_dir, capsys):
+    assert main(["plan", "--world", "nowhere.npy", "--vehicle", "jeep", "--start", "1,2,0",
+                 "--goal", "3,4", "--profile", "smoke"]) == 2
+    assert "neither a world" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2",
+              "--goal", "3,4"])
