@@ -178,7 +178,7 @@ def _demo() -> Profile:
         name="demo",
         worlds=WorldsConfig(training_size_m=160.0, eval_size_m=120.0),
         collect=CollectConfig(episodes=(40, 40, 30, 20)),
-        # width 32: ~2.5× faster training and inference than 64 (benchmarks/bench_train.py).
+        # width 32: ~3× faster training and inference than 64 (benchmarks/bench_train.py).
         train=TrainConfig(epochs=15, batch_size=128, width=32, patience=5),
         experiments=ExperimentsConfig(n_hill=6, n_ridge=6, n_eval_jeep=10, n_eval_vw_van=10),
         # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)

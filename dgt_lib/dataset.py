@@ -10,11 +10,19 @@ trajectory has patches in two partitions.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .config import VEHICLES
+from .config import VEHICLES, CollectConfig, Profile
+from .pipeline import StageOutput
+
+if TYPE_CHECKING:  # heavy modules, imported where they are used
+    from .bev import BEVMap
+    from .collect import Episode
 
 TRAIN, VAL, TEST = 0, 1, 2
 SPLIT_NAMES = ("train", "val", "test")
@@ -113,3 +121,169 @@ def split_by_trajectory(
         idx = np.flatnonzero(vehicle == v)
         split[idx] = [lookup[t] for t in trajectory[idx].tolist()]
     return split
+
+
+# ----------------------------------------------------------------------------- building
+# Patches along every collection run, paired with the run's locomotion label
+# (paper: Self-Supervised Label Generation). The heavy imports (simulator, worlds)
+# happen inside the functions so that ``import dgt_lib.dataset`` stays light.
+
+
+def label_window(times_s: np.ndarray, at_s: np.ndarray, window_s: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end [s] of the label window of each query time: centred, shifted to
+    lie inside the run (the rule of :func:`dgt_lib.locomotion.locomotion_signal`)."""
+    t = np.asarray(times_s, dtype=np.float64)
+    span = min(window_s, t[-1] - t[0])
+    start = np.clip(np.asarray(at_s, dtype=np.float64) - 0.5 * span, t[0], t[-1] - span)
+    return start, start + span
+
+
+def patch_times(times_s: np.ndarray, valid: np.ndarray, interval_s: float, start_s: float,
+                window_s: float) -> np.ndarray:
+    """Times [s] at which to cut patches along one run.
+
+    Every ``interval_s`` from ``start_s`` (no patches while the vehicle accelerates
+    from rest) to the end of the run, except where the label window touches an
+    invalid sample (``valid`` False: a simulator glitch, paper: pre-filtering).
+    times_s: (T,) [s]; valid: (T,) bool. Returns (M,) float64, possibly empty.
+    """
+    t = np.asarray(times_s, dtype=np.float64)
+    if not interval_s > 0:
+        raise ValueError(f"interval_s must be > 0, got {interval_s}")
+    if len(t) < 2 or t[-1] < start_s:
+        return np.zeros(0)
+    at = np.arange(start_s, t[-1] + 1e-9, interval_s)
+    lo, hi = label_window(t, at, window_s)
+    bad = np.concatenate([[0], np.cumsum(~np.asarray(valid, dtype=bool))])
+    first = np.searchsorted(t, lo, side="left")  # samples with lo ≤ t ≤ hi
+    last = np.searchsorted(t, hi, side="right")
+    return at[bad[last] - bad[first] == 0]
+
+
+def _pose_at(times_s: np.ndarray, pose: np.ndarray, at_s: np.ndarray) -> np.ndarray:
+    """(M, 3) poses (x, y, yaw ∈ [0, 2π)) interpolated at ``at_s`` (yaw unwrapped first)."""
+    t = np.asarray(times_s, dtype=np.float64)
+    p = np.asarray(pose, dtype=np.float64)
+    yaw = np.unwrap(p[:, 2])
+    return np.stack([np.interp(at_s, t, p[:, 0]), np.interp(at_s, t, p[:, 1]),
+                     np.mod(np.interp(at_s, t, yaw), 2 * np.pi)], axis=1)
+
+
+ARTIFACT_ENDS = ("off_map", "diverged")
+"""End reasons that are simulation artifacts, not terrain: falling off the map's
+edge, a diverged solver. No patch is cut in their last :data:`ARTIFACT_END_S`."""
+ARTIFACT_END_S = 2.0  # [s]
+
+
+def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None = None,
+                    window_s: float | None = None) -> dict[str, np.ndarray]:
+    """Patches of one run (a :class:`dgt_lib.collect.Episode`) cut from ``bev`` with
+    their labels L_v(t_P) (paper: "each patch P extracted at time t_P is paired with
+    L_v(t_P)"), at :func:`patch_times`; none in the last 2 s of a run that fell off
+    the map or diverged (:data:`ARTIFACT_ENDS`).
+
+    Returns ``times`` (M,), ``pose`` (M, 3), ``patches`` (M, 6, 22, 7) float32,
+    ``observed`` (M, 22, 7) bool and ``labels`` (M,) float32 in [0, 1].
+    """
+    from .locomotion import WINDOW_S, locomotion_signal
+    from .patches import extract_patches
+
+    cfg = config or CollectConfig()
+    w = WINDOW_S if window_s is None else window_s
+    t = np.asarray(episode.time_s, dtype=np.float64)
+    valid = np.asarray(episode.valid, dtype=bool)
+    if episode.end_reason in ARTIFACT_ENDS:  # the last moments show the map edge / a glitch
+        valid = valid & (t <= t[-1] - ARTIFACT_END_S)
+    at = patch_times(t, valid, cfg.patch_interval_s, cfg.patch_start_s, w)
+    if len(at) == 0:
+        return {"times": at, "pose": np.zeros((0, 3)),
+                "patches": np.zeros((0, 6, 22, 7), np.float32),
+                "observed": np.zeros((0, 22, 7), bool), "labels": np.zeros(0, np.float32)}
+    pose = _pose_at(t, episode.pose, at)
+    patches, observed = extract_patches(bev, pose)
+    labels = locomotion_signal(t, episode.pose[:, :2], window_s=w, u=cfg.speed_mps, at_s=at)
+    return {"times": at, "pose": pose, "patches": patches, "observed": observed,
+            "labels": labels.astype(np.float32)}
+
+
+def build_dataset(episodes: Sequence[Episode], bev: BEVMap,
+                  config: CollectConfig | None = None, seed: int = 0) -> PatchDataset:
+    """The :class:`PatchDataset` of a list of episodes on the map ``bev``.
+
+    The k-th episode gets trajectory id k (unique across vehicles); the split is
+    70/15/15 by trajectory per vehicle (:func:`split_by_trajectory`, seeded).
+    """
+    parts = []
+    for k, ep in enumerate(episodes):
+        s = episode_patches(ep, bev, config)
+        m = len(s["labels"])
+        parts.append((s, np.full(m, VEHICLES.index(ep.vehicle), np.int8),
+                      np.full(m, k, np.int32)))
+    if not parts:
+        raise ValueError("build_dataset needs at least one episode")
+    patches = np.concatenate([p[0]["patches"] for p in parts]).astype(np.float16)
+    vehicle = np.concatenate([p[1] for p in parts])
+    trajectory = np.concatenate([p[2] for p in parts])
+    return PatchDataset(
+        patches=patches,
+        observed=np.concatenate([p[0]["observed"] for p in parts]),
+        labels=np.concatenate([p[0]["labels"] for p in parts]).astype(np.float32),
+        vehicle=vehicle, trajectory=trajectory,
+        pose=np.concatenate([p[0]["pose"] for p in parts]).astype(np.float32),
+        split=split_by_trajectory(trajectory, vehicle, seed=seed),
+    )
+
+
+DATASET_RELPATH = "dataset.npz"
+"""The dataset artifact under ``data/<profile>/``."""
+
+
+def ensure_dataset(profile: Profile | str | None = None, *, executor: Executor | None = None,
+                   progress: bool = True) -> PatchDataset:
+    """The self-supervised dataset of a profile, cached as ``data/<profile>/dataset.npz``.
+
+    Builds (through the cache) the episodes and the training world's BEV first.
+    The cache key covers the collection and world configuration, the vehicles and
+    the BEV map itself.
+    """
+    from . import artifacts
+    from .collect import collect_episodes, ensure_bev
+    from .config import get_profile
+    from .locomotion import WINDOW_S
+    from .vehicles import get_vehicle
+
+    prof = profile if isinstance(profile, Profile) else get_profile(profile)
+    bev = ensure_bev("training", prof, executor=executor, progress=progress)
+    config = {"collect": prof.collect, "worlds": prof.worlds, "seed": prof.seed,
+              "vehicles": [get_vehicle(v) for v in VEHICLES], "window_s": WINDOW_S,
+              "bev": bev.channels, "bev_observed": bev.observed}
+
+    def build() -> dict[str, np.ndarray]:
+        episodes = collect_episodes(prof, executor=executor, progress=progress)
+        return build_dataset(episodes, bev, prof.collect, seed=prof.seed).to_arrays()
+
+    return PatchDataset.from_arrays(artifacts.ensure(DATASET_RELPATH, config, build,
+                                                     profile=prof.name))
+
+
+def dataset_summary(ds: PatchDataset) -> str:
+    """One line: patches per vehicle and split, trajectories and mean label."""
+    parts = []
+    for v, name in enumerate(VEHICLES):
+        sel = ds.vehicle == v
+        c = [int(np.sum(sel & (ds.split == s))) for s in range(3)]
+        n_traj = len(np.unique(ds.trajectory[sel]))
+        mean_l = float(ds.labels[sel].mean()) if sel.any() else float("nan")
+        parts.append(f"{name} {int(sel.sum())} ({c[0]}/{c[1]}/{c[2]}, {n_traj} runs, "
+                     f"mean L {mean_l:.2f})")
+    return f"{len(ds)} patches (train/val/test): " + "; ".join(parts)
+
+
+def stage_dataset(profile: Profile) -> StageOutput:
+    """``dgt reproduce`` stage: the patch–label dataset."""
+    from . import artifacts
+
+    ds = ensure_dataset(profile)
+    name = profile if isinstance(profile, str) else profile.name
+    return StageOutput([artifacts.profile_dir(name) / DATASET_RELPATH], dataset_summary(ds))

@@ -187,11 +187,13 @@ def classify_route(world: World, path: np.ndarray) -> str:
         return ""
     xy = np.asarray(path)[:, :2]
     if world.name == "hill":
-        mid = 0.5 * (np.asarray(world.landmarks["B_steep_bottom"])
-                     + np.asarray(world.landmarks["B_steep_top"]))
-        if np.min(np.hypot(*(xy - mid).T)) < 8.0:
+        def passes(a: str, b: str, within_m: float) -> bool:
+            mid = 0.5 * (np.asarray(world.landmarks[a]) + np.asarray(world.landmarks[b]))
+            return bool(np.min(np.hypot(*(xy - mid).T)) < within_m)
+
+        if passes("B_steep_bottom", "B_steep_top", 8.0):
             return "B"
-        return "A" if np.min(np.hypot(*(xy - world.landmarks["A_corner_2"]).T)) < 15.0 else "other"
+        return "A" if passes("A_ramp_bottom", "A_ramp_top", 10.0) else "other"
     if world.name == "ridge":
         y_ridge = world.landmarks["sharp_crossing"][1]
         i = int(np.argmin(np.abs(xy[:, 1] - y_ridge)))
@@ -382,21 +384,30 @@ class ExperimentResult:
         return {m: reason_counts(r.outcome for r in self.results if r.task.method == m)
                 for m in METHODS if any(r.task.method == m for r in self.results)}
 
-    def markdown(self, paper: dict | None = None) -> str:
-        """Tables, routes and failure reasons as markdown."""
-        vehicles = sorted({r.task.vehicle for r in self.results})
-        parts = [self.table(v, (paper or {}).get(v)) for v in vehicles]
-        parts.append("| method | query | routes |\n|---|---|---|")
-        for (m, label), d in sorted(self.routes().items()):
-            parts.append(f"| {METHOD_LABELS[m]} | {label} | "
+    def route_markdown(self) -> str:
+        """Markdown table: the routes each method planned, per query label."""
+        lines = ["| method | query | planned routes |", "|---|---|---|"]
+        for (m, label), d in sorted(self.routes().items(),
+                                    key=lambda kv: (METHODS.index(kv[0][0]), kv[0][1])):
+            lines.append(f"| {METHOD_LABELS[m]} | {label} | "
                          + ", ".join(f"{k}: {v}" for k, v in sorted(d.items())) + " |")
+        return "\n".join(lines) + "\n"
+
+    def reason_markdown(self) -> str:
+        """Markdown table: how the trials of each method ended."""
         reasons = self.reasons()
         names = list(next(iter(reasons.values()), {}))
-        parts.append("\n| method | " + " | ".join(names) + " |")
-        parts.append("|---|" + "---|" * len(names))
+        lines = ["| method | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
         for m, d in reasons.items():
-            parts.append(f"| {METHOD_LABELS[m]} | " + " | ".join(str(v) for v in d.values()) + " |")
-        return "\n".join(parts) + "\n"
+            lines.append(f"| {METHOD_LABELS[m]} | " + " | ".join(str(v) for v in d.values())
+                         + " |")
+        return "\n".join(lines) + "\n"
+
+    def markdown(self, paper: dict | None = None) -> str:
+        """Tables (ours beside the paper's), routes and failure reasons as markdown."""
+        vehicles = sorted({r.task.vehicle for r in self.results})
+        parts = [self.table(v, (paper or {}).get(v)) for v in vehicles]
+        return "\n".join(parts + [self.route_markdown(), self.reason_markdown()])
 
 
 def _tasks(experiment: str, world: str, vehicle: str, queries: list[Query],

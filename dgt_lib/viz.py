@@ -1,7 +1,16 @@
-"""Matplotlib figures of worlds, vehicles, RGB-D frames and premise runs.
+"""Matplotlib figures and small Markdown tables for the notebooks.
 
-Every function returns the matplotlib ``Figure`` (or draws into a given ``ax``),
-so notebooks stay one call per picture::
+- worlds, vehicles, RGB-D frames and premise runs (notebook 01, first half);
+- the BEV map: back-projected points, the survey lattice, the six channels, the
+  error against the true terrain (notebook 01, second half);
+- locomotion labels: L against the speed ratio, L(t) along runs, the dataset's
+  counts, label histograms, a patch gallery and L against forward slope (notebook 02);
+- :func:`source_markdown` to show an implementation next to its paper equation.
+
+Every plotting function returns the matplotlib ``Figure`` (or draws into a given
+``ax``), so notebooks stay one call per picture; the few functions that compute
+something (:func:`survey_footprints`, :func:`height_errors`, :func:`gallery_indices`,
+:func:`binned_mean`, the ``*_table`` functions) are tested in ``tests/test_viz.py``::
 
     from dgt_lib import viz
     viz.plot_world(get_world("hill"))
@@ -175,3 +184,554 @@ def chase_view(sim, *, distance_m: float = 9.0, height_m: float = 4.0, side_deg:
     frame = sim.render_rgbd(look_at(eye, target), show_vehicle=True,
                             intrinsics=CameraIntrinsics(size[0], size[1], math.radians(45.0)))
     return frame.rgb
+
+
+# ----------------------------------------------------------------------------- source next to math
+
+VEHICLE_COLORS: dict[str, str] = dict(zip(VEHICLES, ("tab:green", "tab:blue", "tab:purple",
+                                                     "tab:red"), strict=True))
+"""One colour per vehicle, used by every per-vehicle figure."""
+
+
+def source_markdown(obj) -> str:
+    """A function's or class's source as a fenced Markdown code block, headed by where
+    it lives (``dgt_lib/bev.py``, line N), to show an implementation next to the
+    paper's equation: ``display(Markdown(viz.source_markdown(bev.height_gradient)))``."""
+    import inspect
+    from pathlib import Path
+
+    lines, start = inspect.getsourcelines(obj)
+    path = Path(inspect.getsourcefile(obj)).resolve()
+    parts = path.parts
+    shown = "/".join(parts[parts.index("dgt_lib"):]) if "dgt_lib" in parts else path.name
+    return (f"`{shown}`, line {start}: `{obj.__qualname__}`\n\n```python\n"
+            + "".join(lines).rstrip() + "\n```")
+
+
+# ----------------------------------------------------------------------------- BEV map
+
+
+def _tan_half_fov(intrinsics) -> tuple[float, float]:
+    """tan of the half field of view across (image width) and along (image height)."""
+    tan_y = math.tan(0.5 * intrinsics.fovy_rad)
+    return tan_y * intrinsics.width / intrinsics.height, tan_y
+
+
+def survey_footprints(world: World, poses: Sequence[tuple[np.ndarray, np.ndarray]],
+                      intrinsics) -> np.ndarray:
+    """Ground footprint of each camera pose: (N, 4) boxes (x_min, x_max, y_min, y_max) [m].
+
+    The four image-corner rays of a camera at ``position`` with ``rotation``
+    (world_from_camera; the camera looks along −z) are intersected with the
+    horizontal plane at the terrain height below the camera; the box bounds
+    the four hits. For a nadir camera D above flat ground this is the rectangle
+    2D·tan(hfov/2) × 2D·tan(vfov/2). Raises ``ValueError`` for a camera whose
+    corner rays do not all point down.
+    """
+    tan_x, tan_y = _tan_half_fov(intrinsics)
+    corners = np.array([[sx * tan_x, sy * tan_y, -1.0] for sx in (-1, 1) for sy in (-1, 1)])
+    boxes = np.empty((len(poses), 4))
+    for i, (position, rotation) in enumerate(poses):
+        p = np.asarray(position, np.float64)
+        rays = corners @ np.asarray(rotation, np.float64).T  # (4, 3) world directions
+        if np.any(rays[:, 2] >= 0):
+            raise ValueError(f"camera {i} does not look down: its footprint is unbounded")
+        ground = float(world.height_at(p[0], p[1]))
+        hits = p + rays * ((ground - p[2]) / rays[:, 2])[:, None]
+        boxes[i] = hits[:, 0].min(), hits[:, 0].max(), hits[:, 1].min(), hits[:, 1].max()
+    return boxes
+
+
+def plot_survey(world: World, poses: Sequence[tuple[np.ndarray, np.ndarray]], intrinsics,
+                ax=None):
+    """The mapping survey over a world's heights: camera positions (dots, numbered
+    in order) and their ground footprints (:func:`survey_footprints`)."""
+    from matplotlib.patches import Rectangle
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6.5, 6), constrained_layout=True)
+    im = ax.imshow(world.heights, origin="lower", extent=world.extent, cmap="terrain")
+    ax.figure.colorbar(im, ax=ax, shrink=0.8, label="height [m]")
+    boxes = survey_footprints(world, poses, intrinsics)
+    for i, ((x0, x1, y0, y1), (pos, _)) in enumerate(zip(boxes, poses, strict=True)):
+        color = f"C{i % 10}"
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec=color, lw=1.0))
+        ax.plot(pos[0], pos[1], "o", ms=4, color=color)
+        ax.annotate(str(i), (pos[0], pos[1]), xytext=(3, 3), textcoords="offset points",
+                    fontsize=7)
+    ax.set_xlim(world.extent[:2])
+    ax.set_ylim(world.extent[2:])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{world.name}: {len(poses)} survey frames and their ground footprints")
+    return ax.figure
+
+
+def plot_backprojection(frame, world: World, title: str = ""):
+    """The points of one RGB-D frame seen from above: coloured by their pixel (left)
+    and by their height error z − h(x, y) against the true terrain [cm] (right),
+    with the camera's position and viewing direction."""
+    points, colors = frame.points_world()
+    err_cm = 100.0 * (points[:, 2] - world.height_at(points[:, 0], points[:, 1]))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
+    lim = max(float(np.percentile(np.abs(err_cm), 99)), 1.0)
+    axes[0].scatter(points[:, 0], points[:, 1], c=colors, s=1, linewidths=0)
+    sc = axes[1].scatter(points[:, 0], points[:, 1], c=err_cm, s=1, linewidths=0,
+                         cmap="coolwarm", vmin=-lim, vmax=lim)
+    fig.colorbar(sc, ax=axes[1], label="z − h(x, y) [cm]")
+    view = -np.asarray(frame.rotation)[:, 2]  # the camera looks along its −z axis
+    pos = np.asarray(frame.position)
+    for ax, sub in zip(axes, ("points in pixel colour", "height error"), strict=True):
+        ax.plot(pos[0], pos[1], "k^", ms=8, label="camera")
+        ax.annotate("", xy=pos[:2] + 6.0 * view[:2] / max(np.linalg.norm(view[:2]), 1e-9),
+                    xytext=pos[:2], arrowprops={"arrowstyle": "->", "color": "black"})
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"{title} {sub}".strip())
+    axes[0].legend(loc="lower right", fontsize=8)
+    return fig
+
+
+def _masked(layer: np.ndarray, observed: np.ndarray) -> np.ma.MaskedArray:
+    return np.ma.masked_array(layer, mask=~observed)
+
+
+def plot_bev(bev, title: str = "", region: tuple[float, float, float, float] | None = None,
+             percentiles: tuple[float, float] = (99.0, 90.0)):
+    """The six BEV channels: R, G, B as one colour image, then H̄ [m], σ_H [m] and
+    ‖∇H̄‖ [m/m] with colour bars. σ_H and ‖∇H̄‖ are scaled from 0 to the given
+    percentiles of their observed cells (default 99th: σ_H is large on trees only;
+    90th: the gradient of the open ground shows, tree rings saturate). Unobserved
+    cells are light grey. region: optional (x_min, x_max, y_min, y_max) [m] to zoom
+    into; the colour scales then come from the cells inside it."""
+    fig, axes = plt.subplots(1, 4, figsize=(17, 4.4), constrained_layout=True)
+    obs = bev.observed
+    shown = obs
+    if region is not None:
+        x, y = bev.grid.cell_centers()
+        shown = obs & (x >= region[0]) & (x <= region[1]) & (y >= region[2]) & (y <= region[3])
+    rgb = np.where(obs[..., None], np.clip(bev.rgb, 0, 1), 0.85)
+    axes[0].imshow(rgb, origin="lower", extent=bev.grid.extent)
+    axes[0].set_title("R, G, B")
+    layers = (("H̄ [m]", bev.mean_height, "terrain", None),
+              ("σ_H [m]", bev.height_std, "magma", percentiles[0]),
+              ("‖∇H̄‖ [m/m]", bev.gradient, "viridis", percentiles[1]))
+    for ax, (name, layer, cmap, pct) in zip(axes[1:], layers, strict=True):
+        values = layer[shown]
+        if not values.size:
+            vmin = vmax = None
+        elif pct is None:
+            vmin, vmax = float(values.min()), float(values.max())
+        else:
+            vmin, vmax = 0.0, float(np.percentile(values, pct))
+        cm = plt.get_cmap(cmap).copy()
+        cm.set_bad("0.85")
+        im = ax.imshow(_masked(layer, obs), origin="lower", extent=bev.grid.extent, cmap=cm,
+                       vmin=vmin, vmax=vmax)
+        fig.colorbar(im, ax=ax, shrink=0.85, label=name,
+                     extend="max" if pct is not None else "neither")
+        ax.set_title(name.split(" ")[0])
+    for ax in axes:
+        if region is not None:
+            ax.set_xlim(region[:2])
+            ax.set_ylim(region[2:])
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+    axes[0].set_ylabel("y [m]")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def height_errors(bev, world: World) -> np.ndarray:
+    """(H, W) signed error H̄ − h [m] of every observed BEV cell whose centre lies in
+    the world's interior, h the true terrain height at the cell centre; NaN elsewhere.
+    Its median absolute value is :func:`dgt_lib.collect.bev_quality`'s
+    ``height_median_abs_err_m``."""
+    x, y = bev.grid.cell_centers()
+    x0, x1, y0, y1 = world.interior
+    inside = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1) & bev.observed
+    err = np.full(bev.grid.shape, np.nan)
+    err[inside] = bev.mean_height[inside] - world.height_at(x[inside], y[inside])
+    return err
+
+
+def plot_bev_error(bev, world: World, title: str = ""):
+    """Where and how much the map's H̄ differs from the true terrain: the signed error
+    H̄ − h on the map (left; trees stand out as positive) and a histogram of |H̄ − h|
+    on a log axis with its median and 95th percentile (right)."""
+    err = height_errors(bev, world)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
+    seen = np.isfinite(err)
+    lim = max(float(np.percentile(np.abs(err[seen]), 99)), 0.01) if seen.any() else 1.0
+    cm = plt.get_cmap("coolwarm").copy()
+    cm.set_bad("0.85")
+    im = axes[0].imshow(np.ma.masked_invalid(err), origin="lower", extent=bev.grid.extent,
+                        cmap=cm, vmin=-lim, vmax=lim)
+    fig.colorbar(im, ax=axes[0], shrink=0.85, label="H̄ − h [m]", extend="both")
+    axes[0].set_aspect("equal")
+    axes[0].set_xlabel("x [m]")
+    axes[0].set_ylabel("y [m]")
+    axes[0].set_title(f"{title} H̄ − h (grey: unobserved or outside)".strip())
+    a = np.abs(err[seen])
+    lo = max(float(a.min()), 1e-4) if a.size else 1e-4
+    hi = max(float(a.max()), lo * 10)
+    axes[1].hist(np.maximum(a, lo), bins=np.geomspace(lo, hi, 60), color="0.4")
+    axes[1].set_xscale("log")
+    axes[1].set_yscale("log")
+    for q, ls in ((50, "-"), (95, "--")):
+        v = float(np.percentile(a, q)) if a.size else math.nan
+        axes[1].axvline(v, color="tab:red", ls=ls, label=f"{q}th percentile: {v * 100:.1f} cm")
+    axes[1].set_xlabel("|H̄ − h| [m]")
+    axes[1].set_ylabel("cells")
+    axes[1].set_title(f"{a.size} observed cells")
+    axes[1].legend()
+    return fig
+
+
+def quality_table(rows: Mapping[str, Mapping[str, float]]) -> str:
+    """A Markdown table of :func:`dgt_lib.collect.bev_quality` results, one row per map."""
+    lines = ["| map | coverage | median \\|H̄ − h\\| [cm] |", "|---|---|---|"]
+    for name, q in rows.items():
+        lines.append(f"| {name} | {q['coverage']:.1%} | "
+                     f"{q['height_median_abs_err_m'] * 100:.2f} |")
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- locomotion labels
+
+PAPER_DATASET: dict[str, tuple[int, int]] = {
+    "jeep": (30_000, 400), "vw_van": (10_000, 400), "mercedes_van": (10_000, 300),
+    "carla_cola": (2_000, 200),
+}
+"""(patches, trajectories) per vehicle as the paper reports them (Experiments → Dataset)."""
+
+
+def plot_locomotion_curve(u: float | None = None, sigma: float | None = None, ax=None):
+    """L (solid) and the cost C = 1 − L (dashed) against the speed ratio
+    ‖Δx‖ / (u·Δt) from standing still (0) to twice the commanded speed (2),
+    computed by :func:`dgt_lib.locomotion.locomotion`."""
+    from dgt_lib.locomotion import SIGMA, TARGET_SPEED_MPS, locomotion
+
+    u = TARGET_SPEED_MPS if u is None else u
+    sigma = SIGMA if sigma is None else sigma
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6.5, 3.6), constrained_layout=True)
+    ratio = np.linspace(0.0, 2.0, 401)
+    dt = 1.0  # [s]; L depends on the ratio only
+    L = locomotion(ratio * u * dt, dt, u=u, sigma=sigma)
+    ax.plot(ratio, L, color="k", label="locomotion L")
+    ax.plot(ratio, 1.0 - L, color="k", ls="--", label="cost C = 1 − L")
+    for r in (0.0, 0.5):
+        v = float(locomotion(r * u * dt, dt, u=u, sigma=sigma))
+        ax.plot(r, v, "o", color="tab:red")
+        ax.annotate(f"L({r:g}) = {v:.3f}", (r, v), xytext=(6, 6), textcoords="offset points")
+    ax.set_xlabel("speed ratio ‖Δx‖ / (u·Δt)")
+    ax.set_ylabel("L, C")
+    ax.set_title(f"u = {u:g} m/s, σ = {sigma:.3g}")
+    ax.set_ylim(-0.02, 1.05)
+    ax.legend(loc="center right")
+    return ax.figure
+
+
+def _patch_outline(pose: np.ndarray) -> np.ndarray:
+    """(4, 2) world corners of the 8.8 m × 2.8 m patch at pose (x, y, θ)."""
+    from dgt_lib.patches import PATCH_LENGTH_M, PATCH_WIDTH_M, body_to_world
+
+    f, w = 0.5 * PATCH_LENGTH_M, 0.5 * PATCH_WIDTH_M
+    corners = np.array([[f, w], [f, -w], [-f, -w], [-f, w]])
+    x, y = body_to_world(np.asarray(pose, np.float64)[None], corners)
+    return np.stack([x[0], y[0]], axis=1)
+
+
+def plot_run_labels(runs: Mapping[str, object], bev, config=None):
+    """Locomotion along recorded runs (:class:`dgt_lib.collect.Episode`), one colour each.
+
+    Left: speed [m/s] (solid) and chassis height [m] (dotted) against time.
+    Middle: L(t) from the sliding window (:func:`dgt_lib.locomotion.locomotion_signal`)
+    with the patches the dataset cuts from the run (dots at (t_P, L(t_P)),
+    :func:`dgt_lib.dataset.episode_patches`). Right: the paths on the BEV map,
+    coloured by L, with every patch's 8.8 m × 2.8 m outline.
+    """
+    from matplotlib.collections import LineCollection
+
+    from dgt_lib.dataset import episode_patches
+    from dgt_lib.locomotion import locomotion_signal
+
+    fig, axes = plt.subplots(1, 3, figsize=(17, 4.6), constrained_layout=True,
+                             gridspec_kw={"width_ratios": [1.1, 1.1, 1.0]})
+    ax_h = axes[0].twinx()
+    xy_all = []
+    for i, (label, ep) in enumerate(runs.items()):
+        color = f"C{i}"
+        t = np.asarray(ep.time_s, np.float64)
+        L = locomotion_signal(t, ep.pose[:, :2])
+        cut = episode_patches(ep, bev, config)
+        axes[0].plot(t, ep.speed_mps, color=color, label=f"{label} → {ep.end_reason}")
+        ax_h.plot(t, ep.z, color=color, ls=":", alpha=0.7)
+        axes[1].plot(t, L, color=color, label=label)
+        axes[1].plot(cut["times"], cut["labels"], "o", ms=4, color=color, mec="black")
+        xy = np.asarray(ep.pose[:, :2], np.float64)
+        xy_all.append(xy)
+        segs = LineCollection(np.stack([xy[:-1], xy[1:]], axis=1), cmap="RdYlGn",
+                              norm=plt.Normalize(0, 1), linewidths=2.5)
+        segs.set_array(0.5 * (L[1:] + L[:-1]))
+        axes[2].add_collection(segs)
+        for pose in cut["pose"]:
+            axes[2].fill(*_patch_outline(pose).T, fill=False, ec=color, lw=0.6)
+        axes[2].annotate(label, xy[0], xytext=(4, 4), textcoords="offset points", fontsize=8,
+                         color=color)
+        axes[2].plot(*xy[0], "o", color=color, mec="black")
+    axes[0].axhline(5.0, color="gray", lw=0.8, ls="--")
+    axes[0].set_xlabel("time [s]")
+    axes[0].set_ylabel("speed [m/s] (solid)")
+    ax_h.set_ylabel("chassis height [m] (dotted)")
+    axes[0].legend(fontsize=8, loc="lower left")
+    axes[1].set_xlabel("time [s]")
+    axes[1].set_ylabel("L(t)")
+    axes[1].set_ylim(-0.02, 1.05)
+    axes[1].set_title("L(t); dots: patches cut at t_P with label L(t_P)")
+    rgb = np.where(bev.observed[..., None], np.clip(bev.rgb, 0, 1), 0.85)
+    axes[2].imshow(rgb, origin="lower", extent=bev.grid.extent)
+    pts = np.concatenate(xy_all)
+    margin = 12.0
+    x0, x1, y0, y1 = bev.grid.extent
+    axes[2].set_xlim(max(x0, pts[:, 0].min() - margin), min(x1, pts[:, 0].max() + margin))
+    axes[2].set_ylim(max(y0, pts[:, 1].min() - margin), min(y1, pts[:, 1].max() + margin))
+    axes[2].set_aspect("equal")
+    axes[2].set_xlabel("x [m]")
+    axes[2].set_ylabel("y [m]")
+    axes[2].set_title("paths coloured by L (start: dot), patch outlines")
+    fig.colorbar(plt.cm.ScalarMappable(cmap="RdYlGn", norm=plt.Normalize(0, 1)), ax=axes[2],
+                 shrink=0.85, label="L")
+    return fig
+
+
+def dataset_table(ds) -> str:
+    """A Markdown table of a :class:`~dgt_lib.dataset.PatchDataset` per vehicle: runs,
+    patches (train / val / test), patches per run, mean L and the share of L < 0.5."""
+    from dgt_lib.dataset import SPLIT_NAMES
+
+    lines = ["| vehicle | runs | patches | " + " / ".join(SPLIT_NAMES)
+             + " | patches per run | mean L | L < 0.5 |", "|---" * 7 + "|"]
+    for v, name in enumerate(VEHICLES):
+        sel = ds.vehicle == v
+        n = int(sel.sum())
+        runs = len(np.unique(ds.trajectory[sel]))
+        parts = " / ".join(str(int(np.sum(sel & (ds.split == s))))
+                           for s in range(len(SPLIT_NAMES)))
+        if n:
+            labels = ds.labels[sel]
+            stats = f"{labels.mean():.2f} | {np.mean(labels < 0.5):.0%}"
+        else:
+            stats = "– | –"
+        per_run = f"{n / runs:.1f}" if runs else "–"
+        lines.append(f"| {name} | {runs} | {n} | {parts} | {per_run} | {stats} |")
+    return "\n".join(lines)
+
+
+def plot_dataset_counts(ds, paper: Mapping[str, tuple[int, int]] = PAPER_DATASET):
+    """The data imbalance: patches per vehicle stacked by split (left) and each
+    vehicle's share of all patches, ours against the paper's (right)."""
+    from dgt_lib.dataset import SPLIT_NAMES
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 3.8), constrained_layout=True)
+    y = np.arange(len(VEHICLES))
+    left = np.zeros(len(VEHICLES))
+    for s, sname in enumerate(SPLIT_NAMES):
+        n = np.array([np.sum((ds.vehicle == v) & (ds.split == s)) for v in range(len(VEHICLES))])
+        axes[0].barh(y, n, left=left, label=sname, color=f"C{s}")
+        left += n
+    axes[0].set_yticks(y, VEHICLES)
+    axes[0].invert_yaxis()
+    axes[0].set_xlabel("patches")
+    axes[0].set_xlim(0, 1.3 * max(left.max(), 1))
+    axes[0].legend(loc="lower right")
+    axes[0].set_title(f"{len(ds)} patches by vehicle and split")
+    ours = np.array([np.sum(ds.vehicle == v) for v in range(len(VEHICLES))], np.float64)
+    theirs = np.array([paper[name][0] for name in VEHICLES], np.float64)
+    h = 0.38
+    axes[1].barh(y - h / 2, ours / max(ours.sum(), 1), h, label="this dataset", color="0.35")
+    axes[1].barh(y + h / 2, theirs / theirs.sum(), h, label="paper", color="0.75")
+    axes[1].set_yticks(y, VEHICLES)
+    axes[1].invert_yaxis()
+    axes[1].set_xlabel("share of all patches")
+    axes[1].legend()
+    axes[1].set_title("imbalance: share of patches per vehicle")
+    return fig
+
+
+def plot_label_histograms(ds, bins: int = 20):
+    """Histogram of the labels L of each vehicle (one panel each, counts)."""
+    fig, axes = plt.subplots(1, len(VEHICLES), figsize=(4 * len(VEHICLES), 3.2),
+                             constrained_layout=True, sharex=True)
+    for v, (ax, name) in enumerate(zip(axes, VEHICLES, strict=True)):
+        labels = ds.labels[ds.vehicle == v]
+        ax.hist(labels, bins=np.linspace(0, 1, bins + 1), color=VEHICLE_COLORS[name])
+        mean = f", mean {labels.mean():.2f}" if labels.size else ""
+        ax.set_title(f"{name}: n = {labels.size}{mean}")
+        ax.set_xlabel("locomotion L")
+    axes[0].set_ylabel("patches")
+    return fig
+
+
+def gallery_indices(labels: np.ndarray, vehicle: np.ndarray, per_vehicle: int = 4
+                    ) -> dict[str, np.ndarray]:
+    """Indices of up to ``per_vehicle`` samples of each vehicle spanning its label range:
+    the samples at evenly spaced label quantiles (lowest L first, highest last),
+    without repeats. labels: (N,); vehicle: (N,) head indices."""
+    if per_vehicle < 1:
+        raise ValueError(f"per_vehicle must be ≥ 1, got {per_vehicle}")
+    labels, vehicle = np.asarray(labels), np.asarray(vehicle)
+    out = {}
+    for v, name in enumerate(VEHICLES):
+        idx = np.flatnonzero(vehicle == v)
+        order = idx[np.argsort(labels[idx], kind="stable")]
+        if len(order) == 0:
+            out[name] = order
+            continue
+        picks = np.rint(np.linspace(0, len(order) - 1, min(per_vehicle, len(order))))
+        out[name] = order[np.unique(picks.astype(int))]
+    return out
+
+
+def plot_patch_gallery(ds, per_vehicle: int = 4):
+    """A few patches of every vehicle, lowest to highest label (:func:`gallery_indices`):
+    RGB and H̄ relative to the patch's centre height [m] side by side, forward = up
+    (row 0 of a patch is the row the vehicle drives toward; its left is on the left).
+    Unobserved cells are grey."""
+    from dgt_lib.bev import HEIGHT
+    from dgt_lib.patches import PATCH_COLS, PATCH_ROWS
+
+    picks = gallery_indices(ds.labels, ds.vehicle, per_vehicle)
+    # The vehicle's centre lies between the two middle rows, on the middle column.
+    centre = (slice(PATCH_ROWS // 2 - 1, PATCH_ROWS // 2 + 1), PATCH_COLS // 2)
+    rel = {}
+    for i in np.concatenate(list(picks.values())):
+        h = ds.patches[i, HEIGHT].astype(np.float64)
+        obs = ds.observed[i]
+        under = obs[centre]
+        if under.any():
+            ref = h[centre][under].mean()
+        else:
+            ref = h[obs].mean() if obs.any() else 0.0
+        rel[i] = np.ma.masked_array(h - ref, mask=~obs)
+    shown = np.ma.concatenate([r.ravel() for r in rel.values()]) if rel else np.ma.zeros(0)
+    values = np.abs(shown.compressed())  # trees would dominate a max: use the 98th percentile
+    lim = max(float(np.percentile(values, 98)) if values.size else 0.0, 0.1)
+    fig, axes = plt.subplots(len(VEHICLES), 2 * per_vehicle,
+                             figsize=(1.3 * 2 * per_vehicle, 2.9 * len(VEHICLES)),
+                             constrained_layout=True, squeeze=False)
+    cm = plt.get_cmap("coolwarm").copy()
+    cm.set_bad("0.8")
+    im = None
+    for row, name in zip(axes, VEHICLES, strict=True):
+        for ax in row:
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_frame_on(False)
+        row[0].set_ylabel(name, fontsize=11)
+        for k, i in enumerate(picks[name]):
+            obs = ds.observed[i][..., None]
+            rgb = np.where(obs, np.clip(np.moveaxis(ds.patches[i, :3].astype(np.float32), 0,
+                                                    -1), 0, 1), 0.8)
+            row[2 * k].imshow(rgb)
+            row[2 * k].set_title(f"L = {ds.labels[i]:.2f}\nRGB", fontsize=8)
+            im = row[2 * k + 1].imshow(rel[i], cmap=cm, vmin=-lim, vmax=lim)
+            row[2 * k + 1].set_title("\nH̄ − centre", fontsize=8)
+            row[2 * k].annotate("", xy=(-1.2, 2), xytext=(-1.2, 8), annotation_clip=False,
+                                arrowprops={"arrowstyle": "->", "color": "black"})
+    if im is not None:
+        fig.colorbar(im, ax=axes, shrink=0.5, label="H̄ relative to the centre [m]",
+                     location="right", extend="both")
+    fig.suptitle("patches from lowest to highest L; arrow = driving direction (forward = up)")
+    return fig
+
+
+def binned_mean(x: np.ndarray, y: np.ndarray, edges: np.ndarray, min_count: int = 1
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Mean of ``y`` in bins of ``x``.
+
+    x, y: (N,); edges: (B + 1,) increasing bin edges (a value equal to the last edge
+    falls in the last bin; values outside are ignored). Returns the bin centres (B,),
+    means (B,), standard errors of the mean (B,; 0 for a single sample) and counts (B,);
+    mean and standard error are NaN where a bin has fewer than ``min_count`` samples.
+    """
+    x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
+    edges = np.asarray(edges, np.float64)
+    if x.shape != y.shape or x.ndim != 1:
+        raise ValueError(f"x and y must be (N,) of the same length, got {x.shape}, {y.shape}")
+    if edges.ndim != 1 or len(edges) < 2 or np.any(np.diff(edges) <= 0):
+        raise ValueError("edges must be a strictly increasing (B + 1,) array with B ≥ 1")
+    b = len(edges) - 1
+    idx = np.searchsorted(edges, x, side="right") - 1
+    idx[x == edges[-1]] = b - 1
+    ok = (idx >= 0) & (idx < b)
+    count = np.bincount(idx[ok], minlength=b).astype(np.int64)
+    s1 = np.bincount(idx[ok], weights=y[ok], minlength=b)
+    s2 = np.bincount(idx[ok], weights=y[ok] ** 2, minlength=b)
+    enough = (count >= max(min_count, 1))
+    n = np.maximum(count, 1)
+    mean = np.where(enough, s1 / n, np.nan)
+    var = np.where(count > 1, (s2 - n * (s1 / n) ** 2) / np.maximum(count - 1, 1), 0.0)
+    sem = np.where(enough, np.sqrt(np.maximum(var, 0.0) / n), np.nan)
+    return 0.5 * (edges[1:] + edges[:-1]), mean, sem, count
+
+
+def plot_label_vs_slope(labels: np.ndarray, vehicle: np.ndarray, slope_deg: np.ndarray,
+                        edges: np.ndarray | None = None, min_count: int = 3):
+    """Directional evidence: label L against the patch's forward slope [deg]
+    (positive = uphill in the driving direction), one panel per vehicle: every
+    patch (dots) and the binned mean ± standard error (:func:`binned_mean`, bins
+    with at least ``min_count`` patches), with the vehicle's torque-limited
+    climbing grade (dotted)."""
+    edges = np.arange(-30.0, 30.1, 4.0) if edges is None else np.asarray(edges)
+    fig, axes = plt.subplots(1, len(VEHICLES), figsize=(4.2 * len(VEHICLES), 3.6),
+                             constrained_layout=True, sharey=True)
+    for v, (ax, name) in enumerate(zip(axes, VEHICLES, strict=True)):
+        sel = np.asarray(vehicle) == v
+        x, y = np.asarray(slope_deg)[sel], np.asarray(labels)[sel]
+        color = VEHICLE_COLORS[name]
+        ax.scatter(x, y, s=6, alpha=0.25, color=color, linewidths=0)
+        c, m, se, _ = binned_mean(x, y, edges, min_count)
+        ax.errorbar(c, m, yerr=se, color="black", marker="o", ms=4, capsize=2,
+                    label=f"mean per {edges[1] - edges[0]:g}° bin")
+        ax.axvline(0.0, color="gray", lw=0.8)
+        climb = get_vehicle(name).max_climb_deg
+        ax.axvline(climb, color="gray", ls=":", label=f"max climb {climb:.0f}°")
+        ax.set_xlim(edges[0], edges[-1])
+        ax.set_title(f"{name} (n = {int(sel.sum())})")
+        ax.set_xlabel("forward slope [deg]  (← downhill | uphill →)")
+        ax.legend(fontsize=7, loc="lower left")
+    axes[0].set_ylabel("locomotion L")
+    axes[0].set_ylim(-0.02, 1.05)
+    return fig
+
+
+def directional_table(labels: np.ndarray, vehicle: np.ndarray, slope_deg: np.ndarray,
+                      threshold_deg: float = 8.0) -> str:
+    """A Markdown table of the mean label per vehicle on downhill (slope < −t), level
+    (|slope| ≤ t) and uphill (slope > t) patches, t = ``threshold_deg``, with the
+    patch counts, and the uphill − downhill difference."""
+    if not threshold_deg >= 0:
+        raise ValueError(f"threshold_deg must be ≥ 0, got {threshold_deg}")
+    labels, vehicle, slope = (np.asarray(a) for a in (labels, vehicle, slope_deg))
+    t = threshold_deg
+    head = (f"| vehicle | downhill (< −{t:g}°) | level | uphill (> {t:g}°) "
+            "| uphill − downhill |")
+    lines = [head, "|---|---|---|---|---|"]
+    for v, name in enumerate(VEHICLES):
+        sel = vehicle == v
+        means = []
+        cells = []
+        for mask in (slope < -t, np.abs(slope) <= t, slope > t):
+            m = sel & mask
+            mean = float(labels[m].mean()) if m.any() else math.nan
+            means.append(mean)
+            cells.append(f"{mean:.2f} (n = {int(m.sum())})" if m.any() else "– (n = 0)")
+        diff = means[2] - means[0]
+        cells.append(f"{diff:+.2f}" if math.isfinite(diff) else "–")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

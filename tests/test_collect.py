@@ -1,0 +1,253 @@
+"""Collection episodes, the mapping survey and the BEV maps of every world (smoke-sized)."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dgt_lib import artifacts
+from dgt_lib.collect import (
+    END_REASONS,
+    SerialExecutor,
+    bev_quality,
+    collect_episodes,
+    ensure_bev,
+    episode_relpath,
+    episode_seed,
+    run_episode,
+    spawn_pose,
+    stage_bev,
+    stage_collect,
+    survey_poses,
+)
+from dgt_lib.config import VEHICLES, CollectConfig, get_profile
+from dgt_lib.locomotion import locomotion_signal
+from dgt_lib.worlds import WORLD_NAMES, get_world
+
+
+def tiny_profile(episodes=(1, 1, 1, 1), duration_s=8.0, workers=1):
+    """The smoke profile with fewer, shorter episodes (same worlds, survey and camera)."""
+    p = get_profile("smoke")
+    return p.with_(workers=workers, collect=replace(p.collect, episodes=episodes,
+                                                    episode_duration_s=duration_s))
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory):
+    """A private artifact directory for this module."""
+    with pytest.MonkeyPatch.context() as mp:
+        path = tmp_path_factory.mktemp("collect_data")
+        mp.setenv(artifacts.DATA_ENV_VAR, str(path))
+        yield path
+
+
+@pytest.fixture(scope="module")
+def bevs(data_dir):
+    """The BEV of every world, built once through the cache (training: survey + episodes)."""
+    prof = tiny_profile()
+    return {name: ensure_bev(name, prof, executor=SerialExecutor(), progress=False)
+            for name in WORLD_NAMES}
+
+
+@pytest.mark.parametrize("name", WORLD_NAMES)
+def test_bev_matches_terrain_and_covers_the_world(bevs, name):
+    world = get_world(name, "smoke")
+    q = bev_quality(bevs[name], world)
+    assert q["coverage"] >= 0.95
+    assert q["height_median_abs_err_m"] <= 0.1
+
+
+def test_tree_cells_have_a_high_gradient(bevs):
+    world = get_world("training", "smoke")
+    bev = bevs["training"]
+    assert len(world.trees) > 0
+    x, y = bev.grid.cell_centers()
+    near_tree = np.zeros(bev.grid.shape, bool)
+    for tx, ty, _, th in world.trees:
+        crown = max(1.2, 0.3 * th)  # the simulator's crown radius [m]
+        d = np.hypot(x - tx, y - ty)
+        near_tree |= d < crown + 1.0
+        assert bev.gradient[d < crown + 0.8].max() > 2.0, (tx, ty)
+    ground = bev.observed & ~near_tree
+    assert np.median(bev.gradient[ground]) < 0.5
+
+
+def test_training_bev_aggregates_episode_frames(data_dir, bevs):
+    prof = tiny_profile()
+    arrays = artifacts.load(artifacts.profile_dir(prof.name) / "bev" / "training.npz")
+    assert int(arrays["survey_frames"]) == len(survey_poses(get_world("training", prof),
+                                                            prof.collect))
+    assert int(arrays["episode_frames"]) > 0
+    hill = artifacts.load(artifacts.profile_dir(prof.name) / "bev" / "hill.npz")
+    assert int(hill["episode_frames"]) == 0
+
+
+def test_survey_validates_its_configuration():
+    world = get_world("ridge", "smoke")
+    with pytest.raises(ValueError, match="survey_overlap"):
+        survey_poses(world, CollectConfig(survey_overlap=1.0))
+    with pytest.raises(ValueError, match="survey_altitude_m"):
+        survey_poses(world, CollectConfig(survey_altitude_m=80.0))
+
+
+def test_spawn_poses_are_free():
+    world = get_world("training", "smoke")
+    cfg = CollectConfig()
+    rng = np.random.default_rng(3)
+    x0, x1, y0, y1 = world.grid.extent
+    for _ in range(50):
+        x, y, yaw = spawn_pose(world, "carla_cola", rng, cfg)
+        assert x0 + cfg.spawn_margin_m <= x <= x1 - cfg.spawn_margin_m
+        assert y0 + cfg.spawn_margin_m <= y <= y1 - cfg.spawn_margin_m
+        assert 0 <= yaw < 2 * math.pi
+        d = np.hypot(world.trees[:, 0] - x, world.trees[:, 1] - y) - world.trees[:, 2]
+        assert d.min() > 3.2  # half the truck's length
+        assert world.slope_deg()[world.grid.xy_to_cell(x, y)] <= cfg.spawn_max_slope_deg
+
+
+@pytest.mark.parametrize("world_name", ["training", "hill"])  # rendered whole / on tiles
+def test_episodes_are_deterministic_in_their_seed(world_name):
+    world = get_world(world_name, "smoke")
+    cfg = CollectConfig(episode_duration_s=4.0)
+    seed = episode_seed(0, "vw_van", 2)
+    a = run_episode(world, "vw_van", seed, cfg)
+    c = run_episode(world, "vw_van", episode_seed(0, "vw_van", 3), cfg)
+    b = run_episode(world, "vw_van", seed, cfg)  # after another episode in this process
+    for k, v in a.to_arrays().items():
+        np.testing.assert_array_equal(v, b.to_arrays()[k], err_msg=k)
+    assert not np.allclose(a.pose[0], c.pose[0])
+    assert a.end_reason in END_REASONS
+    driven = np.hypot(*np.diff(a.pose[:, :2], axis=0).T).sum()
+    assert driven > 5.0
+    assert abs(a.n_frames - (1 + driven // cfg.frame_spacing_m)) <= 1  # a frame every 5 m
+    assert a.time_s[-1] <= 4.0 + 1e-3
+    assert np.all(np.diff(a.time_s) > 0)
+
+
+def test_a_stalling_truck_gets_low_locomotion():
+    """carla_cola driven up Route B of the hill stalls on the 26° section: L drops
+    from ~1 on the flat approach to near 0 where it stalls, and the run ends."""
+    hill = get_world("hill", "smoke")
+    x_route = hill.routes["B"][0, 0]
+
+    def keep_on_route(state):  # steer back onto the straight, north-going route
+        heading_err = (math.pi / 2 - state.yaw + math.pi) % (2 * math.pi) - math.pi
+        return float(np.clip(2.0 * heading_err - 0.5 * (state.position[0] - x_route), -1, 1))
+
+    start = np.array([x_route, 22.0, math.pi / 2])
+    ep = run_episode(hill, "carla_cola", 0, CollectConfig(episode_duration_s=40.0),
+                     start_pose=start, steer=keep_on_route, render=False)
+    assert ep.end_reason in ("immobilized", "timeout")  # stalled (or still rocking at 40 s)
+    assert ep.pose[:, 1].max() < hill.landmarks["B_steep_top"][1]
+    at = np.arange(3.0, ep.time_s[-1], 0.5)
+    labels = locomotion_signal(ep.time_s, ep.pose[:, :2], at_s=at)
+    y = np.interp(at, ep.time_s, ep.pose[:, 1])
+    flat = y < hill.landmarks["B_steep_bottom"][1] - 8.0
+    assert flat[0] and labels[flat].min() > 0.8
+    assert labels[~flat].min() < 0.1
+    assert labels[-1] < 0.1  # where it ends, stuck
+
+
+def test_collection_resumes_after_an_interruption(data_dir):
+    prof = tiny_profile(episodes=(2, 1, 0, 0), duration_s=3.0)
+    seen = []
+
+    def stop_after_one(ep):
+        seen.append((ep.vehicle, ep.index))
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        collect_episodes(prof, executor=SerialExecutor(), progress=False,
+                         on_episode=stop_after_one)
+    assert seen == [("jeep", 0)]
+    first = artifacts.profile_dir(prof.name) / episode_relpath("jeep", 0)
+    assert first.exists() and not (first.parent / "jeep_0001.npz").exists()
+    mtime = first.stat().st_mtime_ns
+
+    computed = []
+    episodes = collect_episodes(prof, executor=SerialExecutor(), progress=False,
+                                on_episode=lambda ep: computed.append((ep.vehicle, ep.index)))
+    assert computed == [("jeep", 1), ("vw_van", 0)]
+    assert first.stat().st_mtime_ns == mtime  # loaded, not rerun
+    assert [(e.vehicle, e.index) for e in episodes] == [("jeep", 0), ("jeep", 1), ("vw_van", 0)]
+    again = []
+    collect_episodes(prof, executor=SerialExecutor(), progress=False, on_episode=again.append)
+    assert again == []
+
+
+def test_process_pool_gives_the_same_episodes(data_dir, tmp_path, monkeypatch):
+    """The default executor (a spawned process pool of profile.workers) computes
+    exactly what the in-process run computes."""
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    prof = tiny_profile(episodes=(0, 1, 0, 1), duration_s=3.0, workers=2)
+    pooled = collect_episodes(prof, progress=False)
+    world = get_world("training", prof)
+    for ep in pooled:
+        ref = run_episode(world, ep.vehicle, episode_seed(prof.seed, ep.vehicle, ep.index),
+                          prof.collect, index=ep.index)
+        np.testing.assert_array_equal(ep.pose, ref.pose)
+        assert ep.end_reason == ref.end_reason
+
+
+def test_stages_report_what_they_built(data_dir, bevs):
+    prof = tiny_profile()
+    out = stage_collect(prof)
+    assert all(v in out.summary for v in VEHICLES)
+    assert out.paths[0].is_dir()
+    out = stage_bev(prof)
+    assert len(out.paths) == len(WORLD_NAMES) and all(p.exists() for p in out.paths)
+    assert "hill" in out.summary and "observed" in out.summary
+
+
+def test_tiled_rendering_equals_the_whole_world_up_to_max_depth():
+    """Frames rendered on a tile around the camera equal the whole world's frames
+    up to the renderer's max depth, whichever tiles were loaded before."""
+    from dgt_lib.collect import TerrainRenderer, onboard_camera_pose, simulator
+
+    world = get_world("training", "smoke")
+    max_depth = 8.0
+    tiles = TerrainRenderer(world, max_depth_m=max_depth)
+    assert tiles.tile_shape[0] < world.grid.height  # really tiled
+    sim = simulator(world, "jeep")
+    rng = np.random.default_rng(0)
+    poses = []
+    for _ in range(3):
+        x, y, yaw = spawn_pose(world, "jeep", rng)
+        sim.reset(x, y, yaw)
+        poses.append(onboard_camera_pose(sim))
+    first = []
+    keys = set()
+    for pose in poses:
+        first.append(tiles.render(pose))
+        keys.add(tiles._current)
+    assert len(keys) > 1
+    for pose, before in zip(poses[::-1], first[::-1], strict=True):  # revisit cached tiles
+        frame = tiles.render(pose)
+        whole_depth = sim.render_rgbd(pose, show_vehicle=False).depth
+        near = whole_depth <= max_depth
+        assert near.sum() > 1000
+        np.testing.assert_allclose(frame.depth[near], before.depth[near], atol=0.01)
+        np.testing.assert_allclose(frame.depth[near], whole_depth[near], atol=0.01)
+
+
+def test_sparse_episode_statistics_restore_the_accumulator():
+    from dgt_lib.bev import BEVAccumulator
+    from dgt_lib.collect import accumulator_to_sparse, add_sparse
+    from dgt_lib.geometry import GridSpec
+
+    rng = np.random.default_rng(0)
+    grid = GridSpec((0.0, 0.0), 0.4, (50, 60))
+    acc = BEVAccumulator(grid)
+    points = np.column_stack([rng.uniform(5, 15, 2000), rng.uniform(5, 15, 2000),
+                              rng.normal(12.0, 0.3, 2000)])
+    acc.add_points(points, rng.uniform(0, 1, (2000, 3)))
+    sparse = accumulator_to_sparse(acc)
+    assert len(sparse["cells"]) < grid.height * grid.width / 2  # only the touched cells
+    restored = add_sparse(BEVAccumulator(grid), sparse).result()
+    ref = acc.result()
+    np.testing.assert_array_equal(restored.observed, ref.observed)
+    np.testing.assert_allclose(restored.channels[3:5], ref.channels[3:5], atol=1e-4)
+    np.testing.assert_allclose(restored.channels[:3], ref.channels[:3], atol=0.5 / 255 + 1e-6)
+    with pytest.raises(ValueError, match="grid"):
+        add_sparse(BEVAccumulator(GridSpec((0.0, 0.0), 0.4, (10, 10))), sparse)

@@ -1,0 +1,290 @@
+"""Training: masked loss, learning, single-task, repeatability, checkpoints, Ctrl-C, cache."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from dgt_lib import artifacts, train
+from dgt_lib.config import VEHICLES, TrainConfig, get_profile
+from dgt_lib.dataset import TEST, TRAIN
+from dgt_lib.model import ArchitectureMismatchError, DGTNet
+from dgt_lib.train import (
+    CheckpointError,
+    channel_statistics,
+    ensure_model,
+    load_checkpoint,
+    masked_loss,
+    predict,
+    regression_metrics,
+    save_checkpoint,
+    synthetic_dataset,
+    train_model,
+)
+
+TINY = TrainConfig(epochs=2, batch_size=64, learning_rate=2e-3, width=8, fc_hidden=32)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_thread():
+    """One torch thread: CI runs two pytest workers on two cores."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(autouse=True)
+def data_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    return tmp_path / "data"
+
+
+@pytest.fixture(scope="module")
+def dataset():
+    return synthetic_dataset((300, 120, 120, 40), seed=0)
+
+
+@pytest.fixture(scope="module")
+def trained(dataset):
+    """A multi-task model trained long enough to learn the synthetic rule."""
+    cfg = TrainConfig(epochs=6, batch_size=32, learning_rate=2e-3, width=8, fc_hidden=32)
+    return train_model(dataset, cfg, seed=0, progress=False)
+
+
+def test_masked_loss_gives_other_heads_exactly_zero_gradient():
+    torch.manual_seed(0)
+    model = DGTNet(width=8, fc_hidden=32)
+    x = torch.randn(6, 6, 22, 7)
+    head = torch.tensor([1, 1, 0, 1, 0, 1])  # jeep and vw_van patches only
+    loss = masked_loss(model(x), torch.rand(6), head)
+    loss.backward()
+    for j, h in enumerate(model.vehicle_heads):
+        if VEHICLES[j] in ("jeep", "vw_van"):
+            assert h.weight.grad.abs().sum() > 0
+        else:
+            assert torch.count_nonzero(h.weight.grad) == 0
+            assert torch.count_nonzero(h.bias.grad) == 0
+    assert model.rgb.conv1.weight.grad.abs().sum() > 0  # the shared backbone learns
+
+
+def test_masked_loss_is_the_squared_error_of_the_own_head():
+    pred = torch.tensor([[0.1, 0.9], [0.5, 0.2], [0.3, 0.3]])
+    loss = masked_loss(pred, torch.tensor([0.0, 0.0, 1.0]), torch.tensor([1, 0, 1]))
+    assert loss.item() == pytest.approx((0.9**2 + 0.5**2 + 0.7**2) / 3)
+
+
+def test_overfits_a_tiny_batch(dataset):
+    torch.manual_seed(0)
+    model = DGTNet(width=8, fc_hidden=32)
+    idx = np.flatnonzero(dataset.split == TRAIN)[:32]
+    model.set_normalization(*channel_statistics(dataset.patches, idx))
+    x = torch.from_numpy(dataset.patches[idx].astype(np.float32))
+    y = torch.from_numpy(dataset.labels[idx])
+    head = torch.from_numpy(dataset.vehicle[idx].astype(np.int64))
+    opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+    first = None
+    for _ in range(80):
+        loss = masked_loss(model(x), y, head)
+        first = loss.item() if first is None else first
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert loss.item() < 2e-3 < first
+
+
+def test_multitask_training_learns_vehicle_specific_slope_limits(trained, dataset):
+    assert trained.model.vehicles == VEHICLES
+    assert [h["epoch"] for h in trained.history] == list(range(1, 7))
+    val = [h["val_loss"] for h in trained.history]
+    assert trained.best_epoch == 1 + int(np.argmin(val))
+    assert val[trained.best_epoch - 1] < 0.5 * val[0]
+    assert set(trained.metrics) == set(VEHICLES)
+    assert trained.metrics["jeep"]["spearman"] > 0.8
+    assert trained.metrics["jeep"]["mse"] < 0.03
+    # uphill patches with slope 0.3..0.4: passable for the jeep (limit 0.45), not the vw_van (0.25)
+    test = dataset.part("test")
+    slope = test.patches[:, 5].astype(np.float32).mean(axis=(1, 2))
+    uphill = test.patches[:, 3, 0].astype(np.float32).mean(1) > test.patches[:, 3, -1].mean(1)
+    probe = test.patches[(slope > 0.3) & (slope < 0.4) & uphill]
+    assert len(probe) >= 5
+    pred = predict(trained.model, probe)
+    assert pred[:, 0].mean() > pred[:, 1].mean() + 0.2
+
+
+def test_single_task_model_trains_on_one_vehicle_only(dataset):
+    steps = []
+    result = train_model(dataset, TINY, vehicles=("vw_van",), progress=False,
+                         on_batch_end=lambda epoch, step, loss: steps.append(epoch))
+    assert result.model.vehicles == ("vw_van",)
+    assert predict(result.model, dataset.patches[:5]).shape == (5, 1)
+    assert set(result.metrics) == {"vw_van"}
+    n_vw_train = int(np.sum((dataset.vehicle == 1) & (dataset.split == TRAIN)))
+    assert steps.count(1) == math.ceil(n_vw_train / TINY.batch_size)
+    mean, std = channel_statistics(dataset.patches,
+                                   np.flatnonzero((dataset.vehicle == 1) & (dataset.split == 0)))
+    np.testing.assert_allclose(result.model.input_mean.numpy(), mean)
+    np.testing.assert_allclose(result.model.input_std.numpy(), std)
+
+
+def test_same_seed_same_model(dataset):
+    a = train_model(dataset, TINY, seed=3, progress=False)
+    b = train_model(dataset, TINY, seed=3, progress=False)
+    assert a.history[-1]["val_loss"] == b.history[-1]["val_loss"]
+    np.testing.assert_array_equal(predict(a.model, dataset.patches[:50]),
+                                  predict(b.model, dataset.patches[:50]))
+
+
+def test_checkpoint_round_trip_gives_identical_predictions(trained, dataset, tmp_path):
+    path = save_checkpoint(tmp_path / "m.pt", trained)
+    loaded = load_checkpoint(path, vehicles=VEHICLES,
+                             architecture=trained.model.architecture())
+    np.testing.assert_array_equal(predict(loaded.model, dataset.patches),
+                                  predict(trained.model, dataset.patches))
+    assert loaded.history == trained.history
+    assert loaded.best_epoch == trained.best_epoch
+    assert loaded.metrics == trained.metrics
+    assert loaded.config == trained.config
+
+
+def test_wrong_architecture_or_vehicles_is_a_clear_error(trained, tmp_path):
+    path = save_checkpoint(tmp_path / "m.pt", trained)
+    with pytest.raises(ArchitectureMismatchError, match="width"):
+        load_checkpoint(path, architecture=DGTNet(width=16, fc_hidden=32).architecture())
+    with pytest.raises(ArchitectureMismatchError, match="heads for"):
+        load_checkpoint(path, vehicles=("vw_van",))
+    ckpt = train.checkpoint_dict(trained)
+    ckpt["architecture"]["width"] = 16  # weights of width 8 claimed as width 16
+    with pytest.raises(ArchitectureMismatchError, match="do not fit"):
+        load_checkpoint(ckpt)
+    artifacts.save(tmp_path / "other.pt", {"weights": 1})
+    with pytest.raises(CheckpointError, match="not a"):
+        load_checkpoint(tmp_path / "other.pt")
+
+
+def test_ctrl_c_keeps_the_best_checkpoint(dataset, tmp_path):
+    def interrupt(epoch, step, loss):
+        if epoch == 3 and step == 1:
+            raise KeyboardInterrupt
+
+    cfg = TrainConfig(epochs=5, batch_size=64, learning_rate=2e-3, width=8, fc_hidden=32)
+    path = tmp_path / "best.pt"
+    result = train_model(dataset, cfg, progress=False, checkpoint_path=path,
+                         on_batch_end=interrupt)
+    assert result.interrupted
+    assert len(result.history) == 2
+    assert result.best_epoch == 1 + int(np.argmin([h["val_loss"] for h in result.history]))
+    assert not result.model.training
+    saved = load_checkpoint(path)
+    assert saved.interrupted and saved.best_epoch == result.best_epoch
+    np.testing.assert_array_equal(predict(saved.model, dataset.patches[:64]),
+                                  predict(result.model, dataset.patches[:64]))
+
+
+def test_ctrl_c_before_the_first_epoch_ends_is_reraised(dataset):
+    def interrupt(epoch, step, loss):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        train_model(dataset, TINY, progress=False, on_batch_end=interrupt)
+
+
+def test_ensure_model_caches_per_kind(dataset, data_dir, monkeypatch):
+    calls = []
+    real = train.train_model
+    monkeypatch.setattr(train, "train_model", lambda *a, **k: calls.append(k) or real(*a, **k))
+    profile = get_profile("smoke").with_(train=TINY)
+    first = ensure_model(profile, dataset, "single:vw_van", progress=False)
+    again = ensure_model(profile, dataset, "single:vw_van", progress=False)
+    assert len(calls) == 1 and calls[0]["vehicles"] == ("vw_van",)
+    assert (data_dir / "smoke" / "models" / "single_vw_van.pt").exists()
+    assert not (data_dir / "smoke" / "models" / "single_vw_van.partial.pt").exists()
+    np.testing.assert_array_equal(predict(first.model, dataset.patches[:20]),
+                                  predict(again.model, dataset.patches[:20]))
+    assert again.history == first.history
+    ensure_model(profile.with_(seed=1), dataset, "single:vw_van", progress=False)
+    assert len(calls) == 2  # another seed is another model
+    with pytest.raises(ValueError, match="unknown model kind"):
+        ensure_model(profile, dataset, "single:truck")
+
+
+def test_interrupted_training_is_not_cached(dataset, data_dir, monkeypatch):
+    profile = get_profile("smoke").with_(train=TrainConfig(epochs=3, batch_size=64, width=8,
+                                                          fc_hidden=32))
+    real = train.train_model
+
+    def interrupt_in_epoch_2(epoch, step, loss):
+        if epoch == 2:
+            raise KeyboardInterrupt
+
+    def interrupted(*a, **k):
+        return real(*a, **k, on_batch_end=interrupt_in_epoch_2)
+
+    monkeypatch.setattr(train, "train_model", interrupted)
+    result = ensure_model(profile, dataset, "single:jeep", progress=False)
+    assert result.interrupted and result.best_epoch == 1
+    models = data_dir / "smoke" / "models"
+    assert (models / "single_jeep.partial.pt").exists()
+    assert not (models / "single_jeep.pt").exists()
+
+
+def test_channel_statistics_skip_nan_and_match_numpy():
+    rng = np.random.default_rng(0)
+    x = rng.normal(3.0, 2.0, (50, 6, 22, 7)).astype(np.float16)
+    mean, std = channel_statistics(x, chunk=7)
+    ref = x.astype(np.float64)
+    np.testing.assert_allclose(mean, ref.mean(axis=(0, 2, 3)), rtol=1e-5)
+    np.testing.assert_allclose(std, ref.std(axis=(0, 2, 3)), rtol=1e-5)
+    x[:, 3, :4] = np.nan
+    mean_nan, _ = channel_statistics(x)
+    np.testing.assert_allclose(mean_nan[3], np.nanmean(x[:, 3].astype(np.float64)), rtol=1e-5)
+
+
+def test_regression_metrics():
+    m = regression_metrics(np.array([0.1, 0.5, 0.9]), np.array([0.0, 0.5, 1.0]))
+    assert m["n"] == 3
+    assert m["mse"] == pytest.approx(0.02 / 3)
+    assert m["mae"] == pytest.approx(0.2 / 3)
+    assert m["spearman"] == pytest.approx(1.0)
+    assert math.isnan(regression_metrics(np.ones(4), np.arange(4.0))["spearman"])
+
+
+def test_predict_does_not_depend_on_batch_size(trained, dataset):
+    x = dataset.patches[:100]
+    a = predict(trained.model, x, batch_size=7)
+    b = predict(trained.model, x, batch_size=1024)
+    assert a.dtype == np.float32 and a.shape == (100, 4)
+    np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_synthetic_dataset_splits_by_trajectory(dataset):
+    for t in np.unique(dataset.trajectory):
+        assert len(np.unique(dataset.split[dataset.trajectory == t])) == 1
+    assert set(np.unique(dataset.split)) == {TRAIN, 1, TEST}
+    assert dataset.patches.dtype == np.float16
+
+
+def test_models_stage_trains_each_kind_once_and_reports(dataset, data_dir):
+    profile = get_profile("smoke").with_(train=TINY)
+    out = train.models_stage(profile, dataset, kinds=("multitask", "single:carla_cola"),
+                             progress=False)
+    assert [p.name for p in out.paths] == ["multitask.pt", "single_carla_cola.pt"]
+    assert all(p.exists() for p in out.paths)
+    assert "multitask (best epoch" in out.summary and "carla_cola mse" in out.summary
+    assert load_checkpoint(out.paths[1]).model.vehicles == ("carla_cola",)
+    no_cola_val = dataset.subset(~((dataset.vehicle == 3) & (dataset.split == 1)))
+    out = train.models_stage(profile, no_cola_val, kinds=("single:carla_cola",), progress=False)
+    assert out.paths == [] and "single:carla_cola skipped" in out.summary
+
+
+def test_bad_inputs_are_clear_errors(dataset):
+    bad = dataset.subset(np.arange(len(dataset)))
+    bad.labels[np.flatnonzero(bad.split == TRAIN)[0]] = np.nan
+    with pytest.raises(ValueError, match=r"in \[0, 1\]"):
+        train_model(bad, TINY, progress=False)
+    no_val = dataset.subset(dataset.split != 1)
+    with pytest.raises(ValueError, match="validation"):
+        train_model(no_val, TINY, progress=False)
+    with pytest.raises(ValueError, match="unknown vehicle"):
+        train_model(dataset, TINY, vehicles=("truck",), progress=False)
