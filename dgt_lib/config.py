@@ -84,6 +84,7 @@ class TrainConfig:
     width: int = 64  # channels of the first ResNet stage; 64 = ResNet-18 (paper)
     fc_hidden: int = 256  # units of the FC layer between the branches and the heads
     patience: int | None = None  # stop after this many epochs without a better val loss
+    mirror_augment: bool = True  # flip half of each batch left ↔ right (ours, label-preserving)
 
 
 @dataclass(frozen=True)

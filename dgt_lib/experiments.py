@@ -218,7 +218,7 @@ def _planner_for(maps: WorldMaps, method: str, vehicle: str, cfg=None) -> Hybrid
         cost = binary_costmap(maps.grid.shape)
     else:
         cost = maps.costmap(method, vehicle)
-    return HybridAStar(cost, maps.occupancy, maps.grid, min_turn_radius_m=spec.min_turn_radius_m,
+    return HybridAStar(cost, maps.occupancy, maps.grid, min_turn_radius_m=spec.centre_turn_radius_m,
                        footprint=(spec.length_m, spec.width_m), cfg=cfg)
 
 

@@ -43,6 +43,27 @@ PATCH_SHAPE = (N_CHANNELS, 22, 7)
 """One patch: 8.8 m × 2.8 m at 0.4 m per cell, channels first."""
 
 
+def centre_heights(x):
+    """Make H̄ relative to each patch's mean height: (B, 6, H, W) → a copy, numpy or torch.
+
+    Traversability does not depend on altitude, and absolute heights differ between
+    the training map and the evaluation maps (a summit at 12 m is as flat as a valley),
+    so the network sees H̄ − mean(H̄) of its patch. Our choice; the paper does not say.
+    Non-finite cells are ignored in the mean and stay non-finite.
+    """
+    if isinstance(x, torch.Tensor):
+        out = x.clone()
+        mean = torch.nanmean(x[:, HEIGHT_CHANNELS.start].flatten(1), dim=1)
+        out[:, HEIGHT_CHANNELS.start] -= torch.nan_to_num(mean)[:, None, None]
+        return out
+    out = np.array(x, dtype=np.float64 if x.dtype == np.float64 else np.float32)
+    h = out[:, HEIGHT_CHANNELS.start].reshape(len(out), -1)
+    finite = np.isfinite(h)
+    mean = np.where(finite, h, 0.0).sum(axis=1) / np.maximum(finite.sum(axis=1), 1)
+    out[:, HEIGHT_CHANNELS.start] -= mean[:, None, None]
+    return out
+
+
 class ArchitectureMismatchError(ValueError):
     """Weights or a checkpoint that do not fit the network they are loaded into."""
 
@@ -195,7 +216,8 @@ class DGTNet(nn.Module):
     def architecture(self) -> dict[str, Any]:
         """What a checkpoint must match to load into this model."""
         return {"name": "DGTNet", "vehicles": list(self.vehicles), "width": self.width,
-                "fc_hidden": self.fc_hidden, "in_channels": N_CHANNELS}
+                "fc_hidden": self.fc_hidden, "in_channels": N_CHANNELS,
+                "heights": "relative to the patch mean"}
 
     def head_index(self, vehicle: str | int) -> int:
         """Column of ``vehicle`` (name, or index into ``config.VEHICLES``) in the output."""
@@ -222,6 +244,7 @@ class DGTNet(nn.Module):
         """Shared embedding z: (B, 6, 22, 7) raw patches → (B, fc_hidden)."""
         if x.ndim != 4 or x.shape[1] != N_CHANNELS:
             raise ValueError(f"expected patches (B, {N_CHANNELS}, H, W), got {tuple(x.shape)}")
+        x = centre_heights(x)  # H̄ relative to the patch's mean height
         x = (x - self.input_mean[:, None, None]) / self.input_std[:, None, None]
         x = torch.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
         features = torch.cat([self.rgb(x[:, RGB_CHANNELS]), self.height(x[:, HEIGHT_CHANNELS])],

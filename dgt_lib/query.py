@@ -118,7 +118,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
     cost = maps.costmap(method, vehicle)
     planner = HybridAStar(cost, maps.occupancy, maps.grid,
-                          min_turn_radius_m=spec.min_turn_radius_m,
+                          min_turn_radius_m=spec.centre_turn_radius_m,
                           footprint=(spec.length_m, spec.width_m), cfg=prof.planner)
     start = tuple(float(v) for v in start)
     goal = tuple(float(v) for v in goal)[:2]

@@ -198,7 +198,7 @@ class Recording:
         h, w = depth.shape
         path = f"{FRAMES}/{name}"
         self.stream.log(path, rr.Transform3D(translation=position, mat3x3=rotation))
-        self.stream.log(path, rr.Pinhole(focal_length=focal_px, width=w, height=h,
+        self.stream.log(path, rr.Pinhole(focal_length=float(focal_px), width=w, height=h,
                                          camera_xyz=rr.ViewCoordinates.RUB))
         self.stream.log(f"{path}/rgb", rr.Image(rgb))
         self.stream.log(f"{path}/depth", rr.DepthImage(np.nan_to_num(depth, nan=0.0), meter=1.0))

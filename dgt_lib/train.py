@@ -38,11 +38,11 @@ from tqdm.auto import tqdm
 from . import artifacts
 from .config import VEHICLES, Profile, TrainConfig
 from .dataset import TEST, TRAIN, VAL, PatchDataset, split_by_trajectory
-from .model import N_CHANNELS, ArchitectureMismatchError, DGTNet
+from .model import N_CHANNELS, ArchitectureMismatchError, DGTNet, centre_heights
 from .pipeline import StageOutput
 
 CHECKPOINT_FORMAT = "dgt-kit/DGTNet"
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
 MODEL_KINDS: tuple[str, ...] = ("multitask",) + tuple(f"single:{v}" for v in VEHICLES)
 """The models of ``ensure_model``: multi-task, and one single-task model per vehicle."""
 RGB_WEIGHTS_ENV_VAR = "DGT_RESNET18_WEIGHTS"
@@ -107,8 +107,9 @@ def channel_statistics(patches: np.ndarray, index: np.ndarray | None = None,
                        chunk: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """Per-channel mean and standard deviation of ``patches[index]`` (N, 6, H, W), each (6,).
 
-    Computed in float64 over chunks (no float32 copy of the whole set); NaN cells
-    are skipped. A channel with (near) zero spread gets std 1.
+    Computed in float64 over chunks (no float32 copy of the whole set) on the input
+    as :class:`DGTNet` sees it (H̄ relative to each patch's mean, ``centre_heights``);
+    NaN cells are skipped. A channel with (near) zero spread gets std 1.
     """
     index = np.arange(len(patches)) if index is None else np.asarray(index)
     if len(index) == 0:
@@ -117,7 +118,7 @@ def channel_statistics(patches: np.ndarray, index: np.ndarray | None = None,
     total_sq = np.zeros(N_CHANNELS)
     count = np.zeros(N_CHANNELS)
     for idx in _index_batches(index, chunk):
-        x = patches[idx].astype(np.float64)  # (b, 6, H, W)
+        x = centre_heights(patches[idx].astype(np.float64))  # (b, 6, H, W), as DGTNet sees it
         finite = np.isfinite(x)
         x = np.where(finite, x, 0.0)
         total += x.sum(axis=(0, 2, 3))
@@ -299,6 +300,9 @@ def train_model(
                              disable=not progress)
             for step, idx in enumerate(batch_bar):
                 x = batch_to_tensor(dataset.patches[idx], device)  # (B, 6, 22, 7) float32
+                if cfg.mirror_augment:  # left ↔ right: a vehicle's locomotion does not care
+                    flip = torch.from_numpy(rng.random(len(idx)) < 0.5).to(device)
+                    x = torch.where(flip[:, None, None, None], x.flip(-1), x)
                 loss = masked_loss(model(x), labels[idx].to(device), heads[idx].to(device))
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
@@ -586,3 +590,10 @@ def synthetic_dataset(
         vehicle=vehicle, trajectory=trajectory, pose=pose.astype(np.float32),
         split=split_by_trajectory(trajectory, vehicle, seed=seed),
     )
+
+
+def stage_train(profile: Profile) -> StageOutput:
+    """``dgt reproduce`` stage: the multi-task model and one single-task model per vehicle."""
+    from .dataset import ensure_dataset
+
+    return models_stage(profile, ensure_dataset(profile))

@@ -75,6 +75,12 @@ class VehicleSpec:
         return self.wheelbase_m / math.tan(self.max_steer_rad)
 
     @property
+    def centre_turn_radius_m(self) -> float:
+        """Minimum turning radius of the body centre (ℓ/2 ahead of the rear axle) [m]:
+        √(R_min² + (ℓ/2)²). Hybrid A* plans the body centre, so its arcs use this radius."""
+        return math.hypot(self.min_turn_radius_m, 0.5 * self.wheelbase_m)
+
+    @property
     def driven_wheels(self) -> int:
         """How many wheels the motors drive (4 for AWD, 2 for RWD)."""
         return 4 if self.drive == "awd" else 2

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from dgt_lib.config import VEHICLES
-from dgt_lib.model import ArchitectureMismatchError, DGTNet, ResNet18
+from dgt_lib.model import ArchitectureMismatchError, DGTNet, ResNet18, centre_heights
 
 WIDTH = 8  # small network: fast tests, same code path as the paper's width 64
 
@@ -101,11 +101,12 @@ def test_imagenet_weights_of_another_shape_are_a_clear_error(tmp_path):
 
 
 def test_normalisation_is_applied_inside_forward_and_saved(model):
-    mean = np.array([0.4, 0.5, 0.3, 12.0, 0.1, 0.2], dtype=np.float32)
+    # H̄ is centred on each patch before normalising, so its mean statistic is ~0
+    mean = np.array([0.4, 0.5, 0.3, 0.0, 0.1, 0.2], dtype=np.float32)
     std = np.array([0.2, 0.2, 0.1, 3.0, 0.05, 0.1], dtype=np.float32)
     x = torch.randn(4, 6, 22, 7) * torch.from_numpy(std)[:, None, None] \
         + torch.from_numpy(mean)[:, None, None]
-    expected = model((x - torch.from_numpy(mean)[:, None, None])
+    expected = model((centre_heights(x) - torch.from_numpy(mean)[:, None, None])
                      / torch.from_numpy(std)[:, None, None])
     model.set_normalization(mean, std)
     torch.testing.assert_close(model(x), expected)
@@ -123,3 +124,21 @@ def test_unobserved_nan_cells_give_finite_predictions(model):
     x = torch.randn(2, 6, 22, 7)
     x[:, :, :5] = float("nan")
     assert torch.isfinite(model(x)).all()
+
+
+def test_heights_are_relative_to_the_patch_so_altitude_does_not_matter():
+    """The same terrain 12 m higher (a summit plateau) gives the same prediction."""
+    import torch
+
+
+
+    torch.manual_seed(0)
+    model = DGTNet(width=8, fc_hidden=16).eval()
+    x = torch.rand(4, 6, 22, 7)
+    higher = x.clone()
+    higher[:, 3] += 12.0
+    with torch.no_grad():
+        torch.testing.assert_close(model(x), model(higher), atol=1e-5, rtol=0)
+    centred = centre_heights(x.numpy())
+    np.testing.assert_allclose(centred[:, 3].mean(axis=(1, 2)), 0.0, atol=1e-5)
+    np.testing.assert_array_equal(centred[:, :3], x.numpy()[:, :3])

@@ -9,7 +9,7 @@ import torch
 from dgt_lib import artifacts, train
 from dgt_lib.config import VEHICLES, TrainConfig, get_profile
 from dgt_lib.dataset import TEST, TRAIN
-from dgt_lib.model import ArchitectureMismatchError, DGTNet
+from dgt_lib.model import ArchitectureMismatchError, DGTNet, centre_heights
 from dgt_lib.train import (
     CheckpointError,
     channel_statistics,
@@ -233,12 +233,14 @@ def test_channel_statistics_skip_nan_and_match_numpy():
     rng = np.random.default_rng(0)
     x = rng.normal(3.0, 2.0, (50, 6, 22, 7)).astype(np.float16)
     mean, std = channel_statistics(x, chunk=7)
-    ref = x.astype(np.float64)
+    ref = centre_heights(x.astype(np.float64))  # the input as DGTNet sees it
     np.testing.assert_allclose(mean, ref.mean(axis=(0, 2, 3)), rtol=1e-5)
     np.testing.assert_allclose(std, ref.std(axis=(0, 2, 3)), rtol=1e-5)
     x[:, 3, :4] = np.nan
     mean_nan, _ = channel_statistics(x)
-    np.testing.assert_allclose(mean_nan[3], np.nanmean(x[:, 3].astype(np.float64)), rtol=1e-5)
+    centred = centre_heights(x.astype(np.float64))
+    np.testing.assert_allclose(mean_nan[3], np.nanmean(centred[:, 3]), atol=1e-9)
+    assert np.isnan(centred[:, 3, :4]).all() and np.isfinite(centred[:, 3, 4:]).all()
 
 
 def test_regression_metrics():

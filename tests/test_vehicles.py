@@ -51,3 +51,14 @@ def test_ackermann_wheels_share_one_turn_centre(steer):
     inner, outer = (left, right) if steer > 0 else (right, left)
     assert abs(inner) > abs(outer)
     assert ackermann_angles(0.0, v) == (0.0, 0.0)
+
+
+def test_body_centre_turns_wider_than_the_rear_axle():
+    import math
+
+    from dgt_lib.vehicles import VEHICLE_SPECS
+
+    for spec in VEHICLE_SPECS.values():
+        r_c = spec.centre_turn_radius_m
+        assert r_c > spec.min_turn_radius_m
+        assert math.isclose(r_c**2, spec.min_turn_radius_m**2 + (spec.wheelbase_m / 2) ** 2)
