@@ -53,7 +53,7 @@ from .outcomes import (
 from .pipeline import StageOutput
 from .planner import HybridAStar
 from .vehicles import get_vehicle
-from .worlds import World, get_world
+from .worlds import World, get_world, polyline_distance
 
 OUTCOME_KEYS = {"dgt": "dgt_map", "isotropic": "dgt_map_iso", "single-task": "dgt_map_st",
                 "slope": "slope_based", "binary": "binary"}
@@ -181,27 +181,21 @@ def random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: int,
 
 
 # ----------------------------------------------------------------------------- routes
-def classify_route(world: World, path: np.ndarray) -> str:
-    """Which way a planned path went: hill "A"/"B", ridge "sharp"/"smooth", else ""."""
-    if len(path) == 0:
-        return ""
-    xy = np.asarray(path)[:, :2]
-    if world.name == "hill":
-        def passes(a: str, b: str, within_m: float) -> bool:
-            mid = 0.5 * (np.asarray(world.landmarks[a]) + np.asarray(world.landmarks[b]))
-            return bool(np.min(np.hypot(*(xy - mid).T)) < within_m)
+ROUTE_NAMES = {"hill": {"A": "A", "B": "B"}, "ridge": {"A": "smooth", "B": "sharp"}}
+"""How a world's routes are reported: the hill's Routes A and B, the ridge's crossings."""
 
-        if passes("B_steep_bottom", "B_steep_top", 8.0):
-            return "B"
-        return "A" if passes("A_ramp_bottom", "A_ramp_top", 10.0) else "other"
-    if world.name == "ridge":
-        y_ridge = world.landmarks["sharp_crossing"][1]
-        i = int(np.argmin(np.abs(xy[:, 1] - y_ridge)))
-        x = xy[i, 0]
-        if abs(x - world.landmarks["smooth_crossing"][0]) < 12.0:
-            return "smooth"
-        return "sharp" if abs(x - world.landmarks["sharp_crossing"][0]) < 12.0 else "other"
-    return ""
+
+def classify_route(world: World, path: np.ndarray, tolerance_m: float = 6.0) -> str:
+    """Which of the world's routes a planned path follows: the route whose polyline is
+    closest on average (hill "A"/"B", ridge "smooth"/"sharp"), "other" when even that
+    one is farther than ``tolerance_m`` on average, "" for worlds without routes."""
+    names = ROUTE_NAMES.get(world.name)
+    if not names or len(path) == 0:
+        return ""
+    xy = np.asarray(path, dtype=float)[:, :2]
+    mean_d = {key: float(polyline_distance(xy, world.routes[key])[0].mean()) for key in names}
+    best = min(mean_d, key=mean_d.get)
+    return names[best] if mean_d[best] <= tolerance_m else "other"
 
 
 # ----------------------------------------------------------------------------- one trial

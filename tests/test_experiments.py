@@ -1,0 +1,90 @@
+"""Closed-loop trials: routes, queries, the trial runner's error handling, and tables."""
+
+import numpy as np
+import pytest
+
+from dgt_lib import experiments
+from dgt_lib.config import get_profile
+from dgt_lib.experiments import (
+    ExperimentResult,
+    Query,
+    TrialResult,
+    TrialTask,
+    classify_route,
+    drive,
+    hill_queries,
+    ridge_queries,
+    run_trial,
+)
+from dgt_lib.outcomes import TrialOutcome
+from dgt_lib.worlds import from_heightmap, get_world
+
+PROFILE = get_profile("smoke")
+
+
+def test_routes_are_recognised_on_the_hill_and_the_ridge():
+    hill, ridge = get_world("hill", PROFILE), get_world("ridge", PROFILE)
+    assert classify_route(hill, hill.routes["A"]) == "A"
+    assert classify_route(hill, hill.routes["B"][::-1]) == "B"  # direction does not matter
+    assert classify_route(ridge, ridge.routes["A"]) == "smooth"
+    assert classify_route(ridge, ridge.routes["B"]) == "sharp"
+    straight_east = np.column_stack([np.linspace(10, 130, 50), np.full(50, 130.0)])
+    assert classify_route(hill, straight_east) == "other"
+    assert classify_route(get_world("eval", PROFILE), straight_east) == ""
+
+
+def test_queries_alternate_directions_and_are_seeded():
+    hill = get_world("hill", PROFILE)
+    cfg = PROFILE.experiments
+    q = hill_queries(hill, 4, cfg, seed=3)
+    assert [x.label for x in q] == ["ascent", "descent", "ascent", "descent"]
+    base, summit = np.array(hill.landmarks["base"]), np.array(hill.landmarks["summit"])
+    assert np.abs(np.array(q[0].start[:2]) - base).max() <= cfg.start_jitter_m
+    assert np.abs(np.array(q[0].goal) - summit).max() <= cfg.start_jitter_m
+    assert q == hill_queries(hill, 4, cfg, seed=3) and q != hill_queries(hill, 4, cfg, seed=4)
+    r = ridge_queries(get_world("ridge", PROFILE), 2, cfg, seed=0)
+    assert r[0].start[1] < r[0].goal[1] and r[1].start[1] > r[1].goal[1]
+
+
+def test_a_short_closed_loop_trial_succeeds_on_flat_ground():
+    world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
+    path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
+    outcome, traj, speed = drive(world, "jeep", path, (60.0, 20.0), time_limit_s=30.0,
+                                 mppi_batch_size=128)
+    assert outcome.success and outcome.reason == "success"
+    assert np.hypot(*(traj[-1, 1:3] - [60.0, 20.0])) < 5.0
+    assert speed.max() > 3.0  # it drove, at close to the commanded 5 m/s
+    assert np.abs(traj[:, 2] - 20.0).max() < 1.0  # and stayed on the line
+
+
+def test_a_crashing_trial_is_recorded_as_an_error_not_raised():
+    task = TrialTask("x", "no_such_world", "binary", "jeep", Query((0, 0, 0), (1, 1)), 0,
+                     "smoke", 0)
+    result = run_trial(task)
+    assert result.outcome.reason == "error" and not result.outcome.success
+    assert "no_such_world" in result.outcome.detail  # the traceback is kept
+
+
+def _result(method, label, ok, vehicle="carla_cola", route="A"):
+    task = TrialTask("experiment1", "hill", method, vehicle, Query((0, 0, 0), (1, 1), label), 0,
+                     "smoke", 0)
+    outcome = TrialOutcome(True, "success", 1.0) if ok else TrialOutcome.failure("immobilized")
+    return TrialResult(task, outcome, route=route)
+
+
+def test_tables_count_successes_and_put_the_paper_beside_ours():
+    res = ExperimentResult("experiment1", "hill", [
+        _result("dgt", "ascent", True), _result("dgt", "descent", True, route="B"),
+        _result("binary", "ascent", False, route="B"), _result("binary", "descent", True,
+                                                               route="B")])
+    assert res.counts() == {"dgt": (2, 2), "binary": (1, 2)}
+    table = res.table("carla_cola", experiments.PAPER["experiment1"]["carla_cola"])
+    assert "| DGT-Map | 2 / 2 | 100.0 |" in table and "| 16 | 80.0 |" in table
+    assert res.routes()[("dgt", "ascent")] == {"A": 1}
+    assert "| Binary | 1 | 1 |" in res.reason_markdown()
+
+
+@pytest.mark.parametrize("name", ["experiment9"])
+def test_unknown_experiment_is_a_clear_error(name):
+    with pytest.raises(ValueError, match="experiment1, experiment2"):
+        experiments.run_experiment(name, PROFILE)
