@@ -128,7 +128,8 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
     out_dir = Path(out_dir) if out_dir else artifacts.profile_dir(prof.name) / "plans"
     out_dir.mkdir(parents=True, exist_ok=True)
-    stem = f"{w.name}_{vehicle}_{method}"
+    stem = (f"{w.name}_{vehicle}_{method}_{start[0]:.0f}_{start[1]:.0f}_to_"
+            f"{goal[0]:.0f}_{goal[1]:.0f}")
     report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
     if drive and result.success:
         from .experiments import drive as drive_path
