@@ -10,15 +10,6 @@ from dgt_lib.model import ArchitectureMismatchError, DGTNet, ResNet18, centre_he
 WIDTH = 8  # small network: fast tests, same code path as the paper's width 64
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    """One torch thread: CI runs two pytest workers on two cores."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
 @pytest.fixture
 def model():
     torch.manual_seed(0)
@@ -129,7 +120,6 @@ def test_unobserved_nan_cells_give_finite_predictions(model):
 def test_heights_are_relative_to_the_patch_so_altitude_does_not_matter():
     """The same terrain 12 m higher (a summit plateau) gives the same prediction."""
     import torch
-
 
 
     torch.manual_seed(0)

@@ -17,15 +17,6 @@ from dgt_lib.train import predict, synthetic_dataset
 TINY = TrainConfig(epochs=1, batch_size=32, width=2, fc_hidden=8)
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    """One torch thread: CI runs two pytest workers on two cores."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
 @pytest.fixture(scope="module")
 def small_data():
     return synthetic_dataset((40, 30, 30, 20), seed=3, patches_per_trajectory=5)
