@@ -181,21 +181,32 @@ def random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: int,
 
 
 # ----------------------------------------------------------------------------- routes
-ROUTE_NAMES = {"hill": {"A": "A", "B": "B"}, "ridge": {"A": "smooth", "B": "sharp"}}
-"""How a world's routes are reported: the hill's Routes A and B, the ridge's crossings."""
+RIDGE_SMOOTH_HALF_WIDTH_M = 9.0
+"""Half-width of the ridge's smoothed section around ``smooth_crossing`` [m] (worlds.make_ridge)."""
 
 
 def classify_route(world: World, path: np.ndarray, tolerance_m: float = 6.0) -> str:
-    """Which of the world's routes a planned path follows: the route whose polyline is
-    closest on average (hill "A"/"B", ridge "smooth"/"sharp"), "other" when even that
-    one is farther than ``tolerance_m`` on average, "" for worlds without routes."""
-    names = ROUTE_NAMES.get(world.name)
-    if not names or len(path) == 0:
+    """Which way a planned path went, "" for worlds without routes.
+
+    Hill: the route whose polyline is closest on average ("A" or "B"), "other" when
+    even that one is farther than ``tolerance_m`` on average. Ridge: where the path
+    crosses the ridge line — "smooth" within the smoothed section, else "sharp" (the
+    ridge is sharp everywhere else, across the whole map).
+    """
+    if len(path) == 0:
         return ""
     xy = np.asarray(path, dtype=float)[:, :2]
-    mean_d = {key: float(polyline_distance(xy, world.routes[key])[0].mean()) for key in names}
-    best = min(mean_d, key=mean_d.get)
-    return names[best] if mean_d[best] <= tolerance_m else "other"
+    if world.name == "hill":
+        mean_d = {key: float(polyline_distance(xy, world.routes[key])[0].mean())
+                  for key in ("A", "B")}
+        best = min(mean_d, key=mean_d.get)
+        return best if mean_d[best] <= tolerance_m else "other"
+    if world.name == "ridge":
+        y_ridge = world.landmarks["sharp_crossing"][1]
+        x_cross = xy[int(np.argmin(np.abs(xy[:, 1] - y_ridge))), 0]
+        smooth_x = world.landmarks["smooth_crossing"][0]
+        return "smooth" if abs(x_cross - smooth_x) <= RIDGE_SMOOTH_HALF_WIDTH_M else "sharp"
+    return ""
 
 
 # ----------------------------------------------------------------------------- one trial
@@ -370,7 +381,8 @@ class ExperimentResult:
         out: dict[tuple[str, str], dict[str, int]] = {}
         for r in self.results:
             d = out.setdefault((r.task.method, r.task.query.label), {})
-            d[r.route or "no path"] = d.get(r.route or "no path", 0) + 1
+            route = r.route or ("no path" if len(r.path) == 0 else "—")
+            d[route] = d.get(route, 0) + 1
         return out
 
     def reasons(self) -> dict[str, dict[str, int]]:
@@ -401,7 +413,9 @@ class ExperimentResult:
         """Tables (ours beside the paper's), routes and failure reasons as markdown."""
         vehicles = sorted({r.task.vehicle for r in self.results})
         parts = [self.table(v, (paper or {}).get(v)) for v in vehicles]
-        return "\n".join(parts + [self.route_markdown(), self.reason_markdown()])
+        if any(r.route for r in self.results):
+            parts.append(self.route_markdown())
+        return "\n".join(parts + [self.reason_markdown()])
 
 
 def _tasks(experiment: str, world: str, vehicle: str, queries: list[Query],
@@ -459,6 +473,9 @@ def ensure_experiment(name: str, profile: Profile | str | None = None, *,
     result = artifacts.ensure(f"experiments/{name}.pkl", cfg,
                               lambda: run_experiment(name, prof, progress=progress),
                               profile=prof.name)
+    world = get_world(result.world, prof)
+    for r in result.results:  # routes follow the current classification rule
+        r.route = classify_route(world, r.path)
     out = artifacts.profile_dir(prof.name)
     (out / "results").mkdir(parents=True, exist_ok=True)
     (out / "results" / f"{name}.md").write_text(result.markdown(PAPER.get(name)))

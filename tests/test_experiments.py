@@ -28,6 +28,8 @@ def test_routes_are_recognised_on_the_hill_and_the_ridge():
     assert classify_route(hill, hill.routes["B"][::-1]) == "B"  # direction does not matter
     assert classify_route(ridge, ridge.routes["A"]) == "smooth"
     assert classify_route(ridge, ridge.routes["B"]) == "sharp"
+    straight_north = np.column_stack([np.full(30, 50.0), np.linspace(15, 65, 30)])
+    assert classify_route(ridge, straight_north) == "sharp"  # the ridge is sharp at x = 50
     straight_east = np.column_stack([np.linspace(10, 130, 50), np.full(50, 130.0)])
     assert classify_route(hill, straight_east) == "other"
     assert classify_route(get_world("eval", PROFILE), straight_east) == ""
