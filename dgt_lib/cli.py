@@ -90,7 +90,7 @@ def _plan(args: argparse.Namespace) -> int:
     return 0 if report.plan.success else 1
 
 
-TRAINING_TIME = {"smoke": "about a minute", "demo": "about half an hour",
+TRAINING_TIME = {"smoke": "about a minute", "demo": "about 40 minutes",
                  "paper": "a few hours"}
 """What ``dgt plan`` says when it must build the data and models first (measured, README)."""
 
