@@ -533,10 +533,14 @@ def stage_experiments(profile: Profile) -> StageOutput:
     """``dgt reproduce`` stage: Experiments 1–3, tables in ``results/``, runs in ``runs/``."""
     prof = profile if isinstance(profile, Profile) else get_profile(profile)
     out = artifacts.profile_dir(prof.name)
-    paths, parts = [], []
+    from .report import write_results
+
+    paths, parts, results = [], [], []
     for name in ("experiment1", "experiment2", "experiment3"):
         res = ensure_experiment(name, prof)
-        paths += [out / "results" / f"{name}.md", out / "runs" / f"{name}.rrd"]
+        results.append(res)
+        paths += [out / "runs" / f"{name}.rrd"]
         counts = ", ".join(f"{METHOD_LABELS[m]} {k}/{n}" for m, (k, n) in res.counts().items())
         parts.append(f"{name}: {counts}")
+    paths.insert(0, write_results(results, prof))
     return StageOutput(paths, "; ".join(parts))
