@@ -632,7 +632,7 @@ def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, obje
             "index": int(index), "camera": CAMERA}
 
 
-def _limit_threads() -> None:
+def limit_threads() -> None:
     """One BLAS/OpenMP/torch/llvmpipe thread per worker; headless EGL rendering."""
     os.environ.setdefault("MUJOCO_GL", "egl")
     for var in _THREAD_VARS:
@@ -645,7 +645,7 @@ def _episode_job(profile: Profile, vehicle: str, index: int, in_worker: bool = T
                  ) -> dict[str, np.ndarray]:
     """Worker entry point: run one episode of the training world, return its arrays."""
     if in_worker:  # a Dask/Ray worker has no initializer of ours; this process keeps its own
-        _limit_threads()
+        limit_threads()
     world = get_world("training", profile)
     ep = run_episode(world, vehicle, episode_seed(profile.seed, vehicle, index),
                      profile.collect, index=index)
@@ -688,7 +688,7 @@ def default_executor(workers: int) -> Executor:
     if workers <= 1:
         return SerialExecutor()
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(
-        "spawn"), initializer=_limit_threads)
+        "spawn"), initializer=limit_threads)
 
 
 def load_episode(path: Path, with_bev: bool = False) -> Episode:

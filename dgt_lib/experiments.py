@@ -315,12 +315,6 @@ def run_trial(task: TrialTask) -> TrialResult:
                            wall_s=time.perf_counter() - t0)
 
 
-def _worker_init() -> None:
-    from .collect import _limit_threads
-
-    _limit_threads()
-
-
 def run_trials(tasks: Sequence[TrialTask], executor: Executor | None = None, *,
                workers: int = 2, progress: bool = True) -> list[TrialResult]:
     """Run trials in parallel (process pool of ``workers`` unless an executor is given),
@@ -329,9 +323,11 @@ def run_trials(tasks: Sequence[TrialTask], executor: Executor | None = None, *,
 
     from tqdm.auto import tqdm
 
+    from .collect import limit_threads
+
     own = executor is None
     if own:
-        executor = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+        executor = ProcessPoolExecutor(max_workers=workers, initializer=limit_threads)
     try:
         futures = [executor.submit(run_trial, t) for t in tasks]
         bar = tqdm(total=len(futures), desc="trials", unit="trial", disable=not progress)
