@@ -21,12 +21,14 @@ traceback and the run goes on.
 from __future__ import annotations
 
 import math
+import pickle
 import time
 import traceback
 from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -315,32 +317,73 @@ def run_trial(task: TrialTask) -> TrialResult:
                            wall_s=time.perf_counter() - t0)
 
 
+def read_journal(path: str | Path) -> dict[TrialTask, TrialResult]:
+    """The finished trials recorded in a journal file by :func:`run_trials`, by task.
+
+    A record cut short by a crash (the last one) is ignored; a missing file is empty.
+    """
+    done: dict[TrialTask, TrialResult] = {}
+    path = Path(path)
+    if not path.exists():
+        return done
+    with open(path, "rb") as f:
+        while True:
+            try:
+                result = pickle.load(f)
+            except (EOFError, pickle.UnpicklingError, AttributeError, ValueError):
+                break  # end of file, or a half-written last record
+            done[result.task] = result
+    return done
+
+
 def run_trials(tasks: Sequence[TrialTask], executor: Executor | None = None, *,
-               workers: int = 2, progress: bool = True) -> list[TrialResult]:
+               workers: int = 2, progress: bool = True,
+               journal: str | Path | None = None) -> list[TrialResult]:
     """Run trials in parallel (process pool of ``workers`` unless an executor is given),
-    with a progress bar; results come back in task order."""
-    from concurrent.futures import ProcessPoolExecutor
+    with a progress bar; results come back in task order.
+
+    journal: a file to which every trial is appended as soon as it ends. Trials
+    already in it are not run again (those that ended in ``error`` are retried), so
+    an experiment stopped by Ctrl-C or a crash resumes where it stopped.
+    """
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from tqdm.auto import tqdm
 
     from .collect import limit_threads
 
-    own = executor is None
+    done = {} if journal is None else {
+        t: r for t, r in read_journal(journal).items() if r.outcome.reason != "error"}
+    done = {t: done[t] for t in tasks if t in done}
+    todo = [t for t in tasks if t not in done]
+    own = executor is None and len(todo) > 0
     if own:
         executor = ProcessPoolExecutor(max_workers=workers, initializer=limit_threads)
+    log = None
+    if journal is not None:
+        Path(journal).parent.mkdir(parents=True, exist_ok=True)
+        log = open(journal, "ab")
+    bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="trials", unit="trial",
+               disable=not progress)
     try:
-        futures = [executor.submit(run_trial, t) for t in tasks]
-        bar = tqdm(total=len(futures), desc="trials", unit="trial", disable=not progress)
-        results = []
-        for fut in futures:
-            results.append(fut.result())
+        futures = [executor.submit(run_trial, t) for t in todo]
+        n_ok = sum(r.outcome.success for r in done.values())
+        for fut in as_completed(futures):
+            result = fut.result()
+            done[result.task] = result
+            if log is not None:
+                pickle.dump(result, log)
+                log.flush()
+            n_ok += result.outcome.success
             bar.update()
-            bar.set_postfix_str(f"{sum(r.outcome.success for r in results)}/{len(results)} ok")
-        bar.close()
-        return results
+            bar.set_postfix_str(f"{n_ok}/{bar.n} ok")
+        return [done[t] for t in tasks]
     finally:
+        bar.close()
+        if log is not None:
+            log.close()
         if own:
-            executor.shutdown()
+            executor.shutdown(cancel_futures=True)
 
 
 # ----------------------------------------------------------------------------- experiments
@@ -422,9 +465,13 @@ def _tasks(experiment: str, world: str, vehicle: str, queries: list[Query],
 
 def run_experiment(name: str, profile: Profile | str | None = None, *,
                    executor: Executor | None = None, progress: bool = True,
-                   methods: Sequence[str] | None = None) -> ExperimentResult:
+                   methods: Sequence[str] | None = None,
+                   journal: str | Path | None = None) -> ExperimentResult:
     """Run experiment ``"experiment1"`` (hill), ``"experiment2"`` (ridge) or
-    ``"experiment3"`` (eval, random pairs) at the profile's n."""
+    ``"experiment3"`` (eval, random pairs) at the profile's n.
+
+    journal: see :func:`run_trials` (finished trials are kept there; a rerun resumes).
+    """
     prof = profile if isinstance(profile, Profile) else get_profile(profile)
     ex = prof.experiments
     if name == "experiment1":
@@ -449,7 +496,8 @@ def run_experiment(name: str, profile: Profile | str | None = None, *,
     # build every costmap in this process first, so workers only load them
     ensure_world_costmaps(world, vehicles, prof, methods=tuple(methods), progress=progress)
     tasks = [t for v in vehicles for t in _tasks(name, world, v, queries[v], methods, prof)]
-    results = run_trials(tasks, executor, workers=prof.workers, progress=progress)
+    results = run_trials(tasks, executor, workers=prof.workers, progress=progress,
+                         journal=journal)
     return ExperimentResult(name, world, results)
 
 
@@ -466,9 +514,15 @@ def ensure_experiment(name: str, profile: Profile | str | None = None, *,
     cfg = {"stage": name, "experiments": prof.experiments, "planner": prof.planner,
            "costmap": prof.costmap, "seed": prof.seed,
            "models": _model_digests(prof)}
+    # every finished trial is journaled, so an interrupted experiment resumes
+    journal = (artifacts.profile_dir(prof.name) / "experiments"
+               / f"{name}.{artifacts.config_hash(cfg)}.trials.pkl")
     result = artifacts.ensure(f"experiments/{name}.pkl", cfg,
-                              lambda: run_experiment(name, prof, progress=progress),
+                              lambda: run_experiment(name, prof, progress=progress,
+                                                     journal=journal),
                               profile=prof.name)
+    for stale in journal.parent.glob(f"{name}.*.trials.pkl"):  # done, or another config's
+        stale.unlink(missing_ok=True)
     world = get_world(result.world, prof)
     for r in result.results:  # routes follow the current classification rule
         r.route = classify_route(world, r.path)

@@ -1,5 +1,7 @@
 """Closed-loop trials: routes, queries, the trial runner's error handling, and tables."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -15,6 +17,7 @@ from dgt_lib.experiments import (
     hill_queries,
     ridge_queries,
     run_trial,
+    run_trials,
 )
 from dgt_lib.outcomes import TrialOutcome
 from dgt_lib.worlds import from_heightmap, get_world
@@ -90,3 +93,45 @@ def test_tables_count_successes_and_put_the_paper_beside_ours():
 def test_unknown_experiment_is_a_clear_error(name):
     with pytest.raises(ValueError, match="experiment1, experiment2"):
         experiments.run_experiment(name, PROFILE)
+
+
+def test_an_interrupted_run_resumes_from_its_journal(tmp_path, monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+
+    tasks = [TrialTask("experiment1", "hill", m, "carla_cola", Query((i, 0, 0), (9, 9)), i,
+                       "smoke", i) for i in range(3) for m in ("dgt", "binary")]
+    ran, stop = [], [True]
+
+    def fake_trial(task):
+        ran.append(task)
+        if task.index == 2 and task.method == "binary" and stop.pop():
+            raise KeyboardInterrupt  # the user stops the run during the last trial
+        ok = task.method == "dgt"
+        return TrialResult(task, TrialOutcome(True, "success", 1.0) if ok
+                           else TrialOutcome.failure("immobilized", 10.0))
+
+    monkeypatch.setattr(experiments, "run_trial", fake_trial)
+    journal = tmp_path / "exp.trials.pkl"
+    with ThreadPoolExecutor(1) as pool, pytest.raises(KeyboardInterrupt):
+        run_trials(tasks, pool, progress=False, journal=journal)
+    assert len(experiments.read_journal(journal)) == 5  # every finished trial was kept
+    ran.clear()
+    stop.append(False)
+    with ThreadPoolExecutor(1) as pool:
+        results = run_trials(tasks, pool, progress=False, journal=journal)
+    assert ran == [tasks[-1]]  # only the unfinished trial runs again
+    assert [r.task for r in results] == tasks  # task order, journaled ones included
+    assert [r.outcome.success for r in results] == [True, False] * 3
+
+
+def test_a_journal_cut_short_by_a_crash_keeps_its_whole_records(tmp_path):
+    import pickle
+
+    task = TrialTask("x", "hill", "dgt", "jeep", Query((0, 0, 0), (1, 1)), 0, "smoke", 0)
+    path = tmp_path / "j.pkl"
+    good = TrialResult(task, TrialOutcome(True, "success", 1.0))
+    later = TrialResult(replace(task, index=1), TrialOutcome.failure("error", detail="boom"))
+    data = pickle.dumps(good) + pickle.dumps(later)
+    path.write_bytes(data[:-7])  # the crash hit while the second record was written
+    assert list(experiments.read_journal(path)) == [task]
+    assert experiments.read_journal(tmp_path / "missing.pkl") == {}
