@@ -245,7 +245,8 @@ def train_model(
             names (e.g. ``("vw_van",)``) trains only on those vehicles' samples
             with one head each (the single-task variant).
         seed: seeds weight initialisation and batch order; same seed, same result
-            (on the same device and thread count).
+            on the CPU with the same thread count (on a GPU, cuDNN's kernels vary
+            slightly from run to run).
         device: default: a CUDA GPU when present, else the CPU.
         progress: tqdm bars with the live loss.
         rgb_weights: torchvision ImageNet ResNet-18 file for the RGB branch (width 64).

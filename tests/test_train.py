@@ -24,6 +24,9 @@ from dgt_lib.train import (
 )
 
 TINY = TrainConfig(epochs=2, batch_size=64, learning_rate=2e-3, width=8, fc_hidden=32)
+# Tests that compare numbers exactly train on the CPU, also where a GPU is present: cuDNN's
+# kernels are not bit-reproducible run to run (the GPU has its own test at the end).
+CPU = "cpu"
 
 
 @pytest.fixture(autouse=True)
@@ -41,7 +44,7 @@ def dataset():
 def trained(dataset):
     """A multi-task model trained long enough to learn the synthetic rule."""
     cfg = TrainConfig(epochs=6, batch_size=32, learning_rate=2e-3, width=8, fc_hidden=32)
-    return train_model(dataset, cfg, seed=0, progress=False)
+    return train_model(dataset, cfg, seed=0, progress=False, device=CPU)
 
 
 def test_masked_loss_gives_other_heads_exactly_zero_gradient():
@@ -106,7 +109,7 @@ def test_multitask_training_learns_vehicle_specific_slope_limits(trained, datase
 
 def test_single_task_model_trains_on_one_vehicle_only(dataset):
     steps = []
-    result = train_model(dataset, TINY, vehicles=("vw_van",), progress=False,
+    result = train_model(dataset, TINY, vehicles=("vw_van",), progress=False, device=CPU,
                          on_batch_end=lambda epoch, step, loss: steps.append(epoch))
     assert result.model.vehicles == ("vw_van",)
     assert predict(result.model, dataset.patches[:5]).shape == (5, 1)
@@ -120,8 +123,8 @@ def test_single_task_model_trains_on_one_vehicle_only(dataset):
 
 
 def test_same_seed_same_model(dataset):
-    a = train_model(dataset, TINY, seed=3, progress=False)
-    b = train_model(dataset, TINY, seed=3, progress=False)
+    a = train_model(dataset, TINY, seed=3, progress=False, device=CPU)
+    b = train_model(dataset, TINY, seed=3, progress=False, device=CPU)
     assert a.history[-1]["val_loss"] == b.history[-1]["val_loss"]
     np.testing.assert_array_equal(predict(a.model, dataset.patches[:50]),
                                   predict(b.model, dataset.patches[:50]))
@@ -161,7 +164,7 @@ def test_ctrl_c_keeps_the_best_checkpoint(dataset, tmp_path):
 
     cfg = TrainConfig(epochs=5, batch_size=64, learning_rate=2e-3, width=8, fc_hidden=32)
     path = tmp_path / "best.pt"
-    result = train_model(dataset, cfg, progress=False, checkpoint_path=path,
+    result = train_model(dataset, cfg, progress=False, checkpoint_path=path, device=CPU,
                          on_batch_end=interrupt)
     assert result.interrupted
     assert len(result.history) == 2
@@ -281,3 +284,14 @@ def test_bad_inputs_are_clear_errors(dataset):
         train_model(no_val, TINY, progress=False)
     with pytest.raises(ValueError, match="unknown vehicle"):
         train_model(dataset, TINY, vehicles=("truck",), progress=False)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+def test_a_model_trained_on_a_gpu_predicts_the_same_on_the_cpu(dataset, tmp_path):
+    """Up to TF32 rounding: cuDNN convolutions on recent GPUs round inputs to 10 bits."""
+    result = train_model(dataset, TINY, seed=0, progress=False, device="cuda")
+    assert next(result.model.parameters()).is_cuda
+    loaded = load_checkpoint(save_checkpoint(tmp_path / "gpu.pt", result))  # onto the CPU
+    assert next(loaded.model.parameters()).device.type == "cpu"
+    np.testing.assert_allclose(predict(loaded.model, dataset.patches),
+                               predict(result.model, dataset.patches), atol=2e-3)
