@@ -31,7 +31,6 @@ import numpy as np
 
 from dgt_lib.bev import BEVAccumulator, bev_grid
 from dgt_lib.collect import (
-    add_sparse,
     bev_quality,
     build_bev,
     collect_episodes,
@@ -77,7 +76,7 @@ def per_vehicle(prof, n_episodes: int) -> None:
     acc = BEVAccumulator(bev_grid(world.grid.extent))
     t0 = time.perf_counter()
     for s in sparse:
-        add_sparse(acc, s)
+        acc.add_sparse(s)
     dt = time.perf_counter() - t0
     print(f"merging one episode's BEV statistics into the map: {1e3 * dt / len(sparse):.1f} ms")
 

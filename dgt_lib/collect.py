@@ -448,7 +448,7 @@ class Episode:
     valid: (T,) bool, False where the angular rate exceeds the glitch threshold.
     end_reason: one of :data:`END_REASONS`. n_frames: onboard frames rendered.
     bev: the frames' accumulated BEV statistics in sparse form (``None`` when
-    loaded without it), see :func:`accumulator_to_sparse`.
+    loaded without it), see :meth:`BEVAccumulator.to_sparse`.
     """
 
     vehicle: str
@@ -492,44 +492,6 @@ class Episode:
             end_reason=str(arrays["end_reason"]), n_frames=int(arrays["n_frames"]),
             bev=bev if with_bev and bev else None,
         )
-
-
-def accumulator_to_sparse(acc: BEVAccumulator) -> dict[str, np.ndarray]:
-    """The statistics of the cells an accumulator has seen, compactly (~19 bytes a
-    cell; an episode touches ~10⁴–10⁵ cells of a map of up to ~10⁶):
-
-    ``cells`` (n,) int32 flat indices, ``count`` (n,) int32 points, ``rgb`` (3, n)
-    uint8 mean colour, ``z`` (n,) float32 mean height [m], ``m2`` (n,) float32
-    Σ(z − z̄)² [m²], ``shape`` (2,) the grid's. :func:`add_sparse` restores the
-    sums (exactly but for the colour's 1/255 rounding).
-
-    (Reads the accumulator's sums directly: ``dgt_lib.bev`` has no public access.)
-    """
-    n_all = acc._count
-    cells = np.flatnonzero(n_all)
-    n = n_all[cells].astype(np.float64)
-    mean_z = acc._sum_z[cells] / n
-    m2 = np.maximum(acc._sum_z2[cells] - n * mean_z**2, 0.0)
-    rgb = np.clip(np.rint(255.0 * acc._sum_rgb[:, cells] / n), 0, 255)
-    return {"cells": cells.astype(np.int32), "count": n_all[cells].astype(np.int32),
-            "rgb": rgb.astype(np.uint8), "z": mean_z.astype(np.float32),
-            "m2": m2.astype(np.float32), "shape": np.asarray(acc.grid.shape, np.int64)}
-
-
-def add_sparse(acc: BEVAccumulator, sparse: dict[str, np.ndarray]) -> BEVAccumulator:
-    """Add the statistics from :func:`accumulator_to_sparse` into ``acc`` (same grid):
-    Σ1 += n, Σc += n·c̄, Σz += n·z̄, Σz² += m2 + n·z̄². Returns ``acc``."""
-    if tuple(int(v) for v in sparse["shape"]) != acc.grid.shape:
-        raise ValueError(f"sparse BEV statistics of a {tuple(sparse['shape'])} grid cannot be "
-                         f"added to a {acc.grid.shape} grid")
-    cells = sparse["cells"].astype(np.int64)
-    n = sparse["count"].astype(np.float64)
-    z = sparse["z"].astype(np.float64)
-    acc._count[cells] += sparse["count"]
-    acc._sum_rgb[:, cells] += n * sparse["rgb"] / 255.0
-    acc._sum_z[cells] += n * z
-    acc._sum_z2[cells] += sparse["m2"] + n * z**2
-    return acc
 
 
 def episode_seed(profile_seed: int, vehicle: str, index: int) -> int:
@@ -616,7 +578,7 @@ def run_episode(
         z=rows[:, 4].astype(np.float32), speed_mps=rows[:, 5].astype(np.float32),
         angular_rate_dps=rows[:, 6].astype(np.float32),
         valid=rows[:, 6] <= cfg.max_angular_rate_dps, end_reason=reason,
-        n_frames=n_frames, bev=accumulator_to_sparse(acc) if render else None,
+        n_frames=n_frames, bev=acc.to_sparse() if render else None,
     )
 
 
@@ -828,7 +790,7 @@ def build_bev(world: World, config: CollectConfig | None = None,
     for path in episode_paths:
         ep = load_episode(path, with_bev=True)
         if ep.bev is not None:
-            add_sparse(acc, ep.bev)
+            acc.add_sparse(ep.bev)
         n_episode += ep.n_frames
     return acc.result(), n_survey, n_episode
 

@@ -312,3 +312,21 @@ def test_crop_keeps_cells_and_world_coordinates():
     np.testing.assert_allclose(sub.grid.cell_to_xy(0, 0), bev.grid.cell_to_xy(5, 10))
     with pytest.raises(ValueError):
         bev.crop(slice(5, 5), slice(0, 3))
+
+
+def test_sparse_statistics_restore_the_accumulator():
+    rng = np.random.default_rng(0)
+    grid = GridSpec((0.0, 0.0), 0.4, (50, 60))
+    acc = BEVAccumulator(grid)
+    points = np.column_stack([rng.uniform(5, 15, 2000), rng.uniform(5, 15, 2000),
+                              rng.normal(12.0, 0.3, 2000)])
+    acc.add_points(points, rng.uniform(0, 1, (2000, 3)))
+    sparse = acc.to_sparse()
+    assert len(sparse["cells"]) < grid.height * grid.width / 2  # only the touched cells
+    restored = BEVAccumulator(grid).add_sparse(sparse).result()
+    ref = acc.result()
+    np.testing.assert_array_equal(restored.observed, ref.observed)
+    np.testing.assert_allclose(restored.channels[3:5], ref.channels[3:5], atol=1e-4)
+    np.testing.assert_allclose(restored.channels[:3], ref.channels[:3], atol=0.5 / 255 + 1e-6)
+    with pytest.raises(ValueError, match="grid"):
+        BEVAccumulator(GridSpec((0.0, 0.0), 0.4, (10, 10))).add_sparse(sparse)

@@ -229,25 +229,3 @@ def test_tiled_rendering_equals_the_whole_world_up_to_max_depth():
         assert near.sum() > 1000
         np.testing.assert_allclose(frame.depth[near], before.depth[near], atol=0.01)
         np.testing.assert_allclose(frame.depth[near], whole_depth[near], atol=0.01)
-
-
-def test_sparse_episode_statistics_restore_the_accumulator():
-    from dgt_lib.bev import BEVAccumulator
-    from dgt_lib.collect import accumulator_to_sparse, add_sparse
-    from dgt_lib.geometry import GridSpec
-
-    rng = np.random.default_rng(0)
-    grid = GridSpec((0.0, 0.0), 0.4, (50, 60))
-    acc = BEVAccumulator(grid)
-    points = np.column_stack([rng.uniform(5, 15, 2000), rng.uniform(5, 15, 2000),
-                              rng.normal(12.0, 0.3, 2000)])
-    acc.add_points(points, rng.uniform(0, 1, (2000, 3)))
-    sparse = accumulator_to_sparse(acc)
-    assert len(sparse["cells"]) < grid.height * grid.width / 2  # only the touched cells
-    restored = add_sparse(BEVAccumulator(grid), sparse).result()
-    ref = acc.result()
-    np.testing.assert_array_equal(restored.observed, ref.observed)
-    np.testing.assert_allclose(restored.channels[3:5], ref.channels[3:5], atol=1e-4)
-    np.testing.assert_allclose(restored.channels[:3], ref.channels[:3], atol=0.5 / 255 + 1e-6)
-    with pytest.raises(ValueError, match="grid"):
-        add_sparse(BEVAccumulator(GridSpec((0.0, 0.0), 0.4, (10, 10))), sparse)
