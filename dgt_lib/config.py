@@ -202,11 +202,11 @@ def _paper() -> Profile:
         collect=CollectConfig(episodes=(400, 400, 300, 200), episode_duration_s=100.0,
                               patch_interval_s=1.33),
         # Network Architecture: two ResNet-18 (width 64). The paper gives no epochs, batch
-        # size or learning rate: Adam 1e-3, batch 256, ≤ 20 epochs (stop after 5 without a
+        # size or learning rate: Adam 1e-3, batch 256, ≤ 15 epochs (stop after 4 without a
         # better val loss), best val epoch kept. The epoch budget is set by the ≤ 3 h target:
-        # one epoch of all five models is ~3.5 min on 2 cores (benchmarks/bench_train.py).
-        train=TrainConfig(epochs=20, batch_size=256, learning_rate=1e-3, width=64,
-                          fc_hidden=256, patience=5),
+        # one epoch of all five models is ~2.3 min on 2 idle cores (benchmarks/bench_train.py).
+        train=TrainConfig(epochs=15, batch_size=256, learning_rate=1e-3, width=64,
+                          fc_hidden=256, patience=4),
         # Table I (n=20 hill, n=50 ridge) and Table II (n=100 jeep, n=99 vw_van).
         experiments=ExperimentsConfig(n_hill=20, n_ridge=50, n_eval_jeep=100, n_eval_vw_van=99),
         # Hybrid A* / Directional Cost Lookup: s = 1.6 m, β = 150, an admissible heuristic
