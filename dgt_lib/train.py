@@ -22,6 +22,7 @@ has saved) that best model.
 from __future__ import annotations
 
 import copy
+import math
 import os
 import time
 import warnings
@@ -169,8 +170,13 @@ def _head_columns(model: DGTNet, vehicle: np.ndarray) -> np.ndarray:
     return lookup[vehicle.astype(np.int64)]
 
 
+COLLAPSE_STD = 1e-3
+"""A head whose test predictions spread less than this (std of L̂) has collapsed to a constant."""
+
+
 def regression_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
-    """``n``, ``mse``, ``mae`` and Spearman rank correlation ``spearman`` of two (n,) arrays.
+    """``n``, ``mse``, ``mae``, Spearman rank correlation ``spearman`` and the spread of
+    the predictions ``pred_std`` of two (n,) arrays.
 
     ``spearman`` is NaN when it is undefined (fewer than 2 samples or a constant array).
     """
@@ -183,7 +189,18 @@ def regression_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
             warnings.simplefilter("ignore")
             rho = float(stats.spearmanr(pred, true).statistic)
     return {"n": int(len(true)), "mse": float(np.mean(err**2)) if len(err) else float("nan"),
-            "mae": float(np.mean(np.abs(err))) if len(err) else float("nan"), "spearman": rho}
+            "mae": float(np.mean(np.abs(err))) if len(err) else float("nan"), "spearman": rho,
+            "pred_std": float(np.std(pred)) if len(pred) else float("nan")}
+
+
+def collapsed_heads(metrics: dict[str, dict[str, float]]) -> list[str]:
+    """The vehicles whose head predicts (nearly) the same L̂ for every test patch.
+
+    That happens when a sigmoid head saturates early in training (e.g. on labels that
+    are almost all ≈ 1): the model then carries no terrain information. ``metrics`` as
+    in :attr:`TrainResult.metrics`; checkpoints without ``pred_std`` never count.
+    """
+    return [v for v, m in metrics.items() if m.get("pred_std", math.inf) < COLLAPSE_STD]
 
 
 def evaluate(model: DGTNet, part: PatchDataset,
@@ -345,6 +362,9 @@ def train_model(
     model.load_state_dict(best_state)
     model.eval()
     metrics = evaluate(model, dataset.subset(chosen & (dataset.split == TEST)))
+    for v in collapsed_heads(metrics):
+        warnings.warn(f"{name}: the {v} head predicts a constant L̂ on the test set "
+                      "(sigmoid saturated); try a lower learning rate", stacklevel=2)
     result = TrainResult(model, history, best_epoch, metrics, interrupted, cfg, seed)
     if checkpoint_path is not None:
         save_checkpoint(checkpoint_path, result)
@@ -540,6 +560,10 @@ def models_stage(profile: Profile, dataset: PatchDataset,
         scores = ", ".join(f"{v} mse {m['mse']:.3f} ρ {m['spearman']:.2f}"
                            for v, m in result.metrics.items())
         parts.append(f"{kind} (best epoch {result.best_epoch}: {scores})")
+        for v in collapsed_heads(result.metrics):
+            parts[-1] += f" — {v} head COLLAPSED (constant L̂)"
+            print(f"[dgt] warning: {kind}: the {v} head predicts a constant L̂ "
+                  f"(std {result.metrics[v]['pred_std']:.1e} on the test set)")
     return StageOutput(paths, "; ".join(parts))
 
 

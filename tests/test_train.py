@@ -295,3 +295,14 @@ def test_a_model_trained_on_a_gpu_predicts_the_same_on_the_cpu(dataset, tmp_path
     assert next(loaded.model.parameters()).device.type == "cpu"
     np.testing.assert_allclose(predict(loaded.model, dataset.patches),
                                predict(result.model, dataset.patches), atol=2e-3)
+
+
+def test_a_head_that_predicts_a_constant_is_reported_as_collapsed(trained, dataset):
+    import copy
+
+    model = copy.deepcopy(trained.model)
+    with torch.no_grad():  # a saturated sigmoid: L̂ = 1 for every patch
+        model.vehicle_heads[VEHICLES.index("jeep")].bias.fill_(50.0)
+    assert train.collapsed_heads(train.evaluate(model, dataset.part("test"))) == ["jeep"]
+    assert train.collapsed_heads(trained.metrics) == []  # a model that learned something
+    assert train.collapsed_heads({"jeep": {"mse": 0.1}}) == []  # old checkpoints: unknown
