@@ -170,13 +170,14 @@ def _head_columns(model: DGTNet, vehicle: np.ndarray) -> np.ndarray:
     return lookup[vehicle.astype(np.int64)]
 
 
-COLLAPSE_STD = 1e-3
-"""A head whose test predictions spread less than this (std of L̂) has collapsed to a constant."""
+COLLAPSE_RATIO = 0.1
+"""A head whose test predictions spread less than this fraction of the labels' spread
+(std of L̂ < 0.1 × std of L) has collapsed to a (near) constant."""
 
 
 def regression_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
-    """``n``, ``mse``, ``mae``, Spearman rank correlation ``spearman`` and the spread of
-    the predictions ``pred_std`` of two (n,) arrays.
+    """``n``, ``mse``, ``mae``, Spearman rank correlation ``spearman`` and the spreads
+    (standard deviations) ``pred_std`` and ``label_std`` of two (n,) arrays.
 
     ``spearman`` is NaN when it is undefined (fewer than 2 samples or a constant array).
     """
@@ -190,17 +191,21 @@ def regression_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
             rho = float(stats.spearmanr(pred, true).statistic)
     return {"n": int(len(true)), "mse": float(np.mean(err**2)) if len(err) else float("nan"),
             "mae": float(np.mean(np.abs(err))) if len(err) else float("nan"), "spearman": rho,
-            "pred_std": float(np.std(pred)) if len(pred) else float("nan")}
+            "pred_std": float(np.std(pred)) if len(pred) else float("nan"),
+            "label_std": float(np.std(true)) if len(true) else float("nan")}
 
 
 def collapsed_heads(metrics: dict[str, dict[str, float]]) -> list[str]:
-    """The vehicles whose head predicts (nearly) the same L̂ for every test patch.
+    """The vehicles whose head predicts (nearly) the same L̂ for every test patch:
+    std(L̂) < :data:`COLLAPSE_RATIO` × std(L).
 
     That happens when a sigmoid head saturates early in training (e.g. on labels that
-    are almost all ≈ 1): the model then carries no terrain information. ``metrics`` as
-    in :attr:`TrainResult.metrics`; checkpoints without ``pred_std`` never count.
+    are almost all ≈ 1): the model then carries next to no terrain information.
+    ``metrics`` as in :attr:`TrainResult.metrics`; checkpoints without ``pred_std``
+    (made before it was recorded) never count.
     """
-    return [v for v, m in metrics.items() if m.get("pred_std", math.inf) < COLLAPSE_STD]
+    return [v for v, m in metrics.items()
+            if m.get("pred_std", math.inf) < COLLAPSE_RATIO * m.get("label_std", 0.0)]
 
 
 def evaluate(model: DGTNet, part: PatchDataset,
@@ -363,8 +368,11 @@ def train_model(
     model.eval()
     metrics = evaluate(model, dataset.subset(chosen & (dataset.split == TEST)))
     for v in collapsed_heads(metrics):
-        warnings.warn(f"{name}: the {v} head predicts a constant L̂ on the test set "
-                      "(sigmoid saturated); try a lower learning rate", stacklevel=2)
+        m = metrics[v]
+        warnings.warn(f"{name}: the {v} head predicts a near-constant L̂ on the test set "
+                      f"(std {m['pred_std']:.1e} against the labels' {m['label_std']:.2f}): "
+                      "it learned next to nothing (too few epochs, or a saturated sigmoid)",
+                      stacklevel=2)
     result = TrainResult(model, history, best_epoch, metrics, interrupted, cfg, seed)
     if checkpoint_path is not None:
         save_checkpoint(checkpoint_path, result)
@@ -562,8 +570,9 @@ def models_stage(profile: Profile, dataset: PatchDataset,
         parts.append(f"{kind} (best epoch {result.best_epoch}: {scores})")
         for v in collapsed_heads(result.metrics):
             parts[-1] += f" — {v} head COLLAPSED (constant L̂)"
-            print(f"[dgt] warning: {kind}: the {v} head predicts a constant L̂ "
-                  f"(std {result.metrics[v]['pred_std']:.1e} on the test set)")
+            m = result.metrics[v]
+            print(f"[dgt] warning: {kind}: the {v} head predicts a near-constant L̂ "
+                  f"(std {m['pred_std']:.1e} against the labels' {m['label_std']:.2f})")
     return StageOutput(paths, "; ".join(parts))
 
 
