@@ -204,7 +204,7 @@ def _paper() -> Profile:
         # Network Architecture: two ResNet-18 (width 64). The paper gives no epochs, batch
         # size or learning rate: Adam 1e-3, batch 256, ≤ 15 epochs (stop after 4 without a
         # better val loss), best val epoch kept. The epoch budget is set by the ≤ 3 h target:
-        # one epoch of all five models is ~2.3 min on 2 idle cores (benchmarks/bench_train.py).
+        # one epoch of all five models took ~2.7 min on 2 idle cores (81 + 32 + 29 + 10 + 9 s).
         train=TrainConfig(epochs=15, batch_size=256, learning_rate=1e-3, width=64,
                           fc_hidden=256, patience=4),
         # Table I (n=20 hill, n=50 ridge) and Table II (n=100 jeep, n=99 vw_van).
