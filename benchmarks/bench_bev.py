@@ -11,11 +11,11 @@ import time
 
 import numpy as np
 
-from dgt_lib.bev import BEVAccumulator
-from dgt_lib.camera import CameraIntrinsics, RGBDFrame
-from dgt_lib.geometry import GridSpec
-from dgt_lib.locomotion import locomotion_signal
-from dgt_lib.patches import extract_patches, rotate_map, unrotate_map
+from dgt_lib.core.camera import CameraIntrinsics, RGBDFrame
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.perception.bev import BEVAccumulator
+from dgt_lib.perception.locomotion import locomotion_signal
+from dgt_lib.perception.patches import extract_patches, rotate_map, unrotate_map
 
 
 def synthetic_frame(width: int, height: int, rng: np.random.Generator) -> RGBDFrame:

@@ -29,19 +29,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from dgt_lib.bev import BEVAccumulator, bev_grid
-from dgt_lib.collect import (
-    bev_quality,
-    build_bev,
-    collect_episodes,
-    episode_seed,
-    run_episode,
-    survey_poses,
-)
-from dgt_lib.config import VEHICLES, get_profile
-from dgt_lib.dataset import patch_times
-from dgt_lib.locomotion import WINDOW_S
-from dgt_lib.worlds import WORLD_NAMES, get_world
+from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.perception.bev import BEVAccumulator, bev_grid, bev_quality
+from dgt_lib.perception.dataset import patch_times
+from dgt_lib.perception.episodes import episode_seed, run_episode
+from dgt_lib.perception.locomotion import WINDOW_S
+from dgt_lib.stages.collect import build_world_bev as build_bev
+from dgt_lib.stages.collect import collect_episodes
+from dgt_lib.world.rendering import survey_poses
+from dgt_lib.world.terrain import WORLD_NAMES, get_world
 
 
 def per_vehicle(prof, n_episodes: int) -> None:

@@ -15,14 +15,13 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from dgt_lib.control import (  # noqa: E402
+from dgt_lib.core.geometry import GridSpec  # noqa: E402
+from dgt_lib.navigation.bicycle import (  # noqa: E402
     KinematicBicycle,
-    MPPIConfig,
-    MPPIController,
     cross_track_errors,
     simulate_tracking,
 )
-from dgt_lib.geometry import GridSpec  # noqa: E402
+from dgt_lib.navigation.mppi import MPPIConfig, MPPIController  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
 

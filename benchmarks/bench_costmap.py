@@ -27,11 +27,13 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from dgt_lib.bev import BEVMap, height_gradient  # noqa: E402
-from dgt_lib.config import TrainConfig  # noqa: E402
-from dgt_lib.costmap import _heading_layer, directional_costmap  # noqa: E402
-from dgt_lib.geometry import GridSpec, heading_bins  # noqa: E402
-from dgt_lib.train import load_checkpoint, predict, synthetic_dataset, train_model  # noqa: E402
+from dgt_lib.core.config import TrainConfig
+from dgt_lib.core.geometry import GridSpec, heading_bins
+from dgt_lib.learning.checkpoints import load_checkpoint
+from dgt_lib.learning.synthetic import synthetic_dataset
+from dgt_lib.learning.training import predict, train_model
+from dgt_lib.mapping.costmap import _heading_layer, directional_costmap
+from dgt_lib.perception.bev import BEVMap, height_gradient
 
 
 def terrain_bev(size: int, seed: int = 0) -> BEVMap:

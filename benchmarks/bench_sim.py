@@ -20,9 +20,10 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 
-from dgt_lib.config import VEHICLES, get_profile  # noqa: E402
-from dgt_lib.sim import CAMERA, CONTROL_DT_S, Simulator  # noqa: E402
-from dgt_lib.worlds import get_world  # noqa: E402
+from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.world.mujoco_model import CAMERA
+from dgt_lib.world.simulator import CONTROL_DT_S, Simulator
+from dgt_lib.world.terrain import get_world
 
 
 def physics_rtf(world, vehicle: str, sim_seconds: float) -> tuple[float, float, float]:

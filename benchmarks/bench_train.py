@@ -24,17 +24,17 @@ import time
 import numpy as np
 import torch
 
-from dgt_lib.config import VEHICLES, TrainConfig
-from dgt_lib.dataset import TRAIN, VAL
-from dgt_lib.model import DGTNet, count_parameters
-from dgt_lib.train import (
+from dgt_lib.core.config import VEHICLES, TrainConfig
+from dgt_lib.learning.model import DGTNet, count_parameters
+from dgt_lib.learning.synthetic import synthetic_dataset
+from dgt_lib.learning.training import (
     batch_to_tensor,
     channel_statistics,
     masked_loss,
     predict,
-    synthetic_dataset,
     train_model,
 )
+from dgt_lib.perception.dataset import TRAIN, VAL
 
 PAPER_SIZES = (30_000, 10_000, 10_000, 2_000)  # paper: Experiments → Dataset
 

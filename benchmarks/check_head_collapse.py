@@ -31,11 +31,11 @@ import time
 import numpy as np
 import torch
 
-from dgt_lib import artifacts
-from dgt_lib.config import get_profile
-from dgt_lib.dataset import TRAIN, PatchDataset
-from dgt_lib.model import DGTNet
-from dgt_lib.train import collapsed_heads, train_model
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.learning.model import DGTNet
+from dgt_lib.learning.training import collapsed_heads, train_model
+from dgt_lib.perception.dataset import TRAIN, PatchDataset
 
 
 def main() -> None:

@@ -9,13 +9,12 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 
-from . import pipeline
-from .artifacts import profile_dir
-from .config import PROFILE_NAMES, UnknownProfileError, get_profile
+from dgt_lib.core.artifacts import profile_dir
+from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile
+from dgt_lib.stages import registry as pipeline
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -63,10 +62,10 @@ def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
 
 
 def _plan(args: argparse.Namespace) -> int:
-    from .config import VEHICLES
-    from .planner import InvalidQueryError
-    from .query import plan_query
-    from .train import model_relpath
+    from dgt_lib.core.config import VEHICLES
+    from dgt_lib.navigation.planner import InvalidQueryError
+    from dgt_lib.query import plan_query
+    from dgt_lib.stages.train import model_relpath
 
     profile = get_profile(args.profile)
     if args.vehicle not in VEHICLES:
@@ -127,7 +126,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    os.environ.setdefault("MUJOCO_GL", "egl")
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)

@@ -16,14 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
-from . import artifacts
-from .config import Profile, get_profile
-from .geometry import nearest_heading_bin
-from .inference import METHOD_LABELS, METHODS, ensure_world_costmaps
-from .outcomes import TrialOutcome
-from .planner import HybridAStar, PlanResult
-from .vehicles import get_vehicle
-from .worlds import WORLD_NAMES, World, get_world, load_heightmap
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import Profile, get_profile
+from dgt_lib.core.geometry import nearest_heading_bin
+from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
+from dgt_lib.navigation.outcome import TrialOutcome
+from dgt_lib.navigation.planner import HybridAStar, PlanResult
+from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.world.terrain import WORLD_NAMES, get_world
+from dgt_lib.world.worlds import World, load_heightmap
 
 HIGH_COST = 0.5
 """Path cells with a directional cost C above this are listed in the summary."""
@@ -107,7 +109,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     """Plan (and optionally drive) one query; see the module docstring.
 
     start (x, y, yaw) [m, m, rad], goal (x, y) [m]. Raises
-    :class:`dgt_lib.planner.InvalidQueryError` when the start or goal is off the map
+    :class:`dgt_lib.navigation.planner.InvalidQueryError` when the start or goal is off the map
     or in an obstacle (the message names which).
     """
     prof = profile if isinstance(profile, Profile) else get_profile(profile)
@@ -132,7 +134,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
             f"{goal[0]:.0f}_{goal[1]:.0f}")
     report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
     if drive and result.success:
-        from .experiments import drive as drive_path
+        from dgt_lib.navigation.drive import drive as drive_path
 
         limit = prof.experiments.time_limit_base_s + (
             prof.experiments.time_limit_factor * result.length_m / 5.0)
@@ -153,31 +155,16 @@ def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 2, figsize=(13, 6))
-    ax[0].imshow(world.heights, origin="lower", extent=world.grid.extent, cmap="terrain")
-    occ = np.ma.masked_equal(maps.occupancy, 0)
-    ax[0].imshow(occ, origin="lower", extent=maps.grid.extent, cmap="gray_r", vmin=0, vmax=2,
-                 alpha=0.6)
-    ax[0].set_title(f"{world.name}: terrain and occupancy")
-    k = int(nearest_heading_bin(report.start[2], cost.shape[0])) if cost.shape[0] > 1 else 0
-    im = ax[1].imshow(cost[k], origin="lower", extent=maps.grid.extent, cmap="magma", vmin=0,
-                      vmax=1)
-    ax[1].set_title(f"{METHOD_LABELS[report.method]} cost, layer k={k}")
-    plt.colorbar(im, ax=ax[1], shrink=0.8)
-    for a in ax:
-        if report.plan.success:
-            a.plot(report.plan.path[:, 0], report.plan.path[:, 1], "c-", lw=2)
-        a.plot(*report.start[:2], "go")
-        a.plot(*report.goal, "r*", ms=12)
-    fig.suptitle(report.summary().splitlines()[0])
-    fig.tight_layout()
+    from dgt_lib.viz.planner import plot_query
+
+    fig = plot_query(world, maps, cost, report)
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return path
 
 
 def _recording(world, maps, cost, report, traj, speed, path: Path) -> Path:
-    from . import rr
+    from dgt_lib import rr
 
     with rr.Recording(path, f"plan_{world.name}") as rec:
         rec.log_terrain(world.heights, world.colors, world.grid)

@@ -1,9 +1,10 @@
-"""The results report of ``dgt reproduce``: tables and figures of Experiments 1–3.
+"""The results report of ``dgt reproduce``: tables, figures and recordings of
+Experiments 1–3, and the ``experiments`` stage's entry point (:func:`stage_experiments`).
 
-Writes ``data/<profile>/results/README.md`` — each experiment's table (ours beside the
-paper's, with Wilson 95 % intervals), the routes each method planned, the failure
-reasons — and beside it the figures: planned paths per method (the paper's path
-figure) and success rates.
+Writes ``results/README.md`` in the profile's data directory — each experiment's table
+(ours beside the paper's, with Wilson 95 % intervals), the routes each method planned,
+the failure reasons — and beside it the figures: planned paths per method (the paper's
+path figure) and success rates.
 """
 
 from __future__ import annotations
@@ -15,12 +16,16 @@ import matplotlib
 matplotlib.use("Agg", force=False)
 import matplotlib.pyplot as plt  # noqa: E402
 
-from . import viz  # noqa: E402
-from .artifacts import profile_dir  # noqa: E402
-from .config import Profile  # noqa: E402
-from .experiments import PAPER, ExperimentResult  # noqa: E402
-from .inference import ensure_world_costmaps  # noqa: E402
-from .worlds import get_world  # noqa: E402
+from dgt_lib import rr, viz
+from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
+from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.mapping.methods import METHOD_LABELS
+from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.stages.experiments import ensure_experiment
+from dgt_lib.stages.paths import data_dir
+from dgt_lib.stages.registry import StageOutput
+from dgt_lib.world.terrain import get_world
 
 TITLES = {"experiment1": "Experiment 1 — hill, carla_cola (paper Table I, left)",
           "experiment2": "Experiment 2 — ridge, mercedes_van (paper Table I, right)",
@@ -50,7 +55,7 @@ def _figures(result: ExperimentResult, prof: Profile, out: Path) -> list[Path]:
 
 def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
     """Write ``results/README.md`` and its figures; returns the markdown's path."""
-    out = profile_dir(prof.name) / "results"
+    out = data_dir(prof) / "results"
     out.mkdir(parents=True, exist_ok=True)
     parts = [f"# Results — profile `{prof.name}`", "",
              "Every number below was measured by `dgt reproduce` on this machine; the paper's "
@@ -62,3 +67,30 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
     path = out / "README.md"
     path.write_text("\n".join(parts))
     return path
+
+
+def write_recording(result: ExperimentResult, prof: Profile) -> Path:
+    """``runs/<name>.rrd`` of an experiment, rewritten when older than its results."""
+    out = data_dir(prof)
+    rrd = out / "runs" / f"{result.name}.rrd"
+    pkl = out / "experiments" / f"{result.name}.pkl"
+    if not rrd.exists() or (pkl.exists() and rrd.stat().st_mtime < pkl.stat().st_mtime):
+        vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
+        maps = ensure_world_costmaps(result.world, vehicles, prof, progress=False)
+        rr.log_experiment(result, get_world(result.world, prof), maps, rrd)
+    return rrd
+
+
+def stage_experiments(profile: Profile) -> StageOutput:
+    """``dgt reproduce`` stage: Experiments 1–3 — tables in ``results/``, recordings in
+    ``runs/``, and ``results/README.md`` with every table and figure."""
+    prof = as_profile(profile)
+    paths, parts, results = [], [], []
+    for name in EXPERIMENTS:
+        res = ensure_experiment(name, prof)
+        results.append(res)
+        paths.append(write_recording(res, prof))
+        counts = ", ".join(f"{METHOD_LABELS[m]} {k}/{n}" for m, (k, n) in res.counts().items())
+        parts.append(f"{name}: {counts}")
+    paths.insert(0, write_results(results, prof))
+    return StageOutput(paths, "; ".join(parts))

@@ -28,7 +28,11 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from .geometry import GridSpec
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.evaluation.experiments import ExperimentResult
+from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.world.worlds import World
 
 TERRAIN = "world/terrain"
 FRAMES = "world/frames"
@@ -217,3 +221,27 @@ def verify(path: str | Path) -> None:
     # rerun exits 0 on a file that is not an .rrd at all ("0 files verified"): check the count.
     if done.returncode != 0 or "1 file verified without error" not in done.stdout + done.stderr:
         raise RuntimeError(f"rerun rrd verify {path} failed:\n{done.stdout}{done.stderr}")
+
+
+def log_experiment(result: ExperimentResult, world: World, maps: WorldMaps,
+                   path: str | Path) -> None:
+    """Write an experiment's rerun recording: terrain, the costmap layers and occupancy of
+    ``maps``, every planned path and executed trajectory (with speed) on the ``sim_time``
+    timeline."""
+    colors = {"dgt": (0.1, 0.3, 1.0), "isotropic": (0.2, 0.8, 0.9), "single-task": (0.6, 0.2, 0.8),
+              "slope": (1.0, 0.1, 0.1), "binary": (0.4, 0.4, 0.4)}
+    with Recording(path, result.name) as rec:
+        rec.log_terrain(world.heights, world.colors, world.grid)
+        rec.log_occupancy(maps.occupancy)
+        for (method, vehicle), cost in maps.costmaps.items():
+            rec.log_costmap(cost, vehicle, method)
+        for r in result.results:
+            name = f"{r.task.method}/{r.task.vehicle}_{r.task.index}_{r.task.query.label}"
+            if len(r.path):
+                z = world.height_at(r.path[:, 0], r.path[:, 1]) + 0.5
+                rec.log_path(name, np.column_stack([r.path[:, :2], z]),
+                             colors.get(r.task.method, (1, 1, 1)))
+            if len(r.trajectory):
+                rec.log_trajectory(name, r.trajectory[:, 0], r.trajectory[:, 1:4],
+                                   {"speed_mps": r.speed})
+        rec.log_text("results", result.markdown(PAPER.get(result.name)))

@@ -1,7 +1,7 @@
 """Two tiny stages used by tests/test_cli.py to exercise `dgt reproduce`."""
 
-from dgt_lib import artifacts
-from dgt_lib.pipeline import StageOutput
+from dgt_lib.core import artifacts
+from dgt_lib.stages.registry import StageOutput
 
 
 def first(profile):

@@ -3,8 +3,8 @@ import json
 import numpy as np
 import pytest
 
-from dgt_lib import artifacts
-from dgt_lib.config import get_profile
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
 
 
 @pytest.fixture(autouse=True)

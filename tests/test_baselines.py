@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from dgt_lib.baselines import (
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.mapping.baselines import (
     SlopeModel,
     binary_costmap,
     fit_slope_model,
@@ -9,8 +10,7 @@ from dgt_lib.baselines import (
     isotropic_costmap,
     slope_costmap,
 )
-from dgt_lib.geometry import GridSpec
-from dgt_lib.patches import extract_patches
+from dgt_lib.perception.patches import extract_patches
 from tests.test_costmap import synthetic_bev
 
 

@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from dgt_lib import artifacts
-from dgt_lib.bev import (
+from dgt_lib.core import artifacts
+from dgt_lib.core.camera import CameraIntrinsics, RGBDFrame
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.perception.bev import (
     GRADIENT,
     HEIGHT,
     HEIGHT_STD,
@@ -15,8 +17,6 @@ from dgt_lib.bev import (
     build_bev,
     height_gradient,
 )
-from dgt_lib.camera import CameraIntrinsics, RGBDFrame
-from dgt_lib.geometry import GridSpec
 
 
 def plane_frame(position, rotation, intr: CameraIntrinsics, slope=(0.0, 0.0, 0.0), rgb=None,
@@ -253,9 +253,9 @@ def test_gradient_channel_is_consistent_with_height_channel():
 
 
 def test_bev_from_simulator_frames_matches_the_terrain():
-    """Integration with dgt_lib.sim: a survey of a hilly world by the RGB-D camera."""
-    from dgt_lib.sim import Simulator
-    from dgt_lib.worlds import from_heightmap
+    """Integration with dgt_lib.world.simulator: a survey of a hilly world by the RGB-D camera."""
+    from dgt_lib.world.simulator import Simulator
+    from dgt_lib.world.worlds import from_heightmap
 
     rng = np.random.default_rng(0)
     heights = ndimage.gaussian_filter(rng.normal(size=(100, 100)), 8) * 40  # ~8 m relief
@@ -300,8 +300,8 @@ def test_bev_from_simulator_frames_matches_the_terrain():
 
 
 def test_crop_keeps_cells_and_world_coordinates():
-    from dgt_lib.bev import BEVMap
-    from dgt_lib.geometry import GridSpec
+    from dgt_lib.core.geometry import GridSpec
+    from dgt_lib.perception.bev import BEVMap
 
     grid = GridSpec((10.0, -4.0), 0.4, (20, 30))
     ch = np.random.default_rng(0).random((6, 20, 30)).astype(np.float32)

@@ -1,8 +1,8 @@
 import subprocess
 import sys
 
-from dgt_lib import pipeline
 from dgt_lib.cli import main
+from dgt_lib.stages import registry as pipeline
 
 
 def test_reproduce_runs_and_summarises(capsys, tmp_path, monkeypatch):

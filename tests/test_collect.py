@@ -6,24 +6,21 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dgt_lib import artifacts
-from dgt_lib.collect import (
-    END_REASONS,
-    SerialExecutor,
-    bev_quality,
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import VEHICLES, CollectConfig, get_profile
+from dgt_lib.core.executors import SerialExecutor
+from dgt_lib.perception.bev import bev_quality
+from dgt_lib.perception.episodes import END_REASONS, episode_seed, run_episode, spawn_pose
+from dgt_lib.perception.locomotion import locomotion_signal
+from dgt_lib.stages.collect import (
     collect_episodes,
     ensure_bev,
     episode_relpath,
-    episode_seed,
-    run_episode,
-    spawn_pose,
     stage_bev,
     stage_collect,
-    survey_poses,
 )
-from dgt_lib.config import VEHICLES, CollectConfig, get_profile
-from dgt_lib.locomotion import locomotion_signal
-from dgt_lib.worlds import WORLD_NAMES, get_world
+from dgt_lib.world.rendering import survey_poses
+from dgt_lib.world.terrain import WORLD_NAMES, get_world
 
 
 def tiny_profile(episodes=(1, 1, 1, 1), duration_s=8.0, workers=1):
@@ -203,7 +200,7 @@ def test_stages_report_what_they_built(data_dir, bevs):
 def test_tiled_rendering_equals_the_whole_world_up_to_max_depth():
     """Frames rendered on a tile around the camera equal the whole world's frames
     up to the renderer's max depth, whichever tiles were loaded before."""
-    from dgt_lib.collect import TerrainRenderer, onboard_camera_pose, simulator
+    from dgt_lib.world.rendering import TerrainRenderer, onboard_camera_pose, simulator
 
     world = get_world("training", "smoke")
     max_depth = 8.0

@@ -1,6 +1,12 @@
 import pytest
 
-from dgt_lib.config import PROFILE_NAMES, VEHICLES, UnknownProfileError, get_profile, profile_name
+from dgt_lib.core.config import (
+    PROFILE_NAMES,
+    VEHICLES,
+    UnknownProfileError,
+    get_profile,
+    profile_name,
+)
 
 
 def test_three_profiles_exist_and_are_named():

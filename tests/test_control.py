@@ -1,4 +1,4 @@
-"""MPPI path tracking, the steering conversion and the kinematic plant (dgt_lib.control)."""
+"""MPPI path tracking, the steering conversion and the kinematic plant (dgt_lib.navigation.mppi)."""
 
 import dataclasses
 import math
@@ -7,19 +7,21 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from dgt_lib.control import (
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.navigation.bicycle import (
     KinematicBicycle,
-    MPPIConfig,
-    MPPIController,
     cross_track_errors,
     rear_axle_pose,
-    resample_path,
-    rollout_unicycle,
     simulate_tracking,
     steering_from_twist,
+)
+from dgt_lib.navigation.mppi import (
+    MPPIConfig,
+    MPPIController,
+    resample_path,
+    rollout_unicycle,
     vehicle_footprint,
 )
-from dgt_lib.geometry import GridSpec
 
 WHEELBASE, MAX_STEER = 2.46, math.radians(35.0)  # the jeep
 R_MIN = WHEELBASE / math.tan(MAX_STEER)  # 3.51 m
@@ -306,10 +308,10 @@ def test_kinematic_bicycle_turns_on_its_minimum_radius_at_full_lock():
 @pytest.mark.parametrize("shape", ["straight", "curve"])
 def test_mppi_tracks_paths_in_mujoco(shape):
     """Closed loop with the physics: MPPI → steering → Simulator (its PID speed loop)."""
-    from dgt_lib.outcomes import evaluate_trial
-    from dgt_lib.sim import Simulator
-    from dgt_lib.vehicles import get_vehicle
-    from dgt_lib.worlds import from_heightmap
+    from dgt_lib.core.vehicles import get_vehicle
+    from dgt_lib.navigation.outcome import evaluate_trial
+    from dgt_lib.world.simulator import Simulator
+    from dgt_lib.world.worlds import from_heightmap
 
     jeep = get_vehicle("jeep")
     world = from_heightmap(np.zeros((150, 150)), 0.4, origin=(-10.0, -30.0))

@@ -1,17 +1,11 @@
 import numpy as np
 import pytest
 
-from dgt_lib.bev import BEVMap, height_gradient
-from dgt_lib.costmap import (
-    OCCUPIED,
-    UNOBSERVED,
-    directional_costmap,
-    directional_costmap_reference,
-    occupancy_map,
-    select_tau_s,
-)
-from dgt_lib.geometry import GridSpec
-from dgt_lib.patches import PATCH_COLS, PATCH_ROWS
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.mapping.costmap import directional_costmap, directional_costmap_reference
+from dgt_lib.mapping.occupancy import OCCUPIED, UNOBSERVED, occupancy_map, select_tau_s
+from dgt_lib.perception.bev import BEVMap, height_gradient
+from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS
 
 
 def synthetic_bev(heights: np.ndarray, observed: np.ndarray | None = None) -> BEVMap:

@@ -5,20 +5,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dgt_lib import artifacts
-from dgt_lib.collect import SerialExecutor, collect_episodes, ensure_bev
-from dgt_lib.config import VEHICLES, get_profile
-from dgt_lib.dataset import (
-    DATASET_RELPATH,
-    TEST,
-    TRAIN,
-    VAL,
-    ensure_dataset,
-    patch_times,
-    split_by_trajectory,
-    stage_dataset,
-)
-from dgt_lib.worlds import get_world
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.core.executors import SerialExecutor
+from dgt_lib.perception.dataset import TEST, TRAIN, VAL, patch_times, split_by_trajectory
+from dgt_lib.stages.collect import collect_episodes, ensure_bev
+from dgt_lib.stages.dataset import DATASET_RELPATH, ensure_dataset, stage_dataset
+from dgt_lib.world.terrain import get_world
 
 
 def tiny_profile():
@@ -128,7 +121,7 @@ def test_split_by_trajectory_is_70_15_15_per_vehicle():
 
 
 def _straight_run(end_reason):
-    from dgt_lib.collect import Episode
+    from dgt_lib.perception.episodes import Episode
 
     t = np.arange(0.0, 10.0 + 1e-9, 0.04)
     pose = np.column_stack([5.0 + 5.0 * t, np.full_like(t, 20.0), np.zeros_like(t)])
@@ -138,10 +131,10 @@ def _straight_run(end_reason):
 
 
 def test_episode_patches_pair_patches_with_labels_and_skip_artifact_ends():
-    from dgt_lib.bev import BEVAccumulator
-    from dgt_lib.config import CollectConfig
-    from dgt_lib.dataset import ARTIFACT_END_S, episode_patches
-    from dgt_lib.geometry import GridSpec
+    from dgt_lib.core.config import CollectConfig
+    from dgt_lib.core.geometry import GridSpec
+    from dgt_lib.perception.bev import BEVAccumulator
+    from dgt_lib.perception.dataset import ARTIFACT_END_S, episode_patches
 
     grid = GridSpec((0.0, 0.0), 0.4, (100, 200))
     acc = BEVAccumulator(grid)

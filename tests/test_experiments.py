@@ -5,22 +5,24 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dgt_lib import experiments
-from dgt_lib.config import get_profile
-from dgt_lib.experiments import (
-    ExperimentResult,
-    Query,
+from dgt_lib.core.config import get_profile
+from dgt_lib.evaluation import trials
+from dgt_lib.evaluation.experiments import ExperimentResult, run_experiment
+from dgt_lib.evaluation.journal import read_journal
+from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.evaluation.queries import Query, classify_route, hill_queries, ridge_queries
+from dgt_lib.evaluation.trials import (
     TrialResult,
     TrialTask,
-    classify_route,
-    drive,
-    hill_queries,
-    ridge_queries,
     run_trial,
     run_trials,
+    trial_tasks,
 )
-from dgt_lib.outcomes import TrialOutcome
-from dgt_lib.worlds import from_heightmap, get_world
+from dgt_lib.navigation.drive import drive
+from dgt_lib.navigation.outcome import TrialOutcome
+from dgt_lib.stages.experiments import trial_maps
+from dgt_lib.world.terrain import get_world
+from dgt_lib.world.worlds import from_heightmap
 
 PROFILE = get_profile("smoke")
 
@@ -64,15 +66,15 @@ def test_a_short_closed_loop_trial_succeeds_on_flat_ground():
 
 def test_a_crashing_trial_is_recorded_as_an_error_not_raised():
     task = TrialTask("x", "no_such_world", "binary", "jeep", Query((0, 0, 0), (1, 1)), 0,
-                     "smoke", 0)
-    result = run_trial(task)
+                     PROFILE, 0)
+    result = run_trial(task, trial_maps)
     assert result.outcome.reason == "error" and not result.outcome.success
     assert "no_such_world" in result.outcome.detail  # the traceback is kept
 
 
 def _result(method, label, ok, vehicle="carla_cola", route="A"):
     task = TrialTask("experiment1", "hill", method, vehicle, Query((0, 0, 0), (1, 1), label), 0,
-                     "smoke", 0)
+                     PROFILE, 0)
     outcome = TrialOutcome(True, "success", 1.0) if ok else TrialOutcome.failure("immobilized")
     return TrialResult(task, outcome, route=route)
 
@@ -83,7 +85,7 @@ def test_tables_count_successes_and_put_the_paper_beside_ours():
         _result("binary", "ascent", False, route="B"), _result("binary", "descent", True,
                                                                route="B")])
     assert res.counts() == {"dgt": (2, 2), "binary": (1, 2)}
-    table = res.table("carla_cola", experiments.PAPER["experiment1"]["carla_cola"])
+    table = res.table("carla_cola", PAPER["experiment1"]["carla_cola"])
     assert "| DGT-Map | 2 / 2 | 100.0 |" in table and "| 16 | 80.0 |" in table
     assert res.routes()[("dgt", "ascent")] == {"A": 1}
     assert "| Binary | 1 | 1 |" in res.reason_markdown()
@@ -92,17 +94,17 @@ def test_tables_count_successes_and_put_the_paper_beside_ours():
 @pytest.mark.parametrize("name", ["experiment9"])
 def test_unknown_experiment_is_a_clear_error(name):
     with pytest.raises(ValueError, match="experiment1, experiment2"):
-        experiments.run_experiment(name, PROFILE)
+        run_experiment(name, PROFILE, load_maps=trial_maps)
 
 
 def test_an_interrupted_run_resumes_from_its_journal(tmp_path, monkeypatch):
     from concurrent.futures import ThreadPoolExecutor
 
     tasks = [TrialTask("experiment1", "hill", m, "carla_cola", Query((i, 0, 0), (9, 9)), i,
-                       "smoke", i) for i in range(3) for m in ("dgt", "binary")]
+                       PROFILE, i) for i in range(3) for m in ("dgt", "binary")]
     ran, stop = [], [True]
 
-    def fake_trial(task):
+    def fake_trial(task, load_maps):
         ran.append(task)
         if task.index == 2 and task.method == "binary" and stop.pop():
             raise KeyboardInterrupt  # the user stops the run during the last trial
@@ -110,15 +112,15 @@ def test_an_interrupted_run_resumes_from_its_journal(tmp_path, monkeypatch):
         return TrialResult(task, TrialOutcome(True, "success", 1.0) if ok
                            else TrialOutcome.failure("immobilized", 10.0))
 
-    monkeypatch.setattr(experiments, "run_trial", fake_trial)
+    monkeypatch.setattr(trials, "run_trial", fake_trial)
     journal = tmp_path / "exp.trials.pkl"
     with ThreadPoolExecutor(1) as pool, pytest.raises(KeyboardInterrupt):
-        run_trials(tasks, pool, progress=False, journal=journal)
-    assert len(experiments.read_journal(journal)) == 5  # every finished trial was kept
+        run_trials(tasks, trial_maps, pool, progress=False, journal=journal)
+    assert len(read_journal(journal)) == 5  # every finished trial was kept
     ran.clear()
     stop.append(False)
     with ThreadPoolExecutor(1) as pool:
-        results = run_trials(tasks, pool, progress=False, journal=journal)
+        results = run_trials(tasks, trial_maps, pool, progress=False, journal=journal)
     assert ran == [tasks[-1]]  # only the unfinished trial runs again
     assert [r.task for r in results] == tasks  # task order, journaled ones included
     assert [r.outcome.success for r in results] == [True, False] * 3
@@ -127,11 +129,25 @@ def test_an_interrupted_run_resumes_from_its_journal(tmp_path, monkeypatch):
 def test_a_journal_cut_short_by_a_crash_keeps_its_whole_records(tmp_path):
     import pickle
 
-    task = TrialTask("x", "hill", "dgt", "jeep", Query((0, 0, 0), (1, 1)), 0, "smoke", 0)
+    task = TrialTask("x", "hill", "dgt", "jeep", Query((0, 0, 0), (1, 1)), 0, PROFILE, 0)
     path = tmp_path / "j.pkl"
     good = TrialResult(task, TrialOutcome(True, "success", 1.0))
     later = TrialResult(replace(task, index=1), TrialOutcome.failure("error", detail="boom"))
     data = pickle.dumps(good) + pickle.dumps(later)
     path.write_bytes(data[:-7])  # the crash hit while the second record was written
-    assert list(experiments.read_journal(path)) == [task]
-    assert experiments.read_journal(tmp_path / "missing.pkl") == {}
+    assert list(read_journal(path)) == [task]
+    assert read_journal(tmp_path / "missing.pkl") == {}
+
+
+def test_a_customised_profile_travels_with_its_trials():
+    """A trial plans with the settings of the profile it was made from, not with the
+    default profile of the same name (the worker gets the whole Profile)."""
+    capped = PROFILE.with_(planner=replace(PROFILE.planner, max_expansions=1))
+    hill = get_world("hill", capped)
+    [query] = hill_queries(hill, 1, capped.experiments, seed=0)
+    [task] = trial_tasks("experiment1", "hill", "carla_cola", [query], ["binary"], capped)
+    result = run_trial(task, trial_maps)
+    assert result.outcome.reason == "no_path", result.outcome
+    assert result.expansions <= 1
+    planner, _ = trials._planner("hill", "binary", "carla_cola", PROFILE, trial_maps)
+    assert planner.plan(query.start, query.goal).expansions > 1  # the default plans on

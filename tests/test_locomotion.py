@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dgt_lib.locomotion import TARGET_SPEED_MPS, locomotion, locomotion_signal
+from dgt_lib.perception.locomotion import TARGET_SPEED_MPS, locomotion, locomotion_signal
 
 
 def straight_run(speeds_mps: np.ndarray, dt: float = 0.04, heading: float = 0.3):

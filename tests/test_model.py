@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from dgt_lib.config import VEHICLES
-from dgt_lib.model import ArchitectureMismatchError, DGTNet, ResNet18, centre_heights
+from dgt_lib.core.config import VEHICLES
+from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, ResNet18, centre_heights
 
 WIDTH = 8  # small network: fast tests, same code path as the paper's width 64
 

@@ -4,13 +4,14 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from dgt_lib import artifacts
-from dgt_lib.baselines import SlopeModel, slope_costmap
-from dgt_lib.config import get_profile
-from dgt_lib.costmap import FREE, occupancy_map
-from dgt_lib.inference import ensure_tau_s, world_bev
-from dgt_lib.vehicles import get_vehicle
-from dgt_lib.worlds import get_world, polyline_distance
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.mapping.baselines import SlopeModel, slope_costmap
+from dgt_lib.mapping.occupancy import FREE, occupancy_map
+from dgt_lib.stages.costmaps import ensure_tau_s, world_bev
+from dgt_lib.world.terrain import get_world
+from dgt_lib.world.worlds import polyline_distance
 
 PROFILE = get_profile("smoke")
 

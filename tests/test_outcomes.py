@@ -1,4 +1,5 @@
-"""Trial outcomes and success-rate statistics (dgt_lib.outcomes)."""
+"""Trial outcomes (dgt_lib.navigation.outcome) and success-rate statistics
+(dgt_lib.evaluation.statistics, dgt_lib.evaluation.paper)."""
 
 import math
 
@@ -6,25 +7,24 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
-from dgt_lib.outcomes import (
-    GOAL_TOLERANCE_M,
-    IMMOBILE_SPEED_MPS,
-    IMMOBILE_TIME_S,
-    PAPER_TABLE_I,
-    PAPER_TABLE_II,
-    REASONS,
-    ImmobilityMonitor,
-    TrialOutcome,
+from dgt_lib.evaluation.paper import PAPER_TABLE_I, PAPER_TABLE_II, paper_rows
+from dgt_lib.evaluation.statistics import (
     count_successes,
-    evaluate_trial,
-    first_goal_reach,
-    first_immobilized,
     markdown_table,
-    paper_rows,
     reason_counts,
     success_rows,
     wilson_interval,
 )
+from dgt_lib.navigation.outcome import (
+    GOAL_TOLERANCE_M,
+    IMMOBILE_SPEED_MPS,
+    IMMOBILE_TIME_S,
+    REASONS,
+    OutcomeRule,
+    TrialOutcome,
+    evaluate_trial,
+)
+from dgt_lib.world.simulator import immobile_time
 
 DT = 0.05  # s
 
@@ -79,7 +79,7 @@ def test_immobilized_only_after_more_than_10_s_continuously_slow():
     assert evaluate_trial(t, pos, v, goal=(500.0, 0.0)).reason == "timeout"
     # Rolling backwards is motion: the magnitude of the speed counts.
     t, pos, v = drive(np.full(300, -1.0))
-    assert first_immobilized(t, v) is None
+    assert evaluate_trial(t, pos, v, goal=(500.0, 0.0)).reason == "timeout"
 
 
 def test_flips_and_divergence_end_a_trial_and_the_earliest_event_wins():
@@ -92,7 +92,9 @@ def test_flips_and_divergence_end_a_trial_and_the_earliest_event_wins():
     flipped[300:] = True  # flips after the success: still a success
     assert evaluate_trial(t, pos, v, goal=(60.0, 0.0), flipped=flipped).success
     diverged = np.zeros(len(t), bool)
-    diverged[220] = True  # same sample as the goal reach: the failure wins the tie
+    diverged[220] = True  # same sample as the goal reach: the goal is checked first
+    assert evaluate_trial(t, pos, v, goal=(60.0, 0.0), diverged=diverged).success
+    diverged[219] = True  # one sample earlier: the failure
     assert evaluate_trial(t, pos, v, goal=(60.0, 0.0), diverged=diverged).reason == "diverged"
     with pytest.raises(ValueError, match="shape"):
         evaluate_trial(t, pos, v, goal=(60.0, 0.0), flipped=flipped[:-1])
@@ -111,31 +113,37 @@ def test_no_path_and_input_checks():
     assert not err.success and err.detail.startswith("RuntimeError")
 
 
-def test_first_goal_reach_and_immobility_helpers():
-    pos = np.array([[0.0, 0.0], [3.0, 0.0], [6.0, 0.0], [9.0, 0.0]])
-    assert first_goal_reach(pos, (10.0, 0.0)) == 2
-    assert first_goal_reach(pos, (10.0, 0.0), tolerance_m=0.5) is None
-    t = np.arange(0.0, 12.0, 1.0)
-    assert first_immobilized(t, np.zeros_like(t)) == 11  # 11 s > 10 s at index 11
-    with pytest.raises(ValueError):
-        first_immobilized(t, np.zeros(3))
+def test_the_immobility_clock_counts_continuous_slow_time():
+    assert immobile_time(0.0, 0.0, 0.05) == pytest.approx(0.05)
+    assert immobile_time(9.0, -0.1, 1.0) == pytest.approx(10.0)  # |speed| counts
+    assert immobile_time(9.0, IMMOBILE_SPEED_MPS, 1.0) == 0.0  # at the threshold: moving
+    assert immobile_time(9.0, -1.0, 1.0) == 0.0
 
 
-def test_online_monitor_matches_the_offline_rule():
+def test_the_online_rule_decides_at_the_same_sample_as_a_replayed_trace():
     # 3 s driving, a 4 s stop, 1 s driving, then a 12 s stop starting at t = 8 s.
     speeds = np.r_[np.full(60, 2.0), np.zeros(80), np.full(20, 2.0), np.full(240, 0.1)]
     times = DT * np.arange(len(speeds))
-    mon = ImmobilityMonitor()
-    online = next(i for i in range(len(times)) if mon.update(times[i], speeds[i]))
-    assert online == first_immobilized(times, speeds) == 160 + 201  # first t − 8 s > 10 s
-    mon.reset()
-    assert mon.immobile_for_s == 0.0
-    mon.update(0.0, 0.0)
-    mon.update(4.0, 0.1)
-    assert mon.immobile_for_s == pytest.approx(4.0)
-    assert not mon.update(5.0, 1.0) and mon.immobile_for_s == 0.0
-    with pytest.raises(ValueError, match="backwards"):
-        mon.update(1.0, 0.0)
+    rule, immobile, online = OutcomeRule(), 0.0, None
+    for i in range(len(times)):
+        immobile = immobile_time(immobile, speeds[i], DT if i else 0.0)
+        if rule.judge(times[i], (0.0, 0.0), (500.0, 0.0), immobile) is not None:
+            online = i
+            break
+    assert online == 160 + 200  # the clock adds each slow step's 0.05 s: > 10 s after 201
+    out = evaluate_trial(times, np.zeros((len(times), 2)), speeds, goal=(500.0, 0.0))
+    assert out.reason == "immobilized" and out.duration_s == pytest.approx(times[online])
+
+
+def test_rule_order_goal_then_simulator_end_then_immobile_then_time():
+    rule = OutcomeRule(goal_tolerance_m=5.0, immobilized_limit_s=10.0, time_limit_s=60.0)
+    assert rule.judge(70.0, (1.0, 0.0), (0.0, 0.0), 20.0, "flipped").success
+    assert rule.judge(70.0, (9.0, 0.0), (0.0, 0.0), 20.0, "flipped").reason == "flipped"
+    assert rule.judge(70.0, (9.0, 0.0), (0.0, 0.0), 20.0, "off_map").reason == "diverged"
+    assert rule.judge(70.0, (9.0, 0.0), (0.0, 0.0), 20.0).reason == "immobilized"
+    assert rule.judge(70.0, (9.0, 0.0), (0.0, 0.0), 5.0).reason == "timeout"
+    assert rule.judge(30.0, (9.0, 0.0), (0.0, 0.0), 5.0) is None
+    assert rule.judge(30.0, (0.0, 0.0), None, 5.0) is None  # no goal: never a success
 
 
 # ----------------------------------------------------------------------------- statistics
@@ -174,13 +182,13 @@ def test_wilson_interval_rejects_bad_counts():
 def test_paper_tables_are_the_published_counts():
     hill, ridge = PAPER_TABLE_I["hill"], PAPER_TABLE_I["ridge"]
     assert (hill.vehicle, hill.n, ridge.vehicle, ridge.n) == ("carla_cola", 20, "mercedes_van", 50)
-    assert hill.k == {"dgt_map": 16, "dgt_map_iso": 10, "dgt_map_st": 5,
-                      "slope_based": 16, "binary": 10}
-    assert ridge.k == {"dgt_map": 47, "dgt_map_iso": 45, "dgt_map_st": 14,
-                       "slope_based": 26, "binary": 20}
+    assert hill.k == {"dgt": 16, "isotropic": 10, "single-task": 5,
+                      "slope": 16, "binary": 10}
+    assert ridge.k == {"dgt": 47, "isotropic": 45, "single-task": 14,
+                       "slope": 26, "binary": 20}
     assert {v: (r.n, r.k) for v, r in PAPER_TABLE_II.items()} == {
-        "jeep": (100, {"dgt_map": 70, "dgt_map_st": 64}),
-        "vw_van": (99, {"dgt_map": 54, "dgt_map_st": 35}),
+        "jeep": (100, {"dgt": 70, "single-task": 64}),
+        "vw_van": (99, {"dgt": 54, "single-task": 35}),
     }
     # The success rates printed in the paper: 80/50/25/80/50 %, 54.5 % and 35.4 %.
     assert [r["sr_pct"] for r in paper_rows(hill)] == [80.0, 50.0, 25.0, 80.0, 50.0]
@@ -198,8 +206,8 @@ def test_results_rows_and_markdown_table():
     assert counts["success"] == 3 and counts["immobilized"] == 1 and counts["timeout"] == 0
 
     hill = PAPER_TABLE_I["hill"]
-    rows = success_rows({"dgt_map": (3, 5), "mine": (0, 5)}, paper=hill.k, paper_n=hill.n)
-    assert rows[0]["method"] == "dgt_map" and rows[0]["sr_pct"] == 60.0
+    rows = success_rows({"dgt": (3, 5), "mine": (0, 5)}, paper=hill.k, paper_n=hill.n)
+    assert rows[0]["method"] == "dgt" and rows[0]["sr_pct"] == 60.0
     lo, hi = wilson_interval(3, 5)
     assert (rows[0]["ci_low_pct"], rows[0]["ci_high_pct"]) == (100 * lo, 100 * hi)
     assert rows[0]["paper_k"] == 16 and rows[0]["paper_sr_pct"] == 80.0
@@ -212,4 +220,4 @@ def test_results_rows_and_markdown_table():
     assert lines[5].startswith("| mine | 0 / 5 | 0.0 | 0.0–") and lines[5].endswith("| — | — |")
     assert "paper" not in markdown_table(success_rows({"binary": (1, 2)}))
     with pytest.raises(ValueError, match="paper_n"):
-        success_rows({"dgt_map": (1, 2)}, paper=hill.k)
+        success_rows({"dgt": (1, 2)}, paper=hill.k)

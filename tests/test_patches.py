@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from dgt_lib.bev import GRADIENT, HEIGHT, N_CHANNELS, BEVMap, height_gradient
-from dgt_lib.geometry import GridSpec
-from dgt_lib.patches import (
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.perception.bev import GRADIENT, HEIGHT, N_CHANNELS, BEVMap, height_gradient
+from dgt_lib.perception.patches import (
     PATCH_COLS,
     PATCH_RES,
     PATCH_ROWS,

@@ -1,19 +1,19 @@
-"""Direction-aware Hybrid A* (dgt_lib.planner) on small synthetic maps."""
+"""Direction-aware Hybrid A* (dgt_lib.navigation.planner) on small synthetic maps."""
 
 import math
 
 import numpy as np
 import pytest
 
-from dgt_lib.config import PlannerConfig
-from dgt_lib.geometry import GridSpec, angle_diff
-from dgt_lib.planner import (
+from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.geometry import GridSpec, angle_diff
+from dgt_lib.core.vehicles import footprint_circles
+from dgt_lib.navigation.planner import (
     HybridAStar,
     InvalidQueryError,
     amplified_cost,
     dubins_path,
     edge_cost,
-    footprint_circles,
     plan,
     sample_segments,
     travel_heading_bin,
@@ -281,13 +281,12 @@ def test_deterministic(hill):
 
 
 def test_world_hill_ascends_route_a_and_descends_route_b():
-    """On dgt_lib.worlds' Experiment 1 hill, with a directional cost from the true slopes
+    """On the Experiment 1 hill, with a directional cost from the true slopes
     (uphill grade² + cross grade²), carla_cola-sized, the planner climbs Route A and
     comes down Route B."""
-    worlds = pytest.importorskip("dgt_lib.worlds")
-    if not hasattr(worlds, "make_hill"):
-        pytest.skip("dgt_lib.worlds has no make_hill")
-    world = worlds.make_hill(0.4, 0)
+    from dgt_lib.world.terrain import make_hill
+
+    world = make_hill(0.4, 0)
     gx, gy = world.gradient()
     theta = 2 * np.pi * np.arange(K) / K
     grade = gx[None] * np.cos(theta)[:, None, None] + gy[None] * np.sin(theta)[:, None, None]

@@ -12,9 +12,11 @@ import math
 import numpy as np
 import pytest
 
-from dgt_lib.config import VEHICLES, get_profile
-from dgt_lib.sim import Simulator, drive_straight, follow_path
-from dgt_lib.worlds import from_heightmap, get_world, make_training
+from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.navigation.drive import drive_straight, follow_path
+from dgt_lib.world.simulator import Simulator
+from dgt_lib.world.terrain import get_world, make_training
+from dgt_lib.world.worlds import from_heightmap
 
 SMOKE = get_profile("smoke")
 

@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from dgt_lib import artifacts
-from dgt_lib.baselines import SlopeModel, slope_costmap
 from dgt_lib.cli import main
-from dgt_lib.config import get_profile
-from dgt_lib.inference import world_bev
-from dgt_lib.worlds import from_heightmap
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.mapping.baselines import SlopeModel, slope_costmap
+from dgt_lib.stages.costmaps import world_bev
+from dgt_lib.world.worlds import from_heightmap
 
 RES = 0.4
 

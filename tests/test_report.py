@@ -1,9 +1,11 @@
 """The results report: tables and figures of the experiments, from recorded trials."""
 
-from dgt_lib import artifacts
-from dgt_lib.config import get_profile
-from dgt_lib.experiments import ExperimentResult, Query, TrialResult, TrialTask
-from dgt_lib.outcomes import TrialOutcome
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.evaluation.experiments import ExperimentResult
+from dgt_lib.evaluation.queries import Query
+from dgt_lib.evaluation.trials import TrialResult, TrialTask
+from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.report import write_results
 
 

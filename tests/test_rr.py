@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from dgt_lib import rr as dgt_rr
-from dgt_lib.geometry import GridSpec
+from dgt_lib.core.geometry import GridSpec
 
 
 def test_recording_with_every_kind_of_entity_verifies(tmp_path):

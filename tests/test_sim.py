@@ -7,18 +7,14 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from dgt_lib.camera import CameraIntrinsics
-from dgt_lib.sim import (
-    CAMERA,
-    MAX_DEPTH_M,
-    Simulator,
-    SpeedController,
-    drive_straight,
-    follow_path,
-    look_at,
-)
-from dgt_lib.vehicles import UnknownVehicleError, get_vehicle
-from dgt_lib.worlds import from_heightmap, get_world
+from dgt_lib.core.camera import CameraIntrinsics
+from dgt_lib.core.vehicles import UnknownVehicleError, get_vehicle
+from dgt_lib.navigation.drive import drive_straight, follow_path
+from dgt_lib.world.mujoco_model import CAMERA, MAX_DEPTH_M
+from dgt_lib.world.simulator import Simulator, look_at
+from dgt_lib.world.speed_control import SpeedController
+from dgt_lib.world.terrain import get_world
+from dgt_lib.world.worlds import from_heightmap
 
 
 @pytest.fixture(scope="module")

@@ -6,22 +6,27 @@ import numpy as np
 import pytest
 import torch
 
-from dgt_lib import artifacts, train
-from dgt_lib.config import VEHICLES, TrainConfig, get_profile
-from dgt_lib.dataset import TEST, TRAIN
-from dgt_lib.model import ArchitectureMismatchError, DGTNet, centre_heights
-from dgt_lib.train import (
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import VEHICLES, TrainConfig, get_profile
+from dgt_lib.learning import training as train
+from dgt_lib.learning.checkpoints import (
     CheckpointError,
-    channel_statistics,
-    ensure_model,
+    checkpoint_dict,
     load_checkpoint,
+    save_checkpoint,
+)
+from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, centre_heights
+from dgt_lib.learning.synthetic import synthetic_dataset
+from dgt_lib.learning.training import (
+    channel_statistics,
     masked_loss,
     predict,
     regression_metrics,
-    save_checkpoint,
-    synthetic_dataset,
     train_model,
 )
+from dgt_lib.perception.dataset import TEST, TRAIN
+from dgt_lib.stages import train as train_stage
+from dgt_lib.stages.train import ensure_model
 
 TINY = TrainConfig(epochs=2, batch_size=64, learning_rate=2e-3, width=8, fc_hidden=32)
 # Tests that compare numbers exactly train on the CPU, also where a GPU is present: cuDNN's
@@ -148,7 +153,7 @@ def test_wrong_architecture_or_vehicles_is_a_clear_error(trained, tmp_path):
         load_checkpoint(path, architecture=DGTNet(width=16, fc_hidden=32).architecture())
     with pytest.raises(ArchitectureMismatchError, match="heads for"):
         load_checkpoint(path, vehicles=("vw_van",))
-    ckpt = train.checkpoint_dict(trained)
+    ckpt = checkpoint_dict(trained)
     ckpt["architecture"]["width"] = 16  # weights of width 8 claimed as width 16
     with pytest.raises(ArchitectureMismatchError, match="do not fit"):
         load_checkpoint(ckpt)
@@ -187,7 +192,8 @@ def test_ctrl_c_before_the_first_epoch_ends_is_reraised(dataset):
 def test_ensure_model_caches_per_kind(dataset, data_dir, monkeypatch):
     calls = []
     real = train.train_model
-    monkeypatch.setattr(train, "train_model", lambda *a, **k: calls.append(k) or real(*a, **k))
+    monkeypatch.setattr(train_stage, "train_model",
+                        lambda *a, **k: calls.append(k) or real(*a, **k))
     profile = get_profile("smoke").with_(train=TINY)
     first = ensure_model(profile, dataset, "single:vw_van", progress=False)
     again = ensure_model(profile, dataset, "single:vw_van", progress=False)
@@ -215,7 +221,7 @@ def test_interrupted_training_is_not_cached(dataset, data_dir, monkeypatch):
     def interrupted(*a, **k):
         return real(*a, **k, on_batch_end=interrupt_in_epoch_2)
 
-    monkeypatch.setattr(train, "train_model", interrupted)
+    monkeypatch.setattr(train_stage, "train_model", interrupted)
     result = ensure_model(profile, dataset, "single:jeep", progress=False)
     assert result.interrupted and result.best_epoch == 1
     models = data_dir / "smoke" / "models"
@@ -263,14 +269,15 @@ def test_synthetic_dataset_splits_by_trajectory(dataset):
 
 def test_models_stage_trains_each_kind_once_and_reports(dataset, data_dir):
     profile = get_profile("smoke").with_(train=TINY)
-    out = train.models_stage(profile, dataset, kinds=("multitask", "single:carla_cola"),
+    out = train_stage.models_stage(profile, dataset, kinds=("multitask", "single:carla_cola"),
                              progress=False)
     assert [p.name for p in out.paths] == ["multitask.pt", "single_carla_cola.pt"]
     assert all(p.exists() for p in out.paths)
     assert "multitask (best epoch" in out.summary and "carla_cola mse" in out.summary
     assert load_checkpoint(out.paths[1]).model.vehicles == ("carla_cola",)
     no_cola_val = dataset.subset(~((dataset.vehicle == 3) & (dataset.split == 1)))
-    out = train.models_stage(profile, no_cola_val, kinds=("single:carla_cola",), progress=False)
+    out = train_stage.models_stage(profile, no_cola_val, kinds=("single:carla_cola",),
+                                   progress=False)
     assert out.paths == [] and "single:carla_cola skipped" in out.summary
 
 

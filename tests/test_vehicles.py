@@ -4,10 +4,10 @@ import math
 
 import pytest
 
-from dgt_lib.config import VEHICLES
-from dgt_lib.sim import ackermann_angles
-from dgt_lib.vehicles import VEHICLE_SPECS, UnknownVehicleError, get_vehicle, vehicle_index
-from dgt_lib.worlds import PATCH_SIZE_M
+from dgt_lib.core.config import VEHICLES
+from dgt_lib.core.vehicles import VEHICLE_SPECS, UnknownVehicleError, get_vehicle, vehicle_index
+from dgt_lib.world.simulator import ackermann_angles
+from dgt_lib.world.worlds import PATCH_SIZE_M
 
 
 def test_vehicles_in_head_order():
@@ -56,7 +56,7 @@ def test_ackermann_wheels_share_one_turn_centre(steer):
 def test_body_centre_turns_wider_than_the_rear_axle():
     import math
 
-    from dgt_lib.vehicles import VEHICLE_SPECS
+    from dgt_lib.core.vehicles import VEHICLE_SPECS
 
     for spec in VEHICLE_SPECS.values():
         r_c = spec.centre_turn_radius_m

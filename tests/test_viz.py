@@ -9,15 +9,15 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 
-from dgt_lib import bev as bev_module
 from dgt_lib import viz
-from dgt_lib.bev import BEVMap, bev_grid
-from dgt_lib.camera import CameraIntrinsics
-from dgt_lib.collect import bev_quality, survey_poses
-from dgt_lib.config import VEHICLES, CollectConfig
-from dgt_lib.dataset import TEST, TRAIN, VAL, PatchDataset
-from dgt_lib.sim import look_at
-from dgt_lib.worlds import from_heightmap
+from dgt_lib.core.camera import CameraIntrinsics
+from dgt_lib.core.config import VEHICLES, CollectConfig
+from dgt_lib.perception import bev as bev_module
+from dgt_lib.perception.bev import BEVMap, bev_grid, bev_quality
+from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
+from dgt_lib.world.rendering import survey_poses
+from dgt_lib.world.simulator import look_at
+from dgt_lib.world.worlds import from_heightmap
 
 CAM = CameraIntrinsics(160, 120, math.radians(70.0))
 
@@ -136,6 +136,6 @@ def test_directional_table_splits_patches_by_forward_slope():
 
 def test_source_markdown_shows_the_implementation_and_where_it_lives():
     text = viz.source_markdown(bev_module.height_gradient)
-    assert text.startswith("`dgt_lib/bev.py`, line ")
+    assert text.startswith("`dgt_lib/perception/bev.py`, line ")
     assert "def height_gradient(" in text
     assert text.rstrip().endswith("```")

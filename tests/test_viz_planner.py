@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from dgt_lib import viz
-from dgt_lib.config import PlannerConfig
-from dgt_lib.geometry import GridSpec
-from dgt_lib.planner import HybridAStar, PlanResult, amplified_cost, edge_cost
+from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.navigation.planner import HybridAStar, PlanResult, amplified_cost, edge_cost
 
 K = 8
 GRID = GridSpec((0.0, 0.0), 0.4, (100, 100))

@@ -10,9 +10,10 @@ import pytest
 import torch
 
 from dgt_lib import viz
-from dgt_lib.config import VEHICLES, TrainConfig
-from dgt_lib.model import DGTNet, count_parameters
-from dgt_lib.train import predict, synthetic_dataset
+from dgt_lib.core.config import VEHICLES, TrainConfig
+from dgt_lib.learning.model import DGTNet, count_parameters
+from dgt_lib.learning.synthetic import synthetic_dataset
+from dgt_lib.learning.training import predict
 
 TINY = TrainConfig(epochs=1, batch_size=32, width=2, fc_hidden=8)
 

@@ -4,18 +4,16 @@ maps become worlds or clear errors."""
 import numpy as np
 import pytest
 
-from dgt_lib.config import get_profile
-from dgt_lib.vehicles import get_vehicle
-from dgt_lib.worlds import (
+from dgt_lib.core.config import get_profile
+from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.world.terrain import WORLD_NAMES, get_world, make_training
+from dgt_lib.world.worlds import (
     DIRT,
     ROCK,
-    WORLD_NAMES,
     HeightmapError,
     UnknownWorldError,
     from_heightmap,
-    get_world,
     load_heightmap,
-    make_training,
     polyline_distance,
 )
 

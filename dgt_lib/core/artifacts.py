@@ -1,0 +1,200 @@
+"""The artifact cache (DESIGN.md → Artifacts).
+
+Every pipeline stage stores its output under ``data/<profile>/…`` through
+:func:`ensure`: the artifact is loaded when it exists and was built from the same
+configuration, and built (then written atomically) otherwise. Beside each file
+``X`` lies ``X.meta.json`` with the configuration hash, the file's size and its
+SHA-256, so a mismatched configuration, a truncated or otherwise corrupt file is
+detected, reported in one line and rebuilt — never silently used.
+
+Formats follow the file suffix: ``.npz`` (a dict of numpy arrays), ``.json``,
+``.pt`` (``torch.save``), anything else pickle.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import pickle
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+DATA_ENV_VAR = "DGT_DATA_DIR"
+_REPO_ROOT = Path(__file__).resolve().parents[2]  # dgt_lib/core/artifacts.py → the repository
+
+
+def data_root() -> Path:
+    """``$DGT_DATA_DIR`` if set, else ``data/`` at the repository root."""
+    return Path(os.environ.get(DATA_ENV_VAR, _REPO_ROOT / "data"))
+
+
+def profile_dir(profile: str) -> Path:
+    """``data/<profile>/``: where a profile's artifacts live."""
+    return data_root() / profile
+
+
+def _jsonable(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {"__type__": type(obj).__name__, **_jsonable(dataclasses.asdict(obj))}
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return {"__array__": hashlib.sha256(np.ascontiguousarray(obj).tobytes()).hexdigest(),
+                "shape": list(obj.shape), "dtype": str(obj.dtype)}
+    if isinstance(obj, (np.integer, np.floating, np.bool_)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    if obj is None or isinstance(obj, (str, int, float, bool)):
+        return obj
+    raise TypeError(f"cannot hash configuration value of type {type(obj).__name__}: {obj!r}")
+
+
+def config_hash(config: Any) -> str:
+    """A stable 16-hex-digit hash of a configuration (dataclasses, dicts, numbers, arrays)."""
+    text = json.dumps(_jsonable(config), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _file_digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _meta_path(path: Path) -> Path:
+    return path.with_name(path.name + ".meta.json")
+
+
+def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """Write through ``write(tmp_path)`` then rename: a crash never leaves half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        write(tmp_path)
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+
+
+def save(path: Path, value: Any) -> None:
+    """Write ``value`` atomically in the format given by ``path``'s suffix."""
+    path = Path(path)
+    suffix = path.suffix
+
+    def write(tmp: Path) -> None:
+        if suffix == ".npz":
+            with open(tmp, "wb") as f:
+                np.savez(f, **value)
+        elif suffix == ".json":
+            tmp.write_text(json.dumps(value, indent=1))
+        elif suffix == ".pt":
+            import torch
+
+            torch.save(value, tmp)
+        else:
+            with open(tmp, "wb") as f:
+                pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
+
+    _atomic_write(path, write)
+
+
+def load(path: Path) -> Any:
+    """Read a file written by :func:`save` (every array is read into memory)."""
+    path = Path(path)
+    suffix = path.suffix
+    if suffix == ".npz":
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    if suffix == ".json":
+        return json.loads(path.read_text())
+    if suffix == ".pt":
+        import torch
+
+        return torch.load(path, map_location="cpu", weights_only=False)
+    with open(path, "rb") as f:
+        return pickle.load(f)
+
+
+class CorruptArtifactError(RuntimeError):
+    """An artifact file that exists but cannot be trusted (truncated, changed, unreadable)."""
+
+
+def _check(path: Path, expected_hash: str) -> str | None:
+    """None when ``path`` is a valid artifact of ``expected_hash``; else why not."""
+    meta_path = _meta_path(path)
+    if not path.exists():
+        return "missing"
+    if not meta_path.exists():
+        return "no metadata beside it"
+    try:
+        meta = json.loads(meta_path.read_text())
+    except (OSError, ValueError):
+        return "unreadable metadata"
+    if meta.get("config_hash") != expected_hash:
+        return f"configuration changed ({meta.get('config_hash')} → {expected_hash})"
+    if meta.get("size") != path.stat().st_size or meta.get("sha256") != _file_digest(path):
+        return "corrupt (size or checksum differs from when it was written)"
+    return None
+
+
+def ensure(
+    relpath: str | Path,
+    config: Any,
+    build: Callable[[], T],
+    *,
+    profile: str,
+    log: Callable[[str], None] = print,
+) -> T:
+    """Load ``data/<profile>/<relpath>`` if it was built from ``config``; else build and save it.
+
+    ``build()`` returns the value to store (a dict of arrays for ``.npz``). A
+    mismatched hash, a missing metadata file or a corrupt artifact prints one line
+    saying why, and the artifact is rebuilt.
+    """
+    path = profile_dir(profile) / Path(relpath)
+    want = config_hash(config)
+    why = _check(path, want)
+    if why is None:
+        try:
+            return load(path)
+        except Exception as exc:  # noqa: BLE001 - any failure to read means rebuild
+            why = f"corrupt ({type(exc).__name__}: {exc})"
+    if why != "missing":
+        log(f"[dgt] rebuilding {path}: {why}")
+    value = build()
+    save(path, value)
+    meta = {"config_hash": want, "size": path.stat().st_size, "sha256": _file_digest(path),
+            "config": _jsonable(config)}
+    _atomic_write(_meta_path(path), lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
+    return value
+
+
+def stored_digest(relpath: str | Path, *, profile: str) -> str:
+    """The SHA-256 recorded when ``data/<profile>/<relpath>`` was written: a cheap
+    fingerprint of an artifact for the configuration of the stages built on it."""
+    meta_path = _meta_path(profile_dir(profile) / Path(relpath))
+    try:
+        return json.loads(meta_path.read_text())["sha256"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise FileNotFoundError(f"no valid artifact at {meta_path.with_suffix('')}: {exc}") from exc
+
+
+def is_fresh(relpath: str | Path, config: Any, *, profile: str) -> bool:
+    """Whether :func:`ensure` would load (not build) this artifact."""
+    return _check(profile_dir(profile) / Path(relpath), config_hash(config)) is None

@@ -1,0 +1,248 @@
+"""Profiles: one switch sizes everything (DESIGN.md → Profiles).
+
+``smoke`` runs every code path in CI in minutes, ``demo`` is the default for a
+person stepping through the notebooks, ``paper`` uses the paper's sizes.
+Select with the ``DGT_PROFILE`` environment variable or an explicit name::
+
+    from dgt_lib.core.config import get_profile
+    profile = get_profile()          # DGT_PROFILE, default "demo"
+    profile = get_profile("smoke")
+
+Each pipeline stage owns one frozen section of :class:`Profile`; the artifact
+cache hashes the sections a stage depends on, so changing one field rebuilds
+exactly the artifacts it affects.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field, replace
+
+PROFILE_NAMES: tuple[str, ...] = ("smoke", "demo", "paper")
+DEFAULT_PROFILE = "demo"
+ENV_VAR = "DGT_PROFILE"
+
+
+VEHICLES: tuple[str, ...] = ("jeep", "vw_van", "mercedes_van", "carla_cola")
+"""The four vehicles, in head order (DESIGN.md → Conventions)."""
+
+
+@dataclass(frozen=True)
+class WorldsConfig:
+    """World sizes (``dgt_lib.world.worlds``). Square worlds, side in metres."""
+
+    training_size_m: float = 200.0
+    eval_size_m: float = 160.0
+    hfield_resolution_m: float = 0.4  # terrain grid cell, metres (MuJoCo behaves at 0.2–0.4)
+    training_seed: int = 0  # added to Profile.seed for the training world
+    eval_seed: int = 1000  # eval world: a different seed, never used in training
+
+
+@dataclass(frozen=True)
+class CollectConfig:
+    """Self-supervised data collection (``dgt_lib.stages.collect``, ``dgt_lib.perception.dataset``).
+
+    Episodes: spawn at a random free pose, drive at ``speed_mps`` with smooth
+    random (Ornstein–Uhlenbeck) steering until ``episode_duration_s``, a simulator
+    end (flipped, off_map, diverged) or ``immobilized_limit_s`` below the
+    simulator's immobile speed. Survey: nadir frames of the same camera from
+    ``survey_altitude_m`` above the terrain on a lattice (complete BEV maps).
+    """
+
+    episodes: tuple[int, int, int, int] = (40, 40, 30, 20)  # per vehicle, VEHICLES order
+    episode_duration_s: float = 100.0  # paper: runs end at 100 s or when immobilized
+    speed_mps: float = 5.0  # u, commanded speed (paper: Locomotion)
+    immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
+    steer_tau_s: float = 2.0  # OU steering correlation time [s]
+    steer_sigma: float = 0.3  # OU stationary std of the normalised steer
+    edge_margin_m: float = 15.0  # closer to the map edge, steer back toward the centre [m]
+    tree_lookahead_m: float = 10.0  # steer around trunks this close ahead; 0 = drive into them
+    spawn_margin_m: float = 10.0  # spawn this far from the map edge [m]
+    spawn_max_slope_deg: float = 15.0  # no spawning on steeper ground [deg]
+    max_angular_rate_dps: float = 100.0  # faster = simulator glitch, dropped (paper: pre-filter)
+    frame_spacing_m: float = 5.0  # onboard RGB-D frame every 5 m driven (≈1 Hz at u) [m]
+    frame_max_depth_m: float = 20.0  # onboard pixels farther than this are not mapped [m]
+    patch_interval_s: float = 1.33  # one patch every this many seconds of a run [s]
+    patch_start_s: float = 3.0  # no patches while accelerating from rest [s]
+    survey_altitude_m: float = 20.0  # survey camera above the highest point it sees [m]
+    survey_overlap: float = 0.2  # overlap of neighbouring survey footprints (fraction)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Multi-task training (``dgt_lib.learning.training``) and the network's size
+    (``dgt_lib.learning.model``).
+
+    The paper gives the architecture (two ResNet-18, i.e. width 64) but not the
+    optimiser settings or epochs; Adam at 1e-3 with the best validation epoch
+    kept is our choice.
+    """
+
+    epochs: int = 10
+    batch_size: int = 256
+    learning_rate: float = 1e-3  # Adam
+    weight_decay: float = 0.0  # Adam's L2 penalty
+    width: int = 64  # channels of the first ResNet stage; 64 = ResNet-18 (paper)
+    fc_hidden: int = 256  # units of the FC layer between the branches and the heads
+    patience: int | None = None  # stop after this many epochs without a better val loss
+    mirror_augment: bool = True  # flip half of each batch left ↔ right (ours, label-preserving)
+
+
+@dataclass(frozen=True)
+class CostmapConfig:
+    """Directional costmap inference (``dgt_lib.mapping.costmap``), baselines and occupancy."""
+
+    n_headings: int = 8  # K, paper: Spatial and Angular Discretization
+    stride: tuple[int, int] = (6, 3)  # fast path: window centres every (along, across) cells
+    batch_size: int = 2048  # patches per network call
+    slope_trials: int = 200  # Optuna trials per vehicle for the slope-based baseline
+    tau_s_margin: float = 1.05  # τ_s = margin × the steepest traversed-terrain gradient
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Hybrid A* (``dgt_lib.navigation.planner``).
+
+    The paper gives s and β; the rest (closed-set discretisation, sub-steps,
+    tolerances, caps, the stronger heuristic, the analytic shot) are ours.
+    """
+
+    step_m: float = 1.6  # s [m], arc length of one primitive, paper: Hybrid A*
+    beta: float = 150.0  # β, cost amplification C(1 + βC), paper: Directional Cost Lookup
+    heuristic: str = "cost_to_go"  # "euclidean" (the paper's) or "cost_to_go" (admissible 2D)
+    heuristic_weight: float = 1.0  # w ≥ 1: weighted A*, cost ≤ w × optimum; 1 keeps it exact
+    goal_tolerance_m: float = 1.0  # a node this close to the goal position reaches it [m]
+    goal_heading_tolerance_rad: float = 0.26  # when the goal has a heading (~15°) [rad]
+    theta_bins: int = 36  # heading bins of the closed set (10°)
+    closed_cell_m: float = 1.6  # xy cell of the closed set [m] (one step)
+    substep_m: float = 0.2  # collision-check spacing along a primitive [m]
+    safety_margin_m: float = 0.0  # extra clearance around the footprint [m]
+    analytic_shot: bool = True  # try a Dubins / turn-then-straight shot near the goal
+    shot_distance_m: float = 20.0  # try the shot from nodes this close to the goal [m]
+    max_expansions: int = 200_000  # search cap (expanded nodes)
+    max_time_s: float = 20.0  # search cap (wall time) [s]
+
+
+@dataclass(frozen=True)
+class ExperimentsConfig:
+    """Closed-loop trials (``dgt_lib.evaluation.experiments``): counts, queries, time limits."""
+
+    n_hill: int = 20  # Experiment 1, carla_cola
+    n_ridge: int = 50  # Experiment 2, mercedes_van
+    n_eval_jeep: int = 100  # Experiment 3
+    n_eval_vw_van: int = 99  # Experiment 3
+    mppi_batch_size: int = 1000  # sampled control sequences (Nav2's default)
+    start_jitter_m: float = 2.0  # starts and goals vary this much around the landmarks [m]
+    heading_jitter_deg: float = 20.0  # start headings vary this much [deg]
+    eval_distance_m: tuple[float, float] = (40.0, 90.0)  # random start–goal distance range [m]
+    time_limit_base_s: float = 30.0  # time limit = base + factor × planned length / 5 m/s
+    time_limit_factor: float = 2.0
+
+
+@dataclass(frozen=True)
+class Profile:
+    """All sizes of one profile, one frozen section per pipeline stage."""
+
+    name: str
+    seed: int = 0
+    workers: int = 2  # processes for episodes and trials (concurrent.futures)
+    worlds: WorldsConfig = field(default_factory=WorldsConfig)
+    collect: CollectConfig = field(default_factory=CollectConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    costmap: CostmapConfig = field(default_factory=CostmapConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    experiments: ExperimentsConfig = field(default_factory=ExperimentsConfig)
+
+    def with_(self, **changes) -> Profile:
+        """A copy with some fields changed, e.g. ``p.with_(seed=3)``."""
+        return replace(self, **changes)
+
+
+def _smoke() -> Profile:
+    """CI and nbmake: every code path, about a minute per notebook on 2 cores."""
+    return Profile(
+        name="smoke",
+        worlds=WorldsConfig(training_size_m=80.0, eval_size_m=80.0),
+        collect=CollectConfig(episodes=(3, 3, 3, 3), episode_duration_s=20.0),
+        # width 8: trains in seconds; exercises the same code as the paper's width 64.
+        train=TrainConfig(epochs=2, batch_size=64, width=8, fc_hidden=64),
+        experiments=ExperimentsConfig(n_hill=2, n_ridge=2, n_eval_jeep=2, n_eval_vw_van=2,
+                                      mppi_batch_size=256),
+        costmap=CostmapConfig(slope_trials=60),
+        # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)
+        planner=PlannerConfig(heuristic_weight=1.5, max_time_s=10.0),
+    )
+
+
+def _demo() -> Profile:
+    """Default for a person: minutes per notebook, qualitatively right results."""
+    return Profile(
+        name="demo",
+        worlds=WorldsConfig(training_size_m=160.0, eval_size_m=120.0),
+        collect=CollectConfig(episodes=(40, 40, 30, 20)),
+        # width 32: ~3× faster training and inference than 64 (benchmarks/bench_train.py).
+        train=TrainConfig(epochs=15, batch_size=128, width=32, patience=5),
+        # stride 4×2: ~9× faster than the literal procedure, mean |ΔC| 0.004 (6×3: 18×, 0.006;
+        # benchmarks/bench_costmap.py); the README's demo results were made with it.
+        costmap=CostmapConfig(stride=(4, 2)),
+        experiments=ExperimentsConfig(n_hill=6, n_ridge=6, n_eval_jeep=10, n_eval_vw_van=10),
+        # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)
+        planner=PlannerConfig(heuristic_weight=1.5),
+    )
+
+
+def _paper() -> Profile:
+    """The paper's sizes (Section Experiments → Dataset, Tables I and II)."""
+    return Profile(
+        name="paper",
+        # Dataset / Experiment 3: the paper gives no map sizes; 300 m × 300 m holds
+        # 1,300 runs of ≤ 100 s at 5 m/s, 200 m × 200 m 100 random start/goal pairs.
+        worlds=WorldsConfig(training_size_m=300.0, eval_size_m=200.0),
+        # Dataset paragraph: 400 jeep, 400 vw_van, 300 mercedes_van, 200 carla_cola runs;
+        # 30,000 jeep patches / 400 runs ≈ 75 per 100 s run ⇒ one patch every 1.33 s.
+        collect=CollectConfig(episodes=(400, 400, 300, 200), episode_duration_s=100.0,
+                              patch_interval_s=1.33),
+        # Network Architecture: two ResNet-18 (width 64). The paper gives no epochs, batch
+        # size or learning rate: Adam 1e-3, batch 256, ≤ 15 epochs (stop after 4 without a
+        # better val loss), best val epoch kept. The epoch budget is set by the ≤ 3 h target:
+        # one epoch of all five models took ~2.7 min on 2 idle cores (81 + 32 + 29 + 10 + 9 s).
+        train=TrainConfig(epochs=15, batch_size=256, learning_rate=1e-3, width=64,
+                          fc_hidden=256, patience=4),
+        # Table I (n=20 hill, n=50 ridge) and Table II (n=100 jeep, n=99 vw_van).
+        experiments=ExperimentsConfig(n_hill=20, n_ridge=50, n_eval_jeep=100, n_eval_vw_van=99),
+        # Hybrid A* / Directional Cost Lookup: s = 1.6 m, β = 150, an admissible heuristic
+        # (the paper's Euclidean distance, here maxed with the 2D cost-to-go), unweighted.
+        planner=PlannerConfig(step_m=1.6, beta=150.0, heuristic_weight=1.0, max_time_s=60.0,
+                              max_expansions=500_000),
+    )
+
+
+_BUILDERS = {"smoke": _smoke, "demo": _demo, "paper": _paper}
+
+
+class UnknownProfileError(ValueError):
+    """Raised for a profile name that is not one of :data:`PROFILE_NAMES`."""
+
+
+def profile_name(name: str | None = None) -> str:
+    """Resolve a profile name: the argument, else ``$DGT_PROFILE``, else ``demo``."""
+    chosen = name if name is not None else os.environ.get(ENV_VAR) or DEFAULT_PROFILE
+    chosen = chosen.strip().lower()
+    if chosen not in _BUILDERS:
+        source = "argument" if name is not None else f"${ENV_VAR}"
+        raise UnknownProfileError(
+            f"unknown profile {chosen!r} (from {source}); valid profiles: "
+            + ", ".join(PROFILE_NAMES)
+        )
+    return chosen
+
+
+def get_profile(name: str | None = None) -> Profile:
+    """The :class:`Profile` called ``name`` (or from ``$DGT_PROFILE``, default demo)."""
+    return _BUILDERS[profile_name(name)]()
+
+
+def as_profile(profile: Profile | str | None) -> Profile:
+    """A :class:`Profile` as it is, else :func:`get_profile` of the name (or of
+    ``$DGT_PROFILE`` for None): what every stage entry point accepts."""
+    return profile if isinstance(profile, Profile) else get_profile(profile)

@@ -1,0 +1,163 @@
+"""Closed-loop trials: plan with Hybrid A* on a method's costmap, drive the plan in MuJoCo
+(paper: Experimental Protocol).
+
+A trial plans on the costmap of the *mapped* world (the BEV from the survey, as the paper
+plans on maps built from RGB-D), then tracks the path with MPPI until the outcome rule
+decides (:mod:`dgt_lib.navigation.outcome`). All methods get identical queries, occupancy
+map, planner and controller settings. Trials are independent and run through any
+``concurrent.futures.Executor`` (:func:`~dgt_lib.core.executors.run_jobs`); a trial that
+raises is recorded as ``error`` with its traceback and the run goes on. Every finished
+trial is journaled (:mod:`dgt_lib.evaluation.journal`).
+
+A worker needs the costmaps of its world: :func:`run_trials` takes ``load_maps`` — a
+picklable function ``(world, method, vehicle, profile) -> WorldMaps`` (the stages layer
+passes one that reads the artifact cache).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from dgt_lib.core.config import ExperimentsConfig, Profile
+from dgt_lib.core.executors import run_jobs
+from dgt_lib.evaluation.journal import Journal, read_journal
+from dgt_lib.evaluation.queries import Query, classify_route
+from dgt_lib.mapping.baselines import binary_costmap
+from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.navigation.drive import drive
+from dgt_lib.navigation.outcome import TrialOutcome
+from dgt_lib.navigation.planner import HybridAStar
+from dgt_lib.world.terrain import get_world
+
+MapsLoader = Callable[[str, str, str, Profile], WorldMaps]
+"""(world, method, vehicle, profile) → the :class:`WorldMaps` holding that costmap."""
+
+
+@dataclass(frozen=True)
+class TrialTask:
+    """Everything a worker needs to run one trial (small, picklable). ``profile`` is the
+    whole :class:`Profile` — customised settings travel with the task."""
+
+    experiment: str
+    world: str
+    method: str
+    vehicle: str
+    query: Query
+    index: int
+    profile: Profile
+    seed: int
+
+
+@dataclass
+class TrialResult:
+    """One trial: the plan, the executed trajectory and how it ended.
+
+    path: (N, 3) planned poses; trajectory: (T, 4) t [s], x, y, z [m] sampled every
+    LOG_DT_S; speed: (T,) [m/s]; route: which way the plan went (world-specific,
+    e.g. hill "A"/"B", ridge "sharp"/"smooth"), or "" without a plan.
+    """
+
+    task: TrialTask
+    outcome: TrialOutcome
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    plan_cost: float = math.inf
+    plan_time_s: float = 0.0
+    expansions: int = 0
+    route: str = ""
+    trajectory: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    speed: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    wall_s: float = 0.0
+
+
+def trial_time_limit_s(cfg: ExperimentsConfig, path_length_m: float) -> float:
+    """A trial's time limit [s]: base + factor × the time to drive the plan at 5 m/s."""
+    return cfg.time_limit_base_s + cfg.time_limit_factor * path_length_m / 5.0
+
+
+def trial_tasks(experiment: str, world: str, vehicle: str, queries: Sequence[Query],
+                methods: Sequence[str], profile: Profile) -> list[TrialTask]:
+    """One task per query and method; query i's controller seed is ``profile.seed + i``."""
+    return [TrialTask(experiment, world, m, vehicle, q, i, profile, profile.seed + i)
+            for i, q in enumerate(queries) for m in methods]
+
+
+@lru_cache(maxsize=16)
+def _planner(world: str, method: str, vehicle: str, profile: Profile,
+             load_maps: MapsLoader) -> tuple[HybridAStar, WorldMaps]:
+    """The planner of a (world, method, vehicle), built once per process."""
+    maps = load_maps(world, method, vehicle, profile)
+    if method == "binary" and ("binary", vehicle) not in maps.costmaps:
+        cost = binary_costmap(maps.grid.shape)
+    else:
+        cost = maps.costmap(method, vehicle)
+    return HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle,
+                                   profile.planner), maps
+
+
+def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
+    """Plan and drive one trial; never raises (an exception becomes an ``error`` outcome)."""
+    t0 = time.perf_counter()
+    try:
+        prof = task.profile
+        world = get_world(task.world, prof)
+        planner, maps = _planner(task.world, task.method, task.vehicle, prof, load_maps)
+        plan = planner.plan(task.query.start, task.query.goal)
+        if not plan.success:
+            return TrialResult(task, TrialOutcome.failure("no_path", detail=plan.reason),
+                               plan_time_s=plan.time_s, expansions=plan.expansions,
+                               wall_s=time.perf_counter() - t0)
+        outcome, traj, speed = drive(world, task.vehicle, plan.path, task.query.goal,
+                                     occupancy=maps.occupancy, grid=maps.grid,
+                                     time_limit_s=trial_time_limit_s(prof.experiments,
+                                                                     plan.length_m),
+                                     mppi_batch_size=prof.experiments.mppi_batch_size,
+                                     seed=task.seed)
+        return TrialResult(task, outcome, plan.path, plan.cost, plan.time_s, plan.expansions,
+                           classify_route(world, plan.path), traj, speed,
+                           time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001 - a crashed trial is a recorded result
+        detail = "".join(traceback.format_exception(exc))
+        return TrialResult(task, TrialOutcome.failure("error", detail=detail),
+                           wall_s=time.perf_counter() - t0)
+
+
+def run_trials(tasks: Sequence[TrialTask], load_maps: MapsLoader,
+               executor: Executor | None = None, *, workers: int = 2, progress: bool = True,
+               journal: str | Path | None = None) -> list[TrialResult]:
+    """Run trials in parallel (a process pool of ``workers`` unless an executor is given),
+    with a progress bar; results come back in task order.
+
+    journal: a file to which every trial is appended as soon as it ends. Trials
+    already in it are not run again (those that ended in ``error`` are retried), so
+    an experiment stopped by Ctrl-C or a crash resumes where it stopped.
+    """
+    done = {} if journal is None else {
+        t: r for t, r in read_journal(journal).items() if r.outcome.reason != "error"}
+    done = {t: done[t] for t in tasks if t in done}
+    todo = [t for t in tasks if t not in done]
+    log = Journal(journal) if journal is not None and todo else None
+
+    def keep(job: tuple, result: TrialResult) -> None:
+        done[result.task] = result
+        if log is not None:
+            log.append(result)
+
+    try:
+        run_jobs(run_trial, [(t, load_maps) for t in todo], executor=executor,
+                 workers=workers, start_method="fork", on_result=keep, progress=progress,
+                 desc="trials", unit="trial", initial=len(done),
+                 postfix=lambda: f"{sum(r.outcome.success for r in done.values())}/"
+                                 f"{len(done)} ok")
+    finally:
+        if log is not None:
+            log.close()
+    return [done[t] for t in tasks]

@@ -1,0 +1,114 @@
+"""Checkpoints of a trained :class:`~dgt_lib.learning.model.DGTNet`: what training
+returns (:class:`TrainResult`), and saving / loading it with its architecture, history,
+metrics and settings, checked on load."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import TrainConfig
+from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet
+
+CHECKPOINT_FORMAT = "dgt-kit/DGTNet"
+
+
+CHECKPOINT_VERSION = 2
+
+
+class CheckpointError(ValueError):
+    """A file or object that is not a DGTNet checkpoint written by :func:`save_checkpoint`."""
+
+
+@dataclass
+class TrainResult:
+    """A trained model and how it got there.
+
+    model: the network with the best validation epoch's weights, in eval mode.
+    history: one dict per finished epoch: ``epoch`` (1-based), ``train_loss``,
+        ``val_loss`` (mean masked squared error), ``seconds``.
+    best_epoch: the epoch whose weights ``model`` holds (1-based).
+    metrics: test-split metrics per vehicle (see :func:`evaluate`).
+    interrupted: True when training stopped on KeyboardInterrupt.
+    """
+
+    model: DGTNet
+    history: list[dict[str, float]]
+    best_epoch: int
+    metrics: dict[str, dict[str, float]]
+    interrupted: bool = False
+    config: TrainConfig | None = None
+    seed: int | None = None
+
+
+def checkpoint_dict(result: TrainResult) -> dict[str, Any]:
+    """The checkpoint of a result: architecture, weights (CPU), history, metrics, settings."""
+    return {
+        "format": CHECKPOINT_FORMAT,
+        "version": CHECKPOINT_VERSION,
+        "architecture": result.model.architecture(),
+        "rgb_pretrained": bool(result.model.rgb_pretrained),
+        "state_dict": {k: v.detach().cpu() for k, v in result.model.state_dict().items()},
+        "history": result.history,
+        "best_epoch": result.best_epoch,
+        "metrics": result.metrics,
+        "interrupted": result.interrupted,
+        "train_config": asdict(result.config) if result.config is not None else None,
+        "seed": result.seed,
+    }
+
+
+def save_checkpoint(path: str | Path, result: TrainResult) -> Path:
+    """Write ``result`` to ``path`` (``.pt``) atomically; returns the path."""
+    path = Path(path)
+    if path.suffix != ".pt":
+        raise ValueError(f"checkpoints are .pt files, got {path}")
+    artifacts.save(path, checkpoint_dict(result))
+    return path
+
+
+def load_checkpoint(
+    source: str | Path | dict[str, Any],
+    *,
+    vehicles: tuple[str, ...] | list[str] | None = None,
+    architecture: dict[str, Any] | None = None,
+    device: str | torch.device = "cpu",
+) -> TrainResult:
+    """Read a checkpoint (a ``.pt`` path or the dict of :func:`checkpoint_dict`).
+
+    ``vehicles`` and ``architecture`` (e.g. ``DGTNet(...).architecture()``) are what
+    the caller expects; a checkpoint of another vehicle set or architecture raises
+    :class:`~dgt_lib.learning.model.ArchitectureMismatchError` saying what differs. Something
+    that is not a DGTNet checkpoint raises :class:`CheckpointError`.
+    """
+    where = str(source) if not isinstance(source, dict) else "checkpoint"
+    ckpt = artifacts.load(Path(source)) if not isinstance(source, dict) else source
+    if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:
+        raise CheckpointError(f"{where} is not a {CHECKPOINT_FORMAT} checkpoint")
+    if ckpt.get("version") != CHECKPOINT_VERSION:
+        raise CheckpointError(f"{where} has checkpoint version {ckpt.get('version')}, "
+                              f"this code reads version {CHECKPOINT_VERSION}")
+    arch = ckpt["architecture"]
+    if vehicles is not None and list(vehicles) != list(arch["vehicles"]):
+        raise ArchitectureMismatchError(
+            f"{where} has heads for {tuple(arch['vehicles'])}, expected {tuple(vehicles)}")
+    if architecture is not None and dict(architecture) != arch:
+        diff = {k: (arch.get(k), architecture.get(k)) for k in set(arch) | set(architecture)
+                if arch.get(k) != architecture.get(k)}
+        raise ArchitectureMismatchError(
+            f"{where} has a different architecture (checkpoint, expected): {diff}")
+    model = DGTNet(arch["vehicles"], width=arch["width"], fc_hidden=arch["fc_hidden"])
+    try:
+        model.load_state_dict(ckpt["state_dict"])
+    except RuntimeError as exc:
+        raise ArchitectureMismatchError(f"{where}: weights do not fit {arch}: {exc}") from exc
+    model.rgb_pretrained = bool(ckpt.get("rgb_pretrained", False))
+    model.to(device).eval()
+    cfg = TrainConfig(**ckpt["train_config"]) if ckpt.get("train_config") else None
+    return TrainResult(model=model, history=ckpt["history"], best_epoch=ckpt["best_epoch"],
+                       metrics=ckpt["metrics"], interrupted=ckpt["interrupted"], config=cfg,
+                       seed=ckpt.get("seed"))

@@ -1,0 +1,265 @@
+"""The dual-branch multi-task traversability network (paper: Network Architecture).
+
+A patch P of shape ``(6, 22, 7)`` (channels R, G, B, H̄, σ_H, ‖∇H̄‖; forward =
+row 0) is normalised per channel, split into its RGB and height channels, and
+each group goes through its own ResNet-18: the RGB branch may start from
+torchvision's ImageNet weights, the height branch always starts from scratch.
+The two embeddings are concatenated, passed through a small fully connected
+network, and one regression head per vehicle predicts the locomotion
+L̂_v(P) ∈ [0, 1]::
+
+    x (B, 6, 22, 7) ─ normalise ─┬─ RGB (B, 3, 22, 7) ── ResNet-18 ── (B, 8·width) ─┐
+                                 └─ H   (B, 3, 22, 7) ── ResNet-18 ── (B, 8·width) ─┴─ concat
+       (B, 16·width) ── FC + ReLU ── z (B, fc_hidden) ── head_v ── sigmoid ── L̂ (B, n_vehicles)
+
+:meth:`DGTNet.embed` computes z once and :meth:`DGTNet.heads` evaluates every
+vehicle's head from it, so a costmap pays for the backbone once per patch, not
+once per vehicle.
+
+The ResNet is written out here (no torchvision) with torchvision's parameter
+names (``conv1``, ``bn1``, ``layer1.0.conv1``, ``layer2.0.downsample.0`` …), so
+``DGTNet(rgb_weights="resnet18-f37072fd.pth")`` loads torchvision's ImageNet
+state dict into the RGB branch. ``width`` scales every layer (64 = the standard
+ResNet-18 of the paper; smaller widths trade accuracy for speed, see
+``benchmarks/bench_train.py``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from dgt_lib.core.config import VEHICLES
+
+N_CHANNELS = 6
+"""Patch channels R, G, B, H̄, σ_H, ‖∇H̄‖ (DESIGN.md → Conventions)."""
+RGB_CHANNELS = slice(0, 3)
+HEIGHT_CHANNELS = slice(3, 6)
+PATCH_SHAPE = (N_CHANNELS, 22, 7)
+"""One patch: 8.8 m × 2.8 m at 0.4 m per cell, channels first."""
+
+
+def centre_heights(x):
+    """Make H̄ relative to each patch's mean height: (B, 6, H, W) → a copy, numpy or torch.
+
+    Traversability does not depend on altitude, and absolute heights differ between
+    the training map and the evaluation maps (a summit at 12 m is as flat as a valley),
+    so the network sees H̄ − mean(H̄) of its patch. Our choice; the paper does not say.
+    Non-finite cells are ignored in the mean and stay non-finite.
+    """
+    if isinstance(x, torch.Tensor):
+        out = x.clone()
+        mean = torch.nanmean(x[:, HEIGHT_CHANNELS.start].flatten(1), dim=1)
+        out[:, HEIGHT_CHANNELS.start] -= torch.nan_to_num(mean)[:, None, None]
+        return out
+    out = np.array(x, dtype=np.float64 if x.dtype == np.float64 else np.float32)
+    h = out[:, HEIGHT_CHANNELS.start].reshape(len(out), -1)
+    finite = np.isfinite(h)
+    mean = np.where(finite, h, 0.0).sum(axis=1) / np.maximum(finite.sum(axis=1), 1)
+    out[:, HEIGHT_CHANNELS.start] -= mean[:, None, None]
+    return out
+
+
+class ArchitectureMismatchError(ValueError):
+    """Weights or a checkpoint that do not fit the network they are loaded into."""
+
+
+class BasicBlock(nn.Module):
+    """torchvision's ResNet ``BasicBlock``: two 3×3 convolutions and a skip connection."""
+
+    expansion = 1
+
+    def __init__(self, inplanes: int, planes: int, stride: int = 1,
+                 downsample: nn.Module | None = None) -> None:
+        super().__init__()
+        self.conv1 = nn.Conv2d(inplanes, planes, 3, stride=stride, padding=1, bias=False)
+        self.bn1 = nn.BatchNorm2d(planes)
+        self.relu = nn.ReLU(inplace=True)
+        self.conv2 = nn.Conv2d(planes, planes, 3, stride=1, padding=1, bias=False)
+        self.bn2 = nn.BatchNorm2d(planes)
+        self.downsample = downsample
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        identity = x if self.downsample is None else self.downsample(x)
+        out = self.relu(self.bn1(self.conv1(x)))
+        out = self.bn2(self.conv2(out))
+        return self.relu(out + identity)
+
+
+class ResNet18(nn.Module):
+    """ResNet-18 without its classifier: (B, in_channels, H, W) → (B, 8·width) embedding.
+
+    The standard ImageNet stem (7×7 convolution, stride 2, then 3×3 max-pool,
+    stride 2) and four stages of two ``BasicBlock`` each. On a 22 × 7 patch the
+    feature map shrinks 22×7 → 11×4 → 6×2 (layer1) → 3×1 → 2×1 → 1×1 (layer4).
+    Parameter names match torchvision's ``resnet18`` minus ``fc``.
+    """
+
+    def __init__(self, in_channels: int = 3, width: int = 64) -> None:
+        super().__init__()
+        if width < 1:
+            raise ValueError(f"width must be a positive integer, got {width}")
+        self.inplanes = width
+        self.conv1 = nn.Conv2d(in_channels, width, kernel_size=7, stride=2, padding=3, bias=False)
+        self.bn1 = nn.BatchNorm2d(width)
+        self.relu = nn.ReLU(inplace=True)
+        self.maxpool = nn.MaxPool2d(kernel_size=3, stride=2, padding=1)
+        self.layer1 = self._make_layer(width, 2)
+        self.layer2 = self._make_layer(2 * width, 2, stride=2)
+        self.layer3 = self._make_layer(4 * width, 2, stride=2)
+        self.layer4 = self._make_layer(8 * width, 2, stride=2)
+        self.avgpool = nn.AdaptiveAvgPool2d((1, 1))
+        self.out_features = 8 * width
+        for m in self.modules():  # torchvision's initialisation
+            if isinstance(m, nn.Conv2d):
+                nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
+            elif isinstance(m, nn.BatchNorm2d):
+                nn.init.constant_(m.weight, 1)
+                nn.init.constant_(m.bias, 0)
+
+    def _make_layer(self, planes: int, blocks: int, stride: int = 1) -> nn.Sequential:
+        downsample = None
+        if stride != 1 or self.inplanes != planes:
+            downsample = nn.Sequential(
+                nn.Conv2d(self.inplanes, planes, 1, stride=stride, bias=False),
+                nn.BatchNorm2d(planes),
+            )
+        layers = [BasicBlock(self.inplanes, planes, stride, downsample)]
+        self.inplanes = planes
+        layers += [BasicBlock(planes, planes) for _ in range(1, blocks)]
+        return nn.Sequential(*layers)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = self.maxpool(self.relu(self.bn1(self.conv1(x))))
+        x = self.layer4(self.layer3(self.layer2(self.layer1(x))))
+        return torch.flatten(self.avgpool(x), 1)  # (B, 8·width)
+
+
+def load_torchvision_weights(branch: ResNet18, path: str | Path) -> None:
+    """Load a torchvision ``resnet18`` state dict file into ``branch`` (its ``fc.*`` is ignored).
+
+    Raises :class:`ArchitectureMismatchError` naming the missing, unexpected or
+    wrongly shaped keys when the file is not a ResNet-18 of the branch's width.
+    """
+    state = torch.load(Path(path), map_location="cpu", weights_only=True)
+    if isinstance(state, dict) and "state_dict" in state:
+        state = state["state_dict"]
+    if not isinstance(state, dict):
+        raise ArchitectureMismatchError(
+            f"{path}: expected a state dict, got {type(state).__name__}")
+    state = {k: v for k, v in state.items() if not k.startswith("fc.")}
+    own = branch.state_dict()
+    missing = sorted(set(own) - set(state))
+    unexpected = sorted(set(state) - set(own))
+    wrong = sorted(k for k in set(own) & set(state) if own[k].shape != state[k].shape)
+    if missing or unexpected or wrong:
+        parts = [f"{name}: {keys[:4]}{' …' if len(keys) > 4 else ''}"
+                 for name, keys in (("missing", missing), ("unexpected", unexpected),
+                                    ("wrong shape", wrong)) if keys]
+        raise ArchitectureMismatchError(
+            f"{path} is not a torchvision ResNet-18 state dict for an RGB branch of width "
+            f"{branch.conv1.out_channels} ({'; '.join(parts)})")
+    branch.load_state_dict(state)
+
+
+class DGTNet(nn.Module):
+    """Dual-branch ResNet-18, shared FC trunk, one sigmoid regression head per vehicle.
+
+    Args:
+        vehicles: names of the vehicles, one head each, in head order (default all
+            four of ``config.VEHICLES``; a single-task model has one).
+        width: channels of the first ResNet stage (64 = ResNet-18 as in the paper).
+        fc_hidden: units of the fully connected layer after the concatenation.
+        rgb_weights: optional path to torchvision's ImageNet ``resnet18`` state dict
+            (e.g. ``resnet18-f37072fd.pth``); needs ``width=64``. Without it the
+            RGB branch starts from random weights and ``rgb_pretrained`` is False.
+
+    Input: patches (B, 6, 22, 7) float32 in raw units (RGB 0..1, heights in
+    metres); the per-channel normalisation (buffers ``input_mean``/``input_std``,
+    set with :meth:`set_normalization` from the training split and saved in the
+    state dict) is applied inside :meth:`embed`, so inference cannot forget it.
+    Non-finite inputs (NaN in unobserved cells) become the channel mean.
+    Output: (B, len(vehicles)) float32 in [0, 1], column j = vehicle ``vehicles[j]``.
+    """
+
+    def __init__(self, vehicles: tuple[str, ...] | list[str] = VEHICLES, width: int = 64,
+                 fc_hidden: int = 256, rgb_weights: str | Path | None = None) -> None:
+        super().__init__()
+        vehicles = tuple(vehicles)
+        unknown = [v for v in vehicles if v not in VEHICLES]
+        if not vehicles or unknown or len(set(vehicles)) != len(vehicles):
+            raise ValueError(f"vehicles must be distinct names from {VEHICLES}, got {vehicles}")
+        self.vehicles = vehicles
+        self.width = int(width)
+        self.fc_hidden = int(fc_hidden)
+        self.rgb = ResNet18(3, self.width)
+        self.height = ResNet18(3, self.width)
+        self.fc = nn.Sequential(
+            nn.Linear(self.rgb.out_features + self.height.out_features, self.fc_hidden),
+            nn.ReLU(inplace=True),
+        )
+        self.vehicle_heads = nn.ModuleList(nn.Linear(self.fc_hidden, 1) for _ in vehicles)
+        self.register_buffer("input_mean", torch.zeros(N_CHANNELS))
+        self.register_buffer("input_std", torch.ones(N_CHANNELS))
+        self.rgb_pretrained = False
+        if rgb_weights is not None:
+            if self.width != 64:
+                raise ArchitectureMismatchError(
+                    f"ImageNet ResNet-18 weights need width=64, this model has width={width}")
+            load_torchvision_weights(self.rgb, rgb_weights)
+            self.rgb_pretrained = True
+
+    def architecture(self) -> dict[str, Any]:
+        """What a checkpoint must match to load into this model."""
+        return {"name": "DGTNet", "vehicles": list(self.vehicles), "width": self.width,
+                "fc_hidden": self.fc_hidden, "in_channels": N_CHANNELS,
+                "heights": "relative to the patch mean"}
+
+    def head_index(self, vehicle: str | int) -> int:
+        """Column of ``vehicle`` (name, or index into ``config.VEHICLES``) in the output."""
+        name = VEHICLES[vehicle] if isinstance(vehicle, (int, np.integer)) else vehicle
+        if name not in self.vehicles:
+            raise KeyError(f"this model has no head for {name!r}; its heads: {self.vehicles}")
+        return self.vehicles.index(name)
+
+    @torch.no_grad()
+    def set_normalization(self, mean: np.ndarray | torch.Tensor,
+                          std: np.ndarray | torch.Tensor) -> None:
+        """Set the per-channel input mean and standard deviation, each (6,), raw units."""
+        mean = torch.as_tensor(np.asarray(mean, dtype=np.float32))
+        std = torch.as_tensor(np.asarray(std, dtype=np.float32))
+        if mean.shape != (N_CHANNELS,) or std.shape != (N_CHANNELS,):
+            raise ValueError(f"mean and std must have shape ({N_CHANNELS},), "
+                             f"got {tuple(mean.shape)} and {tuple(std.shape)}")
+        if not (torch.isfinite(mean).all() and torch.isfinite(std).all() and (std > 0).all()):
+            raise ValueError(f"normalisation must be finite with std > 0, got {mean}, {std}")
+        self.input_mean.copy_(mean)
+        self.input_std.copy_(std)
+
+    def embed(self, x: torch.Tensor) -> torch.Tensor:
+        """Shared embedding z: (B, 6, 22, 7) raw patches → (B, fc_hidden)."""
+        if x.ndim != 4 or x.shape[1] != N_CHANNELS:
+            raise ValueError(f"expected patches (B, {N_CHANNELS}, H, W), got {tuple(x.shape)}")
+        x = centre_heights(x)  # H̄ relative to the patch's mean height
+        x = (x - self.input_mean[:, None, None]) / self.input_std[:, None, None]
+        x = torch.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
+        features = torch.cat([self.rgb(x[:, RGB_CHANNELS]), self.height(x[:, HEIGHT_CHANNELS])],
+                             dim=1)  # (B, 16·width)
+        return self.fc(features)  # (B, fc_hidden)
+
+    def heads(self, z: torch.Tensor) -> torch.Tensor:
+        """Every vehicle's locomotion from the embedding: (B, fc_hidden) → (B, n_vehicles)."""
+        return torch.sigmoid(torch.cat([head(z) for head in self.vehicle_heads], dim=1))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """L̂ (B, n_vehicles) in [0, 1] for raw patches x (B, 6, 22, 7)."""
+        return self.heads(self.embed(x))
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Number of trainable parameters."""
+    return sum(p.numel() for p in model.parameters() if p.requires_grad)

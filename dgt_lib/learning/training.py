@@ -1,0 +1,377 @@
+"""Multi-task training of :class:`~dgt_lib.learning.model.DGTNet`, its single-task
+variant, and metrics.
+
+Paper: Multi-Task Learning and Baselines (DGT-Map(Single-Task)). The multi-task
+model is trained on every vehicle's patches at once with the masked loss
+(:func:`masked_loss`): a patch of vehicle v trains the shared backbone and head v
+only. The single-task variant is the same architecture with one head, trained on
+one vehicle's data. Plain shuffled minibatches over all training samples (the
+dataset's vehicle imbalance is kept, as in the paper).
+
+Typical use::
+
+    result = train_model(dataset, profile.train, seed=0)              # multi-task
+    single = train_model(dataset, profile.train, vehicles=("vw_van",))
+    result = ensure_model(profile, dataset, kind="single:vw_van")     # cached
+    L_hat = predict(result.model, patches)                            # (N, n_heads)
+
+Training keeps the weights of the epoch with the lowest validation loss; Ctrl-C
+(KeyboardInterrupt) stops it cleanly and returns (and, with ``checkpoint_path``,
+has saved) that best model.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import torch
+from scipy import stats
+from tqdm.auto import tqdm
+
+from dgt_lib.core.config import VEHICLES, TrainConfig
+from dgt_lib.learning.checkpoints import TrainResult, save_checkpoint
+from dgt_lib.learning.model import N_CHANNELS, DGTNet, centre_heights
+from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
+
+
+def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor) -> torch.Tensor:
+    """The multi-task loss of a batch (paper: Multi-Task Learning).
+
+        𝓛(P, v) = ‖L̂_v(P) − L_v(t_P)‖²
+
+    Only the head of the vehicle that collected patch P contributes; the other
+    heads' outputs are not used, so they get exactly zero gradient from P.
+    pred: (B, n_heads) predictions; labels: (B,) L_v(t_P); head: (B,) int64 column
+    of each sample's vehicle. Returns the mean over the batch (a scalar).
+    """
+    chosen = pred.gather(1, head[:, None]).squeeze(1)  # (B,) L̂_v(P)
+    return torch.mean((chosen - labels) ** 2)
+
+
+def default_device() -> torch.device:
+    """The first CUDA GPU when there is one, else the CPU."""
+    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
+def _index_batches(index: np.ndarray, batch_size: int) -> list[np.ndarray]:
+    return [index[i : i + batch_size] for i in range(0, len(index), batch_size)]
+
+
+def batch_to_tensor(patches: np.ndarray, device: torch.device) -> torch.Tensor:
+    """One batch of float16 (or any float) patches → float32 tensor on ``device``."""
+    return torch.from_numpy(np.ascontiguousarray(patches)).to(device=device, dtype=torch.float32)
+
+
+def channel_statistics(patches: np.ndarray, index: np.ndarray | None = None,
+                       chunk: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+    """Per-channel mean and standard deviation of ``patches[index]`` (N, 6, H, W), each (6,).
+
+    Computed in float64 over chunks (no float32 copy of the whole set) on the input
+    as :class:`DGTNet` sees it (H̄ relative to each patch's mean, ``centre_heights``);
+    NaN cells are skipped. A channel with (near) zero spread gets std 1.
+    """
+    index = np.arange(len(patches)) if index is None else np.asarray(index)
+    if len(index) == 0:
+        raise ValueError("cannot compute normalisation statistics of zero patches")
+    total = np.zeros(N_CHANNELS)
+    total_sq = np.zeros(N_CHANNELS)
+    count = np.zeros(N_CHANNELS)
+    for idx in _index_batches(index, chunk):
+        x = centre_heights(patches[idx].astype(np.float64))  # (b, 6, H, W), as DGTNet sees it
+        finite = np.isfinite(x)
+        x = np.where(finite, x, 0.0)
+        total += x.sum(axis=(0, 2, 3))
+        total_sq += (x * x).sum(axis=(0, 2, 3))
+        count += finite.sum(axis=(0, 2, 3))
+    count = np.maximum(count, 1)
+    mean = total / count
+    std = np.sqrt(np.maximum(total_sq / count - mean**2, 0.0))
+    std = np.where(std > 1e-6, std, 1.0)
+    return mean.astype(np.float32), std.astype(np.float32)
+
+
+@torch.no_grad()
+def _predict_index(model: DGTNet, patches: np.ndarray, index: np.ndarray, batch_size: int,
+                   device: torch.device) -> np.ndarray:
+    was_training = model.training
+    model.eval()
+    out = np.empty((len(index), len(model.vehicles)), dtype=np.float32)
+    for start in range(0, len(index), batch_size):
+        idx = index[start : start + batch_size]
+        out[start : start + len(idx)] = model(batch_to_tensor(patches[idx], device)).cpu().numpy()
+    model.train(was_training)
+    return out
+
+
+def _model_device(model: torch.nn.Module) -> torch.device:
+    return next(model.parameters()).device
+
+
+def predict(model: DGTNet, patches: np.ndarray, batch_size: int = 1024) -> np.ndarray:
+    """Locomotion of every head for raw patches (N, 6, 22, 7) → (N, n_heads) float32 in [0, 1].
+
+    Runs in eval mode on the model's device, ``batch_size`` patches at a time,
+    converting each batch (e.g. float16) to float32 on the fly.
+    """
+    patches = np.asarray(patches)
+    if patches.ndim != 4 or patches.shape[1] != N_CHANNELS:
+        raise ValueError(f"expected patches (N, {N_CHANNELS}, 22, 7), got {patches.shape}")
+    return _predict_index(model, patches, np.arange(len(patches)), batch_size,
+                          _model_device(model))
+
+
+def _head_columns(model: DGTNet, vehicle: np.ndarray) -> np.ndarray:
+    """Model output column of each sample's vehicle (-1 where the model has no head)."""
+    lookup = np.full(len(VEHICLES), -1, dtype=np.int64)
+    for j, name in enumerate(model.vehicles):
+        lookup[VEHICLES.index(name)] = j
+    return lookup[vehicle.astype(np.int64)]
+
+
+COLLAPSE_RATIO = 0.1
+"""A head whose test predictions spread less than this fraction of the labels' spread
+(std of L̂ < 0.1 × std of L) has collapsed to a (near) constant."""
+
+
+def regression_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
+    """``n``, ``mse``, ``mae``, Spearman rank correlation ``spearman`` and the spreads
+    (standard deviations) ``pred_std`` and ``label_std`` of two (n,) arrays.
+
+    ``spearman`` is NaN when it is undefined (fewer than 2 samples or a constant array).
+    """
+    pred = np.asarray(pred, dtype=np.float64)
+    true = np.asarray(true, dtype=np.float64)
+    err = pred - true
+    rho = float("nan")
+    if len(true) >= 2 and np.ptp(true) > 0 and np.ptp(pred) > 0:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rho = float(stats.spearmanr(pred, true).statistic)
+    return {"n": int(len(true)), "mse": float(np.mean(err**2)) if len(err) else float("nan"),
+            "mae": float(np.mean(np.abs(err))) if len(err) else float("nan"), "spearman": rho,
+            "pred_std": float(np.std(pred)) if len(pred) else float("nan"),
+            "label_std": float(np.std(true)) if len(true) else float("nan")}
+
+
+def collapsed_heads(metrics: dict[str, dict[str, float]]) -> list[str]:
+    """The vehicles whose head predicts (nearly) the same L̂ for every test patch:
+    std(L̂) < :data:`COLLAPSE_RATIO` × std(L).
+
+    That happens when a sigmoid head saturates early in training (e.g. on labels that
+    are almost all ≈ 1): the model then carries next to no terrain information.
+    ``metrics`` as in :attr:`TrainResult.metrics`; checkpoints without ``pred_std``
+    (made before it was recorded) never count.
+    """
+    return [v for v, m in metrics.items()
+            if m.get("pred_std", math.inf) < COLLAPSE_RATIO * m.get("label_std", 0.0)]
+
+
+def evaluate(model: DGTNet, part: PatchDataset,
+             batch_size: int = 1024) -> dict[str, dict[str, float]]:
+    """Per-vehicle metrics of the model's own head on ``part`` (e.g. ``dataset.part("test")``).
+
+    Returns ``{vehicle: {"n", "mse", "mae", "spearman"}}`` for every vehicle that
+    has a head in ``model`` and samples in ``part``; each prediction is that
+    vehicle's head on that vehicle's patches.
+    """
+    out: dict[str, dict[str, float]] = {}
+    for name in model.vehicles:
+        index = np.flatnonzero(part.vehicle == VEHICLES.index(name))
+        if len(index) == 0:
+            continue
+        pred = _predict_index(model, part.patches, index, batch_size, _model_device(model))
+        out[name] = regression_metrics(pred[:, model.head_index(name)], part.labels[index])
+    return out
+
+
+def _validation_loss(model: DGTNet, dataset: PatchDataset, index: np.ndarray,
+                     columns: np.ndarray, batch_size: int, device: torch.device) -> float:
+    """Mean :func:`masked_loss` over the samples ``index`` (eval mode, no gradient)."""
+    pred = _predict_index(model, dataset.patches, index, batch_size, device)
+    return masked_loss(torch.from_numpy(pred).double(),
+                       torch.from_numpy(dataset.labels[index]).double(),
+                       torch.from_numpy(columns[index])).item()
+
+
+def _vehicle_tuple(vehicles: tuple[str, ...] | list[str] | str | None) -> tuple[str, ...]:
+    if vehicles is None:
+        return VEHICLES
+    vehicles = (vehicles,) if isinstance(vehicles, str) else tuple(vehicles)
+    unknown = [v for v in vehicles if v not in VEHICLES]
+    if not vehicles or unknown:
+        raise ValueError(f"unknown vehicle(s) {unknown or vehicles}; valid: {VEHICLES}")
+    return vehicles
+
+
+def train_model(
+    dataset: PatchDataset,
+    cfg: TrainConfig,
+    *,
+    vehicles: tuple[str, ...] | list[str] | str | None = None,
+    seed: int = 0,
+    device: str | torch.device | None = None,
+    progress: bool = True,
+    rgb_weights: str | Path | None = None,
+    checkpoint_path: str | Path | None = None,
+    on_batch_end: Callable[[int, int, float], None] | None = None,
+) -> TrainResult:
+    """Train a DGTNet with Adam and the masked loss; keep the best validation epoch.
+
+    Args:
+        dataset: all patches with their ``split``; only TRAIN updates weights, VAL
+            picks the best epoch, TEST gives ``TrainResult.metrics``.
+        cfg: epochs, batch size, learning rate, width … (``profile.train``).
+        vehicles: None = multi-task on every vehicle (one head each); a tuple of
+            names (e.g. ``("vw_van",)``) trains only on those vehicles' samples
+            with one head each (the single-task variant).
+        seed: seeds weight initialisation and batch order; same seed, same result
+            on the CPU with the same thread count (on a GPU, cuDNN's kernels vary
+            slightly from run to run).
+        device: default: a CUDA GPU when present, else the CPU.
+        progress: tqdm bars with the live loss.
+        rgb_weights: torchvision ImageNet ResNet-18 file for the RGB branch (width 64).
+        checkpoint_path: if given, the best model so far is saved there (atomically,
+            :func:`save_checkpoint`) each time the validation loss improves.
+        on_batch_end: called as ``on_batch_end(epoch, step, loss)`` after every step.
+
+    Ctrl-C (KeyboardInterrupt) ends training after the last finished epoch: the
+    result holds the best weights so far and ``interrupted=True``. An interrupt
+    before the first epoch finishes has nothing to keep and is re-raised.
+    """
+    vehicles = _vehicle_tuple(vehicles)
+    if cfg.epochs < 1 or cfg.batch_size < 2:
+        raise ValueError(f"need epochs ≥ 1 and batch_size ≥ 2, got {cfg.epochs}, {cfg.batch_size}")
+    chosen = np.isin(dataset.vehicle, [VEHICLES.index(v) for v in vehicles])
+    train_idx = np.flatnonzero(chosen & (dataset.split == TRAIN))
+    val_idx = np.flatnonzero(chosen & (dataset.split == VAL))
+    if len(train_idx) < 2 or len(val_idx) == 0:
+        raise ValueError(f"{vehicles}: need ≥ 2 training and ≥ 1 validation samples, "
+                         f"got {len(train_idx)} and {len(val_idx)}")
+    used = dataset.labels[np.concatenate([train_idx, val_idx])]
+    if not np.all((used >= 0) & (used <= 1)):  # also catches NaN
+        raise ValueError("labels must be locomotion values in [0, 1]; found "
+                         f"{np.sum(~((used >= 0) & (used <= 1)))} outside (or NaN)")
+    device = torch.device(device) if device is not None else default_device()
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    model = DGTNet(vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden, rgb_weights=rgb_weights)
+    model.set_normalization(*channel_statistics(dataset.patches, train_idx))
+    model.to(device)
+    columns = _head_columns(model, dataset.vehicle)  # (N,) model column per sample
+    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate,
+                                 weight_decay=cfg.weight_decay)
+    labels = torch.from_numpy(dataset.labels.astype(np.float32))
+    heads = torch.from_numpy(columns)
+
+    history: list[dict[str, float]] = []
+    best_state: dict[str, torch.Tensor] | None = None
+    best_epoch, best_val, interrupted = 0, float("inf"), False
+    name = "multi-task" if len(vehicles) > 1 else f"single-task {vehicles[0]}"
+    epochs_bar = tqdm(range(1, cfg.epochs + 1), desc=f"train {name}", unit="epoch",
+                      disable=not progress)
+    batch_bar = None
+    try:
+        for epoch in epochs_bar:
+            t0 = time.perf_counter()
+            model.train()
+            order = rng.permutation(train_idx)
+            batches = [b for b in _index_batches(order, cfg.batch_size) if len(b) >= 2]
+            total, seen = 0.0, 0  # BatchNorm needs ≥ 2 samples: a last batch of 1 is skipped
+            batch_bar = tqdm(batches, desc=f"epoch {epoch}", unit="batch", leave=False,
+                             disable=not progress)
+            for step, idx in enumerate(batch_bar):
+                x = batch_to_tensor(dataset.patches[idx], device)  # (B, 6, 22, 7) float32
+                if cfg.mirror_augment:  # left ↔ right: a vehicle's locomotion does not care
+                    flip = torch.from_numpy(rng.random(len(idx)) < 0.5).to(device)
+                    x = torch.where(flip[:, None, None, None], x.flip(-1), x)
+                loss = masked_loss(model(x), labels[idx].to(device), heads[idx].to(device))
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                optimizer.step()
+                value = loss.item()
+                total += value * len(idx)
+                seen += len(idx)
+                batch_bar.set_postfix(loss=f"{total / seen:.4f}")
+                if on_batch_end is not None:
+                    on_batch_end(epoch, step, value)
+            batch_bar.close()
+            val = _validation_loss(model, dataset, val_idx, columns, 1024, device)
+            history.append({"epoch": epoch, "train_loss": total / seen, "val_loss": val,
+                            "seconds": time.perf_counter() - t0})
+            if val < best_val:
+                best_val, best_epoch = val, epoch
+                best_state = {k: v.detach().to("cpu", copy=True)
+                              for k, v in model.state_dict().items()}
+                if checkpoint_path is not None:  # the model holds the best weights right now
+                    save_checkpoint(checkpoint_path, TrainResult(
+                        model, copy.deepcopy(history), best_epoch, {}, False, cfg, seed))
+            epochs_bar.set_postfix(train=f"{total / seen:.4f}", val=f"{val:.4f}",
+                                   best=best_epoch)
+            if cfg.patience is not None and epoch - best_epoch >= cfg.patience:
+                break
+    except KeyboardInterrupt:
+        if best_state is None:
+            raise
+        interrupted = True
+        tqdm.write(f"[dgt] training interrupted: keeping epoch {best_epoch} "
+                   f"(val loss {best_val:.4f})")
+    finally:
+        if batch_bar is not None:
+            batch_bar.close()
+        epochs_bar.close()
+    if best_state is None:
+        raise RuntimeError(f"training {name} diverged: validation loss "
+                           f"{[h['val_loss'] for h in history]}; try a lower learning rate")
+    model.load_state_dict(best_state)
+    model.eval()
+    metrics = evaluate(model, dataset.subset(chosen & (dataset.split == TEST)))
+    for v in collapsed_heads(metrics):
+        m = metrics[v]
+        warnings.warn(f"{name}: the {v} head predicts a near-constant L̂ on the test set "
+                      f"(std {m['pred_std']:.1e} against the labels' {m['label_std']:.2f}): "
+                      "it learned next to nothing (too few epochs, or a saturated sigmoid)",
+                      stacklevel=2)
+    result = TrainResult(model, history, best_epoch, metrics, interrupted, cfg, seed)
+    if checkpoint_path is not None:
+        save_checkpoint(checkpoint_path, result)
+    return result
+
+
+# ── checkpoints ──────────────────────────────────────────────────────────────
+
+
+
+
+
+
+
+
+# ── cached models ────────────────────────────────────────────────────────────
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+# ── synthetic data (tests, benchmarks, teaching) ─────────────────────────────
+
+
+
+
+

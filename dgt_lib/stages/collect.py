@@ -1,0 +1,253 @@
+"""Stages ``collect`` and ``bev``: the driving episodes and the global BEV maps, cached
+(paper: Methodology → Data Collection, Global Map).
+
+Two sources of RGB-D frames feed the global BEV maps: the **episodes** on the training
+world (:mod:`dgt_lib.perception.episodes`: random driving at u = 5 m/s, an onboard frame
+every 5 m) and the **mapping survey** of every world (:mod:`dgt_lib.world.rendering`:
+nadir frames on a lattice, which makes every map complete and independent of any one
+trajectory, as the paper's aggregate over all runs does).
+
+Each episode is its own artifact ``episodes/<vehicle>_<index>.npz`` (written atomically
+as it completes), so an interrupted collection resumes: completed episodes are loaded,
+only the missing ones run. Episodes run through any :class:`concurrent.futures.Executor`
+— a process pool of ``profile.workers`` by default, or a Dask/Ray executor passed in.
+The dataset built from them is :func:`dgt_lib.stages.dataset.ensure_dataset`.
+
+Example::
+
+    from dgt_lib.stages.collect import collect_episodes, ensure_bev
+    episodes = collect_episodes("smoke")        # list[Episode], cached per episode
+    bev = ensure_bev("hill", "smoke")           # BEVMap, bev/hill.npz
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import Executor
+from pathlib import Path
+
+import numpy as np
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
+from dgt_lib.core.executors import SerialExecutor, limit_threads, run_jobs
+from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.perception.bev import BEVAccumulator, BEVMap, bev_grid, bev_quality
+from dgt_lib.perception.episodes import (
+    Episode,
+    episode_seed,
+    episode_summary,
+    load_episode,
+    run_episode,
+)
+from dgt_lib.stages.paths import cache_dir, data_dir
+from dgt_lib.stages.registry import StageOutput
+from dgt_lib.world.mujoco_model import CAMERA
+from dgt_lib.world.rendering import survey_frames, survey_poses
+from dgt_lib.world.terrain import WORLD_NAMES, get_world
+from dgt_lib.world.worlds import World
+
+EPISODE_FIELDS: tuple[str, ...] = (
+    "episode_duration_s", "speed_mps", "immobilized_limit_s", "steer_tau_s", "steer_sigma",
+    "edge_margin_m", "tree_lookahead_m", "spawn_margin_m", "spawn_max_slope_deg",
+    "max_angular_rate_dps", "frame_spacing_m", "frame_max_depth_m",
+)
+"""The :class:`CollectConfig` fields an episode depends on (its cache key)."""
+
+EPISODE_FORMAT = 1
+"""Version of the episode artifact's layout (part of its cache key)."""
+
+SURVEY_FIELDS: tuple[str, ...] = ("survey_altitude_m", "survey_overlap")
+"""The :class:`CollectConfig` fields the mapping survey depends on."""
+
+
+def _fields(config: CollectConfig, names: tuple[str, ...]) -> dict[str, object]:
+    return {name: getattr(config, name) for name in names}
+
+
+# ----------------------------------------------------------------------------- episodes
+
+
+def episode_relpath(vehicle: str, index: int) -> str:
+    """``episodes/<vehicle>_<index>.npz`` under the profile's data directory."""
+    return f"episodes/{vehicle}_{index:04d}.npz"
+
+
+def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, object]:
+    """What one episode depends on (its artifact's cache key)."""
+    return {"format": EPISODE_FORMAT, "episode": _fields(profile.collect, EPISODE_FIELDS),
+            "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
+            "index": int(index), "camera": CAMERA}
+
+
+def _episode_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:
+    """Worker entry point: run one episode of the training world, return its arrays."""
+    limit_threads()  # a Dask/Ray worker has no initializer of ours
+    world = get_world("training", profile)
+    ep = run_episode(world, vehicle, episode_seed(profile.seed, vehicle, index),
+                     profile.collect, index=index)
+    return ep.to_arrays()
+
+
+def _serial_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:
+    """:func:`_episode_job` in this process (its thread settings stay as they are)."""
+    world = get_world("training", profile)
+    return run_episode(world, vehicle, episode_seed(profile.seed, vehicle, index),
+                       profile.collect, index=index).to_arrays()
+
+
+def collect_episodes(
+    profile: Profile | str | None = None,
+    *,
+    executor: Executor | None = None,
+    progress: bool = True,
+    on_episode: Callable[[Episode], None] | None = None,
+    max_in_flight: int | None = None,
+) -> list[Episode]:
+    """All episodes of ``profile`` (``profile.collect.episodes`` per vehicle), each
+    loaded from its artifact when it is there and built otherwise.
+
+    executor: any :class:`concurrent.futures.Executor` (a Dask or Ray one for a
+    cluster); default a process pool of ``profile.workers``
+    (:func:`~dgt_lib.core.executors.run_jobs`). Each missing episode is written as soon
+    as it completes, so an interruption loses only the episodes in flight.
+    on_episode: called in this process with every newly computed episode (after it is
+    saved). Returns the episodes in :data:`VEHICLES` order, by index, *without* their
+    sparse BEV sums (see :func:`~dgt_lib.perception.episodes.load_episode`) to keep
+    memory small.
+    """
+    prof = as_profile(profile)
+    jobs = [(v, i) for v, n in zip(VEHICLES, prof.collect.episodes, strict=True)
+            for i in range(n)]
+    key = cache_dir(prof)
+    root = artifacts.profile_dir(key)
+    done: dict[tuple[str, int], Episode] = {}
+    todo = []
+    for v, i in jobs:
+        rel = episode_relpath(v, i)
+        if artifacts.is_fresh(rel, episode_config(prof, v, i), profile=key):
+            try:
+                done[(v, i)] = load_episode(root / rel)
+                continue
+            except Exception:  # noqa: BLE001 - unreadable: recompute it
+                pass
+        todo.append((v, i))
+
+    def save(job: tuple, arrays: dict[str, np.ndarray]) -> None:
+        _, v, i = job
+        artifacts.ensure(episode_relpath(v, i), episode_config(prof, v, i),
+                         lambda: arrays, profile=key)
+        done[(v, i)] = ep = Episode.from_arrays(arrays, with_bev=False)
+        if on_episode is not None:
+            on_episode(ep)
+
+    serial = isinstance(executor, SerialExecutor) or (executor is None and prof.workers <= 1)
+    run_jobs(_serial_job if serial else _episode_job, [(prof, v, i) for v, i in todo],
+             executor=executor, workers=prof.workers, max_in_flight=max_in_flight,
+             on_result=save, progress=progress, desc=f"episodes ({prof.name})", unit="ep")
+    return [done[job] for job in jobs]
+
+
+# ----------------------------------------------------------------------------- BEV maps
+
+
+def bev_config(world_name: str, profile: Profile) -> dict[str, object]:
+    """What the BEV of ``world_name`` depends on: the world, the survey and, for the
+    training world, the episodes."""
+    cfg: dict[str, object] = {"world": world_name, "worlds": profile.worlds,
+                              "seed": profile.seed, "camera": CAMERA,
+                              "survey": _fields(profile.collect, SURVEY_FIELDS)}
+    if world_name == "training":  # one digest, not 1,300 configurations in the metadata
+        cfg["episodes"] = artifacts.config_hash(
+            [episode_config(profile, v, i)
+             for v, n in zip(VEHICLES, profile.collect.episodes, strict=True) for i in range(n)])
+    return cfg
+
+
+def build_world_bev(world: World, config: CollectConfig | None = None,
+                    episode_paths: list[Path] = (), progress: bool = False
+                    ) -> tuple[BEVMap, int, int]:
+    """The BEV map of ``world`` from its survey plus the stored frames of episodes.
+
+    Returns the map, the number of survey frames and of episode frames."""
+    acc = BEVAccumulator(bev_grid(world.grid.extent))
+    frames = survey_frames(world, config)
+    if progress:
+        from tqdm.auto import tqdm
+
+        frames = tqdm(frames, total=len(survey_poses(world, config)),
+                      desc=f"survey {world.name}", unit="frame")
+    n_survey = 0
+    for frame in frames:
+        acc.add_frame(frame)
+        n_survey += 1
+    n_episode = 0
+    for path in episode_paths:
+        ep = load_episode(path, with_bev=True)
+        if ep.bev is not None:
+            acc.add_sparse(ep.bev)
+        n_episode += ep.n_frames
+    return acc.result(), n_survey, n_episode
+
+
+def ensure_bev(world_name: str, profile: Profile | str | None = None, *,
+               executor: Executor | None = None, progress: bool = True) -> BEVMap:
+    """The global BEV map of a world, cached as ``bev/<world>.npz``.
+
+    Every world is mapped by the survey; the training world's map also
+    aggregates the onboard frames of all episodes (collected first if needed,
+    through ``executor``).
+    """
+    return BEVMap.from_arrays(_ensure_bev_arrays(world_name, profile, executor, progress))
+
+
+def _ensure_bev_arrays(world_name: str, profile: Profile | str | None,
+                       executor: Executor | None, progress: bool) -> dict[str, np.ndarray]:
+    """The BEV artifact's arrays (the map plus ``survey_frames``, ``episode_frames``)."""
+    if world_name not in WORLD_NAMES:
+        raise ValueError(f"unknown world {world_name!r}; valid worlds: {', '.join(WORLD_NAMES)}")
+    prof = as_profile(profile)
+    world = get_world(world_name, prof)
+
+    def build() -> dict[str, np.ndarray]:
+        paths: list[Path] = []
+        if world_name == "training":
+            collect_episodes(prof, executor=executor, progress=progress)
+            paths = [data_dir(prof) / episode_relpath(v, i)
+                     for v, n in zip(VEHICLES, prof.collect.episodes, strict=True)
+                     for i in range(n)]
+        bev, n_survey, n_episode = build_world_bev(world, prof.collect, paths, progress=progress)
+        return {**bev.to_arrays(), "survey_frames": np.array(n_survey),
+                "episode_frames": np.array(n_episode)}
+
+    return artifacts.ensure(bev_relpath(world_name), bev_config(world_name, prof), build,
+                            profile=cache_dir(prof))
+
+
+def bev_relpath(world_name: str) -> str:
+    """``bev/<world>.npz`` under the profile's data directory."""
+    return f"bev/{world_name}.npz"
+
+
+# ----------------------------------------------------------------------------- stages
+
+
+def stage_collect(profile: Profile) -> StageOutput:
+    """``dgt reproduce`` stage: all collection episodes (cached per episode)."""
+    episodes = collect_episodes(profile)
+    return StageOutput([data_dir(profile) / "episodes"],
+                       f"{len(episodes)} episodes: {episode_summary(episodes)}")
+
+
+def stage_bev(profile: Profile) -> StageOutput:
+    """``dgt reproduce`` stage: BEV maps of the training, hill, ridge and eval worlds."""
+    prof = as_profile(profile)
+    paths, parts = [], []
+    for name in WORLD_NAMES:
+        meta = _ensure_bev_arrays(name, prof, None, True)
+        q = bev_quality(BEVMap.from_arrays(meta), get_world(name, prof))
+        paths.append(data_dir(prof) / bev_relpath(name))
+        parts.append(f"{name} {q['coverage']:.1%} observed, |H̄−h| median "
+                     f"{q['height_median_abs_err_m'] * 100:.1f} cm "
+                     f"({int(meta['survey_frames'])}+{int(meta['episode_frames'])} frames)")
+    return StageOutput(paths, "; ".join(parts))

@@ -1,0 +1,75 @@
+"""Stage ``experiments``: Experiments 1–3 in closed loop, cached, resumable
+(paper: Experiments, Tables I and II).
+
+:func:`ensure_experiment` keys an experiment by everything its trials depend on (the
+experiment, planner and costmap settings, the seed and the digests of the models and
+slope fits), journals every finished trial so an interrupted run resumes, and writes
+``results/<name>.md``. :func:`trial_maps` is how trial workers read their costmaps.
+The stage entry point that also writes recordings and figures is
+:func:`dgt_lib.report.stage_experiments` (it sits above this layer).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.evaluation.experiments import ExperimentResult, run_experiment
+from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.evaluation.queries import classify_route
+from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.stages.paths import cache_dir, data_dir
+from dgt_lib.stages.train import MODEL_KINDS, model_relpath
+from dgt_lib.world.terrain import get_world
+
+
+@lru_cache(maxsize=16)
+def trial_maps(world: str, method: str, vehicle: str, profile: Profile) -> WorldMaps:
+    """The costmap of one (world, method, vehicle) with its occupancy map, from the
+    artifact cache (built there first if missing); cached per process."""
+    return ensure_world_costmaps(world, (vehicle,), profile, methods=(method,),
+                                 progress=False)
+
+
+def _model_digests(prof: Profile) -> dict[str, str | None]:
+    """The stored digests of every model and of the slope fits (None where missing)."""
+    out: dict[str, str | None] = {}
+    for kind, rel in [(k, model_relpath(k)) for k in MODEL_KINDS] + [
+            ("slope", "baselines/slope_models.json")]:
+        try:
+            out[kind] = artifacts.stored_digest(rel, profile=cache_dir(prof))
+        except FileNotFoundError:
+            out[kind] = None
+    return out
+
+
+def experiment_config(name: str, prof: Profile) -> dict[str, object]:
+    """What an experiment's trials depend on (its cache key)."""
+    return {"stage": name, "experiments": prof.experiments, "planner": prof.planner,
+            "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof)}
+
+
+def ensure_experiment(name: str, profile: Profile | str | None = None, *,
+                      progress: bool = True) -> ExperimentResult:
+    """An experiment's results through the cache (``experiments/<name>.pkl``), with a
+    markdown report at ``results/<name>.md``. Every finished trial is journaled in
+    ``experiments/<name>.<hash>.trials.pkl`` until the experiment is complete, so an
+    interrupted run resumes."""
+    prof = as_profile(profile)
+    cfg = experiment_config(name, prof)
+    out = data_dir(prof)
+    journal = out / "experiments" / f"{name}.{artifacts.config_hash(cfg)}.trials.pkl"
+    result = artifacts.ensure(f"experiments/{name}.pkl", cfg,
+                              lambda: run_experiment(name, prof, load_maps=trial_maps,
+                                                     progress=progress, journal=journal),
+                              profile=cache_dir(prof))
+    for stale in journal.parent.glob(f"{name}.*.trials.pkl"):  # done, or another config's
+        stale.unlink(missing_ok=True)
+    world = get_world(result.world, prof)
+    for r in result.results:  # routes follow the current classification rule
+        r.route = classify_route(world, r.path)
+    (out / "results").mkdir(parents=True, exist_ok=True)
+    (out / "results" / f"{name}.md").write_text(result.markdown(PAPER.get(name)))
+    return result

@@ -1,0 +1,163 @@
+"""Stage ``train``: the multi-task model and one single-task model per vehicle, cached
+(paper: Multi-Task Learning, Baselines → DGT-Map(Single-Task)).
+
+The training itself is :func:`dgt_lib.learning.training.train_model`; this module keys
+each model by what determines it (dataset, settings, seed) and stores it under
+``models/<kind>.pt``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import VEHICLES, Profile
+from dgt_lib.learning.checkpoints import (
+    CHECKPOINT_VERSION,
+    TrainResult,
+    checkpoint_dict,
+    load_checkpoint,
+)
+from dgt_lib.learning.training import collapsed_heads, default_device, train_model
+from dgt_lib.perception.dataset import PatchDataset
+from dgt_lib.stages.dataset import ensure_dataset
+from dgt_lib.stages.paths import cache_dir, data_dir
+from dgt_lib.stages.registry import StageOutput
+
+MODEL_KINDS: tuple[str, ...] = ("multitask",) + tuple(f"single:{v}" for v in VEHICLES)
+"""The models of ``ensure_model``: multi-task, and one single-task model per vehicle."""
+
+RGB_WEIGHTS_ENV_VAR = "DGT_RESNET18_WEIGHTS"
+RGB_WEIGHTS_FILE = "resnet18-f37072fd.pth"
+"""torchvision's ImageNet ResNet-18 file name; looked for under ``data/`` by ``ensure_model``."""
+
+
+def parse_kind(kind: str) -> tuple[str, ...]:
+    """``"multitask"`` → all vehicles; ``"single:<vehicle>"`` → that one vehicle."""
+    if kind == "multitask":
+        return VEHICLES
+    prefix, _, vehicle = kind.partition(":")
+    if prefix == "single" and vehicle in VEHICLES:
+        return (vehicle,)
+    raise ValueError(f"unknown model kind {kind!r}; valid: {', '.join(MODEL_KINDS)}")
+
+
+def model_relpath(kind: str) -> Path:
+    """Where model ``kind`` lives in the profile's data directory: ``models/single_vw_van.pt`` …"""
+    parse_kind(kind)
+    return Path("models") / f"{kind.replace(':', '_')}.pt"
+
+
+def dataset_fingerprint(dataset: PatchDataset) -> str:
+    """A hash of every array of ``dataset`` (what a cached model was trained on)."""
+    return artifacts.config_hash(dataset.to_arrays())
+
+
+def default_rgb_weights() -> Path | None:
+    """torchvision's ResNet-18 ImageNet file if the user has it, else None.
+
+    Looked for at ``$DGT_RESNET18_WEIGHTS``, then ``data/resnet18-f37072fd.pth``.
+    """
+    env = os.environ.get(RGB_WEIGHTS_ENV_VAR)
+    candidates = ([Path(env)] if env else []) + [artifacts.data_root() / RGB_WEIGHTS_FILE]
+    return next((p for p in candidates if p.is_file()), None)
+
+
+class _Interrupted(Exception):
+    def __init__(self, result: TrainResult) -> None:
+        super().__init__("training interrupted")
+        self.result = result
+
+
+def ensure_model(
+    profile: Profile,
+    dataset: PatchDataset,
+    kind: str = "multitask",
+    *,
+    seed: int | None = None,
+    device: str | torch.device | None = None,
+    progress: bool = True,
+    rgb_weights: str | Path | None = None,
+    dataset_hash: str | None = None,
+) -> TrainResult:
+    """The trained model ``kind`` of ``profile`` from the artifact cache, trained if needed.
+
+    Stored at ``models/<kind>.pt`` (``single:vw_van`` → ``single_vw_van.pt``);
+    the configuration hash covers the dataset (``dataset_hash``, default
+    :func:`dataset_fingerprint`), ``profile.train`` (architecture and training
+    settings), the kind, the seed (default ``profile.seed``) and whether ImageNet
+    RGB weights were used (``rgb_weights``, default :func:`default_rgb_weights`,
+    only with width 64). While training, the best model so far is kept in
+    ``<kind>.partial.pt``; on Ctrl-C that file remains, nothing enters the cache,
+    and the best model so far is returned (``interrupted=True``).
+    """
+    vehicles = parse_kind(kind)
+    cfg = profile.train
+    seed = profile.seed if seed is None else seed
+    if rgb_weights is None and cfg.width == 64:
+        rgb_weights = default_rgb_weights()
+    rgb = None
+    if rgb_weights is not None:
+        rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
+    relpath = model_relpath(kind)
+    partial = data_dir(profile) / relpath.with_suffix(".partial.pt")
+    config = {"stage": "train", "kind": kind, "vehicles": list(vehicles),
+              "dataset": dataset_hash or dataset_fingerprint(dataset), "train": cfg,
+              "seed": seed, "rgb_weights": rgb, "checkpoint_version": CHECKPOINT_VERSION}
+
+    def build() -> dict[str, Any]:
+        result = train_model(dataset, cfg, vehicles=vehicles, seed=seed, device=device,
+                             progress=progress, rgb_weights=rgb_weights,
+                             checkpoint_path=partial)
+        if result.interrupted:
+            raise _Interrupted(result)
+        return checkpoint_dict(result)
+
+    try:
+        ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile))
+    except _Interrupted as stop:
+        print(f"[dgt] {kind}: interrupted; best model so far kept in {partial} "
+              f"(not cached: a rerun trains again)")
+        return stop.result
+    partial.unlink(missing_ok=True)
+    return load_checkpoint(ckpt, vehicles=vehicles,
+                           device=device if device is not None else default_device())
+
+
+def models_stage(profile: Profile, dataset: PatchDataset,
+                 kinds: tuple[str, ...] = MODEL_KINDS, progress: bool = True) -> StageOutput:
+    """The training stage of ``dgt reproduce``: every model of ``kinds``, through the cache.
+
+    Returns the checkpoint paths and a summary with each model's test MSE and
+    Spearman ρ per vehicle. A single-task model whose vehicle has no training or
+    no validation samples (possible in the tiny ``smoke`` profile) is skipped,
+    and the summary says so.
+    """
+    paths, parts = [], []
+    counts = dataset.counts()
+    for kind in kinds:
+        vehicles = parse_kind(kind)
+        if len(vehicles) == 1 and min(counts[vehicles[0]]["train"], counts[vehicles[0]]["val"]) < 1:
+            parts.append(f"{kind} skipped (no train or val samples: {counts[vehicles[0]]})")
+            print(f"[dgt] {parts[-1]}")
+            continue
+        result = ensure_model(profile, dataset, kind, progress=progress)
+        paths.append(data_dir(profile) / model_relpath(kind))
+        scores = ", ".join(f"{v} mse {m['mse']:.3f} ρ {m['spearman']:.2f}"
+                           for v, m in result.metrics.items())
+        parts.append(f"{kind} (best epoch {result.best_epoch}: {scores})")
+        for v in collapsed_heads(result.metrics):
+            parts[-1] += f" — {v} head COLLAPSED (constant L̂)"
+            m = result.metrics[v]
+            print(f"[dgt] warning: {kind}: the {v} head predicts a near-constant L̂ "
+                  f"(std {m['pred_std']:.1e} against the labels' {m['label_std']:.2f})")
+    return StageOutput(paths, "; ".join(parts))
+
+
+def stage_train(profile: Profile) -> StageOutput:
+    """``dgt reproduce`` stage: the multi-task model and one single-task model per vehicle."""
+    return models_stage(profile, ensure_dataset(profile))

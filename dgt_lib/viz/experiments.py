@@ -1,0 +1,103 @@
+"""Figures of notebooks 06–08 (Experiments 1–3) and of the results report.
+
+Paper: Experiments → Experiment 1 (hill), Experiment 2 (ridge), Experiment 3
+(multi-task), Experimental Protocol, Tables I and II.
+
+Queries on a world figure, every method's planned and driven path for one query,
+speed against time per method, and success rates with Wilson 95 % intervals beside the
+paper's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from dgt_lib.viz.common import METHOD_COLORS
+from dgt_lib.world.worlds import World
+
+
+def plot_queries(ax, queries) -> None:
+    """Start poses (arrows) and goals (stars) of experiment queries on a world figure."""
+    for q in queries:
+        x, y, yaw = q.start
+        ax.arrow(x, y, 4 * np.cos(yaw), 4 * np.sin(yaw), width=0.6, color="lime")
+        ax.plot(*q.goal, "*", color="yellow", ms=10, mec="k")
+
+
+def plot_planned_paths(ax, world: World, maps, result, label: str, index: int | None = None):
+    """Every method's planned path for one query (the first with ``label``, or trial
+    ``index``) over the terrain and occupancy; success ✓ / failure ✗ in the legend."""
+    ax.imshow(world.heights, origin="lower", extent=world.grid.extent, cmap="terrain")
+    occ = np.ma.masked_equal(maps.occupancy, 0)
+    ax.imshow(occ, origin="lower", extent=maps.grid.extent, cmap="gray_r", vmin=0, vmax=2,
+              alpha=0.5)
+    picked = [r for r in result.results if r.task.query.label == label
+              and (index is None or r.task.index == index)]
+    if index is None and picked:
+        first = picked[0].task.index
+        picked = [r for r in picked if r.task.index == first]
+    for r in picked:
+        mark = "✓" if r.outcome.success else f"✗ {r.outcome.reason}"
+        name = f"{r.task.method} ({r.route or 'no path'}) {mark}"
+        if len(r.path):
+            ax.plot(r.path[:, 0], r.path[:, 1], color=METHOD_COLORS[r.task.method], lw=2,
+                    label=name)
+        else:
+            ax.plot([], [], color=METHOD_COLORS[r.task.method], label=name)
+        if len(r.trajectory):
+            ax.plot(r.trajectory[:, 1], r.trajectory[:, 2], ":", color=METHOD_COLORS[r.task.method],
+                    lw=1)
+    if picked:
+        q = picked[0].task.query
+        plot_queries(ax, [q])
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(f"{label}: planned (solid) and driven (dotted)")
+
+
+def plot_trial_speeds(result, label: str | None = None):
+    """Speed [m/s] against time of the executed trials, one panel per method."""
+    methods = [m for m in METHOD_COLORS if any(r.task.method == m for r in result.results)]
+    fig, axes = plt.subplots(1, len(methods), figsize=(4 * len(methods), 3.2), sharey=True,
+                             squeeze=False)
+    for ax, m in zip(axes[0], methods, strict=True):
+        for r in result.results:
+            if r.task.method == m and (label is None or r.task.query.label == label) \
+                    and len(r.trajectory):
+                ax.plot(r.trajectory[:, 0], r.speed, color=METHOD_COLORS[m],
+                        alpha=0.9 if r.outcome.success else 0.5,
+                        ls="-" if r.outcome.success else "--")
+        ax.set_title(m)
+        ax.set_xlabel("time [s]")
+    axes[0, 0].set_ylabel("speed [m/s] (dashed: failed)")
+    fig.tight_layout()
+    return fig
+
+
+def plot_success_rates(result, paper: Mapping | None = None):
+    """Success rate per method with Wilson 95 % intervals (bars), the paper's SR as dots."""
+    from dgt_lib.evaluation.statistics import wilson_interval
+
+    vehicles = sorted({r.task.vehicle for r in result.results})
+    fig, axes = plt.subplots(1, len(vehicles), figsize=(6 * len(vehicles), 3.8), squeeze=False)
+    for ax, v in zip(axes[0], vehicles, strict=True):
+        counts = result.counts(v)
+        names = list(counts)
+        sr = np.array([100 * k / n for k, n in counts.values()])
+        ci = np.array([wilson_interval(k, n) for k, n in counts.values()]) * 100
+        x = np.arange(len(names))
+        ax.bar(x, sr, color=[METHOD_COLORS[m] for m in names],
+               yerr=[sr - ci[:, 0], ci[:, 1] - sr], capsize=4, label="ours (Wilson 95 %)")
+        if paper and v in paper:
+            p = paper[v]
+            ps = [100 * p.k[m] / p.n if m in p.k else np.nan for m in names]
+            ax.plot(x, ps, "ko", label=f"paper (n = {p.n})")
+        ax.set_xticks(x, names, rotation=20)
+        ax.set_ylim(0, 105)
+        ax.set_ylabel("success rate [%]")
+        ax.set_title(f"{result.name}: {v}, n = {next(iter(counts.values()))[1]}")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
