@@ -5,12 +5,13 @@
 
 Trains the single-task model of ``--vehicle`` on the profile's cached dataset
 (``dgt reproduce --stages collect bev dataset`` builds it) with the profile's
-training settings, once per seed, with two head initialisations:
+training settings, once per seed, with both head initialisations of
+``TrainConfig.head_init``:
 
-- ``default``: the code as it is (PyTorch's default init of each head);
+- ``default``: PyTorch's default init of each head (the code before the fix);
 - ``prior``: each head's bias set to logit(mean training label) and its weights
-  scaled by 0.1 — a proposed fix, applied here by wrapping
-  ``DGTNet.set_normalization`` (this script only; the library is unchanged).
+  scaled by 0.1 (``DGTNet.init_heads``; the library's default since checkpoint
+  version 3).
 
 Prints per run the validation losses, the best epoch, test MSE, Spearman ρ and
 the spread of the test predictions (std of L̂; below 0.1 × the labels' std
@@ -19,7 +20,9 @@ Measured (paper profile, jeep, 97 % of labels ≈ 1, on the H100 machine): the
 default collapsed with seeds 0, 1, 2 (L̂ = 1.000 everywhere, test MSE 0.0079);
 ``prior`` did not (test MSE 0.0034–0.0035, ρ 0.27–0.35). Demo profile, seed 0,
 on the CPU: default best at epoch 1, then a flat validation loss and std(L̂) 0.0025
-(collapsed, test MSE 0.0044); prior: std(L̂) 0.066, test MSE 0.0059.
+(collapsed, test MSE 0.0044); prior: std(L̂) 0.066, test MSE 0.0059. (Those runs
+patched the init into the library from this script; the ``head_init`` field does
+the same.) ``tests/test_head_collapse.py`` reproduces the collapse on synthetic data.
 """
 
 from __future__ import annotations
@@ -27,13 +30,13 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
-import torch
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
-from dgt_lib.learning.model import DGTNet
+from dgt_lib.learning.model import HEAD_PRIOR_CLIP
 from dgt_lib.learning.training import collapsed_heads, train_model
 from dgt_lib.perception.dataset import TRAIN, PatchDataset
 
@@ -54,23 +57,16 @@ def main() -> None:
     ds = PatchDataset.from_arrays(artifacts.load(path))
     own = ds.part(TRAIN, args.vehicle)
     mean = float(own.labels.mean())
+    prior = min(max(mean, HEAD_PRIOR_CLIP[0]), HEAD_PRIOR_CLIP[1])
     print(f"{args.vehicle}: {len(own)} training patches, mean L {mean:.3f}, "
-          f"{np.mean(own.labels > 0.95):.0%} of labels > 0.95")
-
-    default_init = DGTNet.set_normalization
-
-    def prior_init(self, mean_x, std_x):
-        default_init(self, mean_x, std_x)
-        with torch.no_grad():
-            for head in self.vehicle_heads:
-                head.weight.mul_(0.1)
-                head.bias.fill_(math.log(mean / (1.0 - mean)))
+          f"{np.mean(own.labels > 0.95):.0%} of labels > 0.95 "
+          f"(prior bias logit(clip(mean)) = {math.log(prior / (1 - prior)):.2f})")
 
     for init in ("default", "prior"):
-        DGTNet.set_normalization = prior_init if init == "prior" else default_init
+        cfg = replace(prof.train, head_init=init)
         for seed in args.seeds:
             t0 = time.perf_counter()
-            r = train_model(ds, prof.train, vehicles=(args.vehicle,), seed=seed,
+            r = train_model(ds, cfg, vehicles=(args.vehicle,), seed=seed,
                             device=args.device, progress=False)
             m = r.metrics[args.vehicle]
             state = "COLLAPSED" if collapsed_heads(r.metrics) else "ok"
@@ -78,7 +74,6 @@ def main() -> None:
                   f"{[round(h['val_loss'], 4) for h in r.history]}, test mse {m['mse']:.4f} "
                   f"ρ {m['spearman']:.2f} std(L̂) {m['pred_std']:.4f} {state} "
                   f"({time.perf_counter() - t0:.0f} s)", flush=True)
-    DGTNet.set_normalization = default_init
 
 
 if __name__ == "__main__":

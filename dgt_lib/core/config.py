@@ -68,6 +68,10 @@ class CollectConfig:
     survey_overlap: float = 0.2  # overlap of neighbouring survey footprints (fraction)
 
 
+HEAD_INITS: tuple[str, ...] = ("prior", "default")
+"""Valid ``TrainConfig.head_init`` values (checked by ``train_model``)."""
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """Multi-task training (``dgt_lib.learning.training``) and the network's size
@@ -75,7 +79,7 @@ class TrainConfig:
 
     The paper gives the architecture (two ResNet-18, i.e. width 64) but not the
     optimiser settings or epochs; Adam at 1e-3 with the best validation epoch
-    kept is our choice.
+    kept is our choice, and so is the head initialisation ``head_init``.
     """
 
     epochs: int = 10
@@ -86,6 +90,10 @@ class TrainConfig:
     fc_hidden: int = 256  # units of the FC layer between the branches and the heads
     patience: int | None = None  # stop after this many epochs without a better val loss
     mirror_augment: bool = True  # flip half of each batch left ↔ right (ours, label-preserving)
+    # "prior": each head starts at logit(mean training label of its vehicle) with its weights
+    # × 0.1 (DGTNet.init_heads; ours); "default": PyTorch's init, which let the jeep head
+    # (97 % of labels ≈ 1) saturate at L̂ = 1 in the first epoch. One of HEAD_INITS.
+    head_init: str = "prior"
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet
 CHECKPOINT_FORMAT = "dgt-kit/DGTNet"
 
 
-CHECKPOINT_VERSION = 2
+CHECKPOINT_VERSION = 3  # 3: heads start at their prior (TrainConfig.head_init)
 
 
 class CheckpointError(ValueError):

@@ -34,7 +34,7 @@ import torch
 from scipy import stats
 from tqdm.auto import tqdm
 
-from dgt_lib.core.config import VEHICLES, TrainConfig
+from dgt_lib.core.config import HEAD_INITS, VEHICLES, TrainConfig
 from dgt_lib.learning.checkpoints import TrainResult, save_checkpoint
 from dgt_lib.learning.model import N_CHANNELS, DGTNet, centre_heights
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
@@ -199,6 +199,21 @@ def _validation_loss(model: DGTNet, dataset: PatchDataset, index: np.ndarray,
                        torch.from_numpy(columns[index])).item()
 
 
+def head_prior(dataset: PatchDataset, index: np.ndarray,
+               vehicles: tuple[str, ...] | list[str]) -> list[float]:
+    """Mean label of each vehicle's samples among ``index``, in ``vehicles`` order.
+
+    What :meth:`DGTNet.init_heads` starts each head at (``TrainConfig.head_init="prior"``);
+    ``index`` is the training split. A vehicle without samples there (its head gets
+    no gradient) gets the mean of all of ``index``.
+    """
+    labels = dataset.labels[index].astype(np.float64)
+    vehicle = dataset.vehicle[index]
+    overall = float(labels.mean()) if len(labels) else 0.5
+    return [float(labels[vehicle == VEHICLES.index(v)].mean())
+            if np.any(vehicle == VEHICLES.index(v)) else overall for v in vehicles]
+
+
 def _vehicle_tuple(vehicles: tuple[str, ...] | list[str] | str | None) -> tuple[str, ...]:
     if vehicles is None:
         return VEHICLES
@@ -226,7 +241,10 @@ def train_model(
     Args:
         dataset: all patches with their ``split``; only TRAIN updates weights, VAL
             picks the best epoch, TEST gives ``TrainResult.metrics``.
-        cfg: epochs, batch size, learning rate, width … (``profile.train``).
+        cfg: epochs, batch size, learning rate, width … (``profile.train``);
+            ``head_init="prior"`` starts each head at logit(its vehicle's mean training
+            label) with its weights × 0.1 (:meth:`DGTNet.init_heads`, :func:`head_prior`),
+            ``"default"`` keeps PyTorch's init (can saturate on skewed labels).
         vehicles: None = multi-task on every vehicle (one head each); a tuple of
             names (e.g. ``("vw_van",)``) trains only on those vehicles' samples
             with one head each (the single-task variant).
@@ -247,6 +265,8 @@ def train_model(
     vehicles = _vehicle_tuple(vehicles)
     if cfg.epochs < 1 or cfg.batch_size < 2:
         raise ValueError(f"need epochs ≥ 1 and batch_size ≥ 2, got {cfg.epochs}, {cfg.batch_size}")
+    if cfg.head_init not in HEAD_INITS:
+        raise ValueError(f"unknown head_init {cfg.head_init!r}; valid: {', '.join(HEAD_INITS)}")
     chosen = np.isin(dataset.vehicle, [VEHICLES.index(v) for v in vehicles])
     train_idx = np.flatnonzero(chosen & (dataset.split == TRAIN))
     val_idx = np.flatnonzero(chosen & (dataset.split == VAL))
@@ -262,6 +282,8 @@ def train_model(
     rng = np.random.default_rng(seed)
     model = DGTNet(vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden, rgb_weights=rgb_weights)
     model.set_normalization(*channel_statistics(dataset.patches, train_idx))
+    if cfg.head_init == "prior":
+        model.init_heads(head_prior(dataset, train_idx, vehicles))
     model.to(device)
     columns = _head_columns(model, dataset.vehicle)  # (N,) model column per sample
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate,
