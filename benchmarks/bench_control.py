@@ -21,7 +21,8 @@ from dgt_lib.navigation.bicycle import (  # noqa: E402
     cross_track_errors,
     simulate_tracking,
 )
-from dgt_lib.navigation.mppi import MPPIConfig, MPPIController  # noqa: E402
+from dgt_lib.navigation.mppi import MPPIController  # noqa: E402
+from dgt_lib.navigation.mppi_config import MPPIConfig  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
 

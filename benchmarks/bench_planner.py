@@ -1,4 +1,4 @@
-"""Benchmark of ``dgt_lib.planner``: time and expansions per query on synthetic maps.
+"""Benchmark of ``dgt_lib.navigation.planner``: time and expansions per query on synthetic maps.
 
 Three kinds of maps at 0.4 m, K = 8 (the first two 160 m × 160 m, 400 × 400 cells):
 
@@ -10,7 +10,7 @@ Three kinds of maps at 0.4 m, K = 8 (the first two 160 m × 160 m, 400 × 400 ce
   points below and on the plateau.
 - ``random``: a smooth random directional cost in [0, 0.3] and random round
   obstacles; queries between random free points 60–150 m apart.
-- ``world_hill``: ``dgt_lib.worlds.make_hill`` (Experiment 1, 140 m × 140 m)
+- ``world_hill``: ``dgt_lib.world.worlds.make_hill`` (Experiment 1, 140 m × 140 m)
   with the same slope-based cost computed from its true heights; ascents
   base → summit and descents summit → base (Route A ≈ 242 m, Route B ≈ 82 m).
 
@@ -22,23 +22,27 @@ rate and path cost; for the hills, the route each direction took. Run::
 
     .venv/bin/python benchmarks/bench_planner.py            # 20 queries per map kind
     .venv/bin/python benchmarks/bench_planner.py --queries 5
+    # time an older planner module against this one, same queries, interleaved:
+    .venv/bin/python benchmarks/bench_planner.py --compare /tmp/planner_old.py --queries 6
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib.util
+import sys
 import time
 
 import numpy as np
 from scipy import ndimage
 
-from dgt_lib.config import PlannerConfig
-from dgt_lib.geometry import GridSpec, heading_bins
-from dgt_lib.planner import HybridAStar
+from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.geometry import GridSpec, heading_bins
+from dgt_lib.navigation.planner import HybridAStar
 
 SIZE_M, RES_M, K = 160.0, 0.4, 8
-CARLA_COLA = dict(min_turn_radius_m=5.71, footprint=(6.4, 2.4))  # dgt_lib.vehicles values
+CARLA_COLA = dict(min_turn_radius_m=5.71, footprint=(6.4, 2.4))  # dgt_lib.core.vehicles values
 
 
 def directional_slope_cost(height: np.ndarray, res: float, rng: np.random.Generator) -> np.ndarray:
@@ -102,9 +106,9 @@ def random_map(seed: int):
 
 
 def world_hill_map(seed: int):
-    """``dgt_lib.worlds``' Experiment 1 hill (140 m × 140 m) with a ground-truth
+    """``dgt_lib.world.worlds``' Experiment 1 hill (140 m × 140 m) with a ground-truth
     slope-based directional cost, occupancy = gradient > 1 (45°) or a tree."""
-    from dgt_lib.worlds import make_hill
+    from dgt_lib.world.terrain import make_hill
 
     world = make_hill(RES_M, seed)
     grid = world.grid
@@ -147,29 +151,44 @@ def random_queries(planner: HybridAStar, rng: np.random.Generator, n: int, regio
     return queries
 
 
-def run(kind: str, heuristic: str, n_queries: int, seed: int, cfg: PlannerConfig) -> None:
-    world = None
+def make_map(kind: str, seed: int):
+    """(costmap, occupancy, grid, world) of one map kind (world is None but for world_hill)."""
     if kind == "world_hill":
-        cost, occupancy, grid, world = world_hill_map(seed)
-    else:
-        cost, occupancy, grid = (hill_map if kind == "hill" else random_map)(seed)
-    cfg = dataclasses.replace(cfg, heuristic=heuristic)
-    label = heuristic + ("" if cfg.heuristic_weight == 1 else f"×{cfg.heuristic_weight:g}")
+        return world_hill_map(seed)
+    return (*(hill_map if kind == "hill" else random_map)(seed), None)
+
+
+def make_planner(planner_cls, maps, cfg: PlannerConfig):
+    """A planner of class ``planner_cls`` on ``maps`` with the per-map 2D cost field built
+    (for ``cost_to_go``) and no goal cached; returns (planner, set-up time [s])."""
+    cost, occupancy, grid, _ = maps
     t = time.perf_counter()
-    planner = HybridAStar(cost, occupancy, grid, cfg=cfg, **CARLA_COLA)
-    if heuristic == "cost_to_go":
+    planner = planner_cls(cost, occupancy, grid, cfg=cfg, **CARLA_COLA)
+    if cfg.heuristic == "cost_to_go":
         planner.cost_to_go((80.0, 80.0))  # builds the per-map 2D cost field
         planner._cost_to_go_cache.clear()
-    setup = time.perf_counter() - t
+    return planner, time.perf_counter() - t
+
+
+def make_queries(kind: str, planner: HybridAStar, world, n_queries: int, seed: int):
+    """The benchmark's (start, goal) pairs for one map kind."""
     rng = np.random.default_rng(seed + 1)
     if world is not None:
-        queries = world_hill_queries(world, rng, n_queries)
-    elif kind == "hill":
+        return world_hill_queries(world, rng, n_queries)
+    if kind == "hill":
         def up_down(s, g):  # one end below the plateau, the other on it
             return min(s[1], g[1]) < 90.0 and max(s[1], g[1]) > 115.0
-        queries = random_queries(planner, rng, n_queries, up_down)
-    else:
-        queries = random_queries(planner, rng, n_queries)
+        return random_queries(planner, rng, n_queries, up_down)
+    return random_queries(planner, rng, n_queries)
+
+
+def run(kind: str, heuristic: str, n_queries: int, seed: int, cfg: PlannerConfig) -> None:
+    maps = make_map(kind, seed)
+    world = maps[3]
+    cfg = dataclasses.replace(cfg, heuristic=heuristic)
+    label = heuristic + ("" if cfg.heuristic_weight == 1 else f"×{cfg.heuristic_weight:g}")
+    planner, setup = make_planner(HybridAStar, maps, cfg)
+    queries = make_queries(kind, planner, world, n_queries, seed)
     times, cpu, expansions, costs, ok = [], [], [], [], 0
     routes = {"ascent": [], "descent": []}
     for start, goal in queries:
@@ -208,17 +227,98 @@ def run(kind: str, heuristic: str, n_queries: int, seed: int, cfg: PlannerConfig
             print(f"        {direction}: routes {''.join(taken)}")
 
 
+def load_planner_module(path: str):
+    """Import a planner module (e.g. a saved copy of an older ``planner.py``) from a file."""
+    name = "planner_compare"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up while it executes
+    spec.loader.exec_module(module)
+    return module
+
+
+def same_result(a, b) -> bool:
+    """Whether two PlanResults describe the same search: path, cost, nodes, expansions."""
+    return (a.success == b.success and a.reason == b.reason and a.expansions == b.expansions
+            and a.cost == b.cost and np.array_equal(a.path, b.path)
+            and np.array_equal(a.nodes, b.nodes) and np.array_equal(a.node_costs, b.node_costs)
+            and np.array_equal(a.expanded_xy, b.expanded_xy))
+
+
+def compare(old_module, kind: str, heuristic: str, n_queries: int, seed: int,
+            cfg: PlannerConfig, repeats: int) -> dict:
+    """Time ``old_module.HybridAStar`` against this tree's on the same queries.
+
+    Per query and repeat the two run back to back, alternating which goes first;
+    the first run of each planner on a goal also pays that goal's 2D cost field.
+    Returns the scenario's per-query CPU times [s] (median over repeats) and
+    whether every result was identical.
+    """
+    maps = make_map(kind, seed)
+    cfg = dataclasses.replace(cfg, heuristic=heuristic)
+    planners = {"old": make_planner(old_module.HybridAStar, maps, cfg)[0],
+                "new": make_planner(HybridAStar, maps, cfg)[0]}
+    queries = make_queries(kind, planners["new"], maps[3], n_queries, seed)
+    cpu = {"old": np.zeros((len(queries), repeats)), "new": np.zeros((len(queries), repeats))}
+    expansions, identical, timed_out = [], True, 0
+    for q, (start, goal) in enumerate(queries):
+        for r in range(repeats):
+            results = {}
+            for name in (("old", "new") if (q + r) % 2 == 0 else ("new", "old")):
+                t_cpu = time.process_time()
+                results[name] = planners[name].plan(start, goal)
+                cpu[name][q, r] = time.process_time() - t_cpu
+            identical &= same_result(results["old"], results["new"])
+            timed_out += "max_time_s" in results["old"].reason + results["new"].reason
+        expansions.append(results["new"].expansions)
+    per_query = {name: np.median(times, axis=1) for name, times in cpu.items()}
+    return dict(kind=kind, heuristic=heuristic, expansions=int(np.sum(expansions)),
+                identical=identical, timed_out=timed_out, **per_query)
+
+
+def print_comparison(rows: list[dict], total: bool = True) -> None:
+    print(f"{'scenario':24s} {'queries':>7s} {'old CPU':>9s} {'new CPU':>9s} {'new/old':>8s}"
+          f" {'per-query new/old':>18s} {'old µs/exp':>10s} {'new µs/exp':>10s} identical")
+    all_old, all_new = [], []
+    for row in rows:
+        old, new = row["old"], row["new"]
+        all_old.append(old)
+        all_new.append(new)
+        ratios = new / old
+        print(f"{row['kind'] + ' ' + row['heuristic']:24s} {len(old):7d}"
+              f" {np.median(old):8.3f}s {np.median(new):8.3f}s"
+              f" {np.median(new) / np.median(old):8.3f}"
+              f" {np.median(ratios):8.3f} [{ratios.min():.2f}, {ratios.max():.2f}]"
+              f" {1e6 * old.sum() / max(row['expansions'], 1):10.1f}"
+              f" {1e6 * new.sum() / max(row['expansions'], 1):10.1f}"
+              f" {'yes' if row['identical'] else 'NO'}"
+              + (f" ({row['timed_out']} hit max_time_s)" if row["timed_out"] else ""))
+    if not total:
+        return
+    old, new = np.concatenate(all_old), np.concatenate(all_new)
+    print(f"{'all':24s} {len(old):7d} {np.median(old):8.3f}s {np.median(new):8.3f}s"
+          f" {np.median(new) / np.median(old):8.3f} {np.median(new / old):8.3f}"
+          f" | total CPU old {old.sum():.1f} s, new {new.sum():.1f} s, ratio"
+          f" {new.sum() / old.sum():.3f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--queries", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--kinds", default="hill,random,world_hill",
-                        help="hill (synthetic), random, world_hill (dgt_lib.worlds.make_hill)")
+                        help="hill (synthetic), random, "
+                        "world_hill (dgt_lib.world.worlds.make_hill)")
     parser.add_argument("--heuristics", default="cost_to_go,euclidean")
     parser.add_argument("--max-time", type=float, default=10.0)
     parser.add_argument("--weights", default="1.0", help="heuristic_weight values, comma-separated")
     parser.add_argument("--closed-cell", type=float, default=None, help="closed_cell_m override")
     parser.add_argument("--theta-bins", type=int, default=None, help="theta_bins override")
+    parser.add_argument("--compare", metavar="PATH", default=None,
+                        help="a planner module file (e.g. an older planner.py) to time against "
+                        "this tree's on the same queries, interleaved, checking equal results")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="with --compare: runs of each query per planner (median taken)")
     args = parser.parse_args()
     cfg = PlannerConfig(max_time_s=args.max_time)
     if args.closed_cell is not None:
@@ -226,6 +326,18 @@ def main() -> None:
     if args.theta_bins is not None:
         cfg = dataclasses.replace(cfg, theta_bins=args.theta_bins)
     print(f"PlannerConfig: {cfg}")
+    if args.compare is not None:
+        old_module = load_planner_module(args.compare)
+        rows = []
+        for kind in args.kinds.split(","):
+            for heuristic in args.heuristics.split(","):
+                rows.append(compare(old_module, kind, heuristic, args.queries, args.seed,
+                                    cfg, args.repeats))
+                print_comparison(rows[-1:], total=False)
+        print(f"\nold: {args.compare}; new: dgt_lib.navigation.planner (CPU s per query,"
+              " medians; per-query new/old: median [min, max])")
+        print_comparison(rows)
+        return
     for kind in args.kinds.split(","):
         for heuristic in args.heuristics.split(","):
             for weight in args.weights.split(","):

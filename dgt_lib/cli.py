@@ -1,6 +1,7 @@
 """Command line: ``dgt`` (or ``python -m dgt_lib``).
 
-    dgt reproduce [--profile P] [--stages a b …]   run the cached pipeline stages
+    dgt reproduce [--profile P] [--stages a b …] [--seeds N]
+                                                   run the cached pipeline stages
     dgt stages                                     list the stages
     dgt plan --world W --vehicle V --start x,y,yaw --goal x,y [--method M] [--drive]
                                                    plan (and drive) one query
@@ -12,39 +13,50 @@ import argparse
 import sys
 import time
 
-from dgt_lib.core.artifacts import profile_dir
 from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile
-from dgt_lib.stages import registry as pipeline
+from dgt_lib.stages import registry
+from dgt_lib.stages.paths import data_dir, profile_root
 
 
 def _reproduce(args: argparse.Namespace) -> int:
     profile = get_profile(args.profile)
-    stages = pipeline.select(args.stages)
-    out_dir = profile_dir(profile.name)
-    print(f"dgt reproduce — profile {profile.name!r}, outputs under {out_dir}")
+    if args.seeds is not None:
+        if args.seeds < 1:
+            print(f"dgt: error: --seeds must be ≥ 1, got {args.seeds}", file=sys.stderr)
+            return 2
+        profile = profile.with_(seeds=args.seeds)
+    stages = registry.select(args.stages)
+    runs = profile.seed_profiles()
+    print(f"dgt reproduce — profile {profile.name!r}, seed(s) "
+          f"{', '.join(str(p.seed) for p in runs)}, outputs under {profile_root(profile)}")
     if not stages:
         print("The pipeline has no stages yet: nothing to run.")
         return 0
     from tqdm.auto import tqdm
 
     rows = []
-    for stage in tqdm(stages, desc="pipeline", unit="stage"):
-        tqdm.write(f"── {stage.name}: {stage.description}")
+    jobs = [(run, stage) for run in runs for stage in stages]
+    for run, stage in tqdm(jobs, desc="pipeline", unit="stage"):
+        tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
         t0 = time.perf_counter()
-        result = stage.load()(profile)
-        rows.append((stage.name, time.perf_counter() - t0, result))
+        result = stage.load()(run)
+        rows.append((run.seed, stage.name, time.perf_counter() - t0, result))
     print("\nSummary")
-    for name, seconds, result in rows:
-        print(f"  {name:<14} {seconds:8.1f} s  {result.summary}")
+    for seed, name, seconds, result in rows:
+        print(f"  seed {seed} {name:<12} {seconds:8.1f} s  {result.summary}")
         for p in result.paths:
-            print(f"  {'':<14} → {p}")
+            print(f"  {'':<19} → {p}")
+    if "experiments" in [s.name for s in stages]:
+        from dgt_lib.report import write_seeds_report
+
+        print(f"\nResults over {len(runs)} seed(s): {write_seeds_report(profile)}")
     return 0
 
 
 def _stages(_: argparse.Namespace) -> int:
-    if not pipeline.STAGES:
+    if not registry.STAGES:
         print("(no stages yet)")
-    for s in pipeline.STAGES:
+    for s in registry.STAGES:
         print(f"{s.name:<14} {s.description}")
     return 0
 
@@ -74,7 +86,7 @@ def _plan(args: argparse.Namespace) -> int:
         return 2
     kind = "multitask" if args.method in ("dgt", "isotropic") else f"single:{args.vehicle}"
     if args.method in ("dgt", "isotropic", "single-task") and not (
-            profile_dir(profile.name) / model_relpath(kind)).exists():
+            data_dir(profile) / model_relpath(kind)).exists():
         print(f"No trained {kind} model for profile {profile.name!r} yet: collecting data and "
               f"training it first ({TRAINING_TIME.get(profile.name, 'a while')} on a 2-core "
               "laptop; later queries reuse it).")
@@ -102,6 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="profile (default: $DGT_PROFILE or demo)")
     rep.add_argument("--stages", nargs="+", metavar="STAGE",
                      help="only these stages (see `dgt stages`)")
+    rep.add_argument("--seeds", type=int, default=None, metavar="N",
+                     help="run every stage for N seeds (default: the profile's; demo 3) and "
+                          "report each seed and the pooled results")
     rep.set_defaults(func=_reproduce)
     st = sub.add_parser("stages", help="list the pipeline stages")
     st.set_defaults(func=_stages)
@@ -129,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (UnknownProfileError, pipeline.UnknownStageError) as exc:
+    except (UnknownProfileError, registry.UnknownStageError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
 

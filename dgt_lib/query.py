@@ -16,14 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from dgt_lib.core import artifacts
-from dgt_lib.core.config import Profile, get_profile
+from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.evaluation.trials import trial_time_limit_s
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar, PlanResult
 from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World, load_heightmap
 
@@ -112,23 +113,21 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     :class:`dgt_lib.navigation.planner.InvalidQueryError` when the start or goal is off the map
     or in an obstacle (the message names which).
     """
-    prof = profile if isinstance(profile, Profile) else get_profile(profile)
+    prof = as_profile(profile)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
-    spec = get_vehicle(vehicle)
+    get_vehicle(vehicle)  # an unknown vehicle is a clear error before any work
     w = resolve_world(world, prof, resolution_m=resolution_m, vertical_scale_m=vertical_scale_m)
     maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
     cost = maps.costmap(method, vehicle)
-    planner = HybridAStar(cost, maps.occupancy, maps.grid,
-                          min_turn_radius_m=spec.centre_turn_radius_m,
-                          footprint=(spec.length_m, spec.width_m), cfg=prof.planner)
+    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle, prof.planner)
     start = tuple(float(v) for v in start)
     goal = tuple(float(v) for v in goal)[:2]
     result = planner.plan(start, goal)
     report = QueryReport(w.name, vehicle, method, start, goal, result)
     if result.success:
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
-    out_dir = Path(out_dir) if out_dir else artifacts.profile_dir(prof.name) / "plans"
+    out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = (f"{w.name}_{vehicle}_{method}_{start[0]:.0f}_{start[1]:.0f}_to_"
             f"{goal[0]:.0f}_{goal[1]:.0f}")
@@ -136,8 +135,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     if drive and result.success:
         from dgt_lib.navigation.drive import drive as drive_path
 
-        limit = prof.experiments.time_limit_base_s + (
-            prof.experiments.time_limit_factor * result.length_m / 5.0)
+        limit = trial_time_limit_s(prof.experiments, result.length_m)
         outcome, traj, speed = drive_path(w, vehicle, result.path, goal,
                                           occupancy=maps.occupancy, grid=maps.grid,
                                           time_limit_s=limit,

@@ -14,17 +14,22 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg", force=False)
+import json
+
 import matplotlib.pyplot as plt  # noqa: E402
 
 from dgt_lib import rr, viz
 from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.evaluation import seeds
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.learning.training import collapsed_heads
 from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.stages.experiments import ensure_experiment
-from dgt_lib.stages.paths import data_dir
+from dgt_lib.stages.paths import data_dir, profile_root
 from dgt_lib.stages.registry import StageOutput
+from dgt_lib.stages.train import cached_model_metrics
 from dgt_lib.world.terrain import get_world
 
 TITLES = {"experiment1": "Experiment 1 — hill, carla_cola (paper Table I, left)",
@@ -93,4 +98,60 @@ def stage_experiments(profile: Profile) -> StageOutput:
         counts = ", ".join(f"{METHOD_LABELS[m]} {k}/{n}" for m, (k, n) in res.counts().items())
         parts.append(f"{name}: {counts}")
     paths.insert(0, write_results(results, prof))
+    paths.insert(1, write_seed_summary(results, prof))
     return StageOutput(paths, "; ".join(parts))
+
+
+SUMMARY_RELPATH = "results/summary.json"
+"""One seed's summary for the pooled report, under the seed's data directory."""
+
+
+def write_seed_summary(results: list[ExperimentResult], prof: Profile) -> Path:
+    """``results/summary.json`` of the run seed: every experiment's counts and routes, the
+    models' test metrics and their collapsed heads (:mod:`dgt_lib.evaluation.seeds`)."""
+    models = cached_model_metrics(prof)
+    summary = {"seed": prof.seed,
+               "experiments": {r.name: seeds.experiment_summary(r) for r in results},
+               "models": models,
+               "collapsed": {kind: collapsed_heads(m) for kind, m in models.items()}}
+    path = data_dir(prof) / SUMMARY_RELPATH
+    path.write_text(json.dumps(summary, indent=1))
+    return path
+
+
+def write_seeds_report(profile: Profile) -> Path:
+    """``data/<profile>/results/README.md``: every experiment over the profile's seeds —
+    k/n per seed, pooled with its Wilson interval, the spread — the claims per seed and
+    the models' test errors, from each seed's ``results/summary.json``."""
+    prof = as_profile(profile)
+    summaries = []
+    for p in prof.seed_profiles():
+        path = data_dir(p) / SUMMARY_RELPATH
+        if not path.exists():
+            raise FileNotFoundError(f"no results for seed {p.seed} ({path}): run "
+                                    f"`dgt reproduce --profile {prof.name}` first")
+        summaries.append(json.loads(path.read_text()))
+    ids = [s["seed"] for s in summaries]
+    parts = [f"# Results — profile `{prof.name}`, {len(ids)} seed(s): "
+             + ", ".join(map(str, ids)), "",
+             "Every number below was measured by `dgt reproduce` on this machine. Per method: "
+             "k/n in each seed, the pooled k/n with its Wilson 95 % interval, and the spread "
+             "(lowest–highest success rate of the seeds); the paper's k/n beside ours. Each "
+             "seed's own report, with figures: "
+             + ", ".join(f"[seed {s}](../seed-{s}/results/README.md)" for s in ids) + ".", "",
+             "## Claims, seed by seed", "", seeds.claims_table(summaries)]
+    for name in EXPERIMENTS:
+        per_vehicle: dict[str, list] = {}
+        for s in summaries:
+            for v, counts in s["experiments"].get(name, {}).get("counts", {}).items():
+                per_vehicle.setdefault(v, []).append(counts)
+        parts += [f"## {TITLES.get(name, name)}", ""]
+        for v, per_seed in per_vehicle.items():
+            parts.append(seeds.pooled_table(seeds.pooled_rows(per_seed), ids,
+                                            PAPER.get(name, {}).get(v), title=v))
+    parts += ["## Learned locomotion (test split)", "", seeds.learning_table(summaries)]
+    out = profile_root(prof) / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "README.md"
+    path.write_text("\n".join(parts))
+    return path

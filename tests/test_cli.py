@@ -24,7 +24,23 @@ def test_reproduce_runs_registered_stages_in_order_with_summary(capsys, tmp_path
     assert main(["reproduce", "--profile", "smoke", "--stages", "second", "first"]) == 0
     out = capsys.readouterr().out
     assert out.index("first") < out.index("second")  # pipeline order, not argument order
-    assert "wrote 1 file" in out and str(tmp_path / "smoke" / "example.json") in out
+    assert "wrote 1 file" in out and str(tmp_path / "smoke" / "seed-0" / "example.json") in out
+
+
+def test_reproduce_runs_every_stage_for_every_seed_each_in_its_own_directory(
+        capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
+        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+    assert main(["reproduce", "--profile", "smoke", "--seeds", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "seed(s) 0, 1, 2" in out
+    for seed in (0, 1, 2):
+        assert (tmp_path / "smoke" / f"seed-{seed}" / "example.json").exists()
+        assert f"read n=1 of seed {seed}" in out
+    assert main(["reproduce", "--profile", "smoke", "--seeds", "0"]) == 2
+    assert "--seeds must be ≥ 1" in capsys.readouterr().err
 
 
 def test_unknown_stage_and_profile_are_clear_errors(capsys, monkeypatch):

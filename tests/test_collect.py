@@ -19,6 +19,7 @@ from dgt_lib.stages.collect import (
     stage_bev,
     stage_collect,
 )
+from dgt_lib.stages.paths import data_dir as seed_dir
 from dgt_lib.world.rendering import survey_poses
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 
@@ -72,11 +73,11 @@ def test_tree_cells_have_a_high_gradient(bevs):
 
 def test_training_bev_aggregates_episode_frames(data_dir, bevs):
     prof = tiny_profile()
-    arrays = artifacts.load(artifacts.profile_dir(prof.name) / "bev" / "training.npz")
+    arrays = artifacts.load(seed_dir(prof) / "bev" / "training.npz")
     assert int(arrays["survey_frames"]) == len(survey_poses(get_world("training", prof),
                                                             prof.collect))
     assert int(arrays["episode_frames"]) > 0
-    hill = artifacts.load(artifacts.profile_dir(prof.name) / "bev" / "hill.npz")
+    hill = artifacts.load(seed_dir(prof) / "bev" / "hill.npz")
     assert int(hill["episode_frames"]) == 0
 
 
@@ -158,7 +159,7 @@ def test_collection_resumes_after_an_interruption(data_dir):
         collect_episodes(prof, executor=SerialExecutor(), progress=False,
                          on_episode=stop_after_one)
     assert seen == [("jeep", 0)]
-    first = artifacts.profile_dir(prof.name) / episode_relpath("jeep", 0)
+    first = seed_dir(prof) / episode_relpath("jeep", 0)
     assert first.exists() and not (first.parent / "jeep_0001.npz").exists()
     mtime = first.stat().st_mtime_ns
 

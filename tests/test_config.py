@@ -52,3 +52,19 @@ def test_profiles_grow_from_smoke_to_paper():
 
 def test_vehicle_order_is_the_head_order():
     assert VEHICLES == ("jeep", "vw_van", "mercedes_van", "carla_cola")
+
+
+def test_seeds_are_consecutive_run_seeds_on_the_same_worlds():
+    from dgt_lib.world.terrain import get_world
+
+    demo = get_profile("demo")
+    assert demo.seeds == 3 and get_profile("smoke").seeds == 1
+    runs = demo.with_(seed=5).seed_profiles()
+    assert [p.seed for p in runs] == [5, 6, 7]
+    assert all(p.collect == demo.collect and p.seeds == 3 for p in runs)
+    smoke = get_profile("smoke")
+    for name in ("training", "eval", "hill"):  # a run seed changes no world
+        assert (get_world(name, smoke).heights == get_world(name, smoke.with_(seed=1)).heights
+                ).all()
+    with pytest.raises(ValueError, match="seeds"):
+        demo.with_(seeds=0)

@@ -12,16 +12,13 @@ from dgt_lib.navigation.bicycle import (
     KinematicBicycle,
     cross_track_errors,
     rear_axle_pose,
+    resample_path,
+    rollout_unicycle,
     simulate_tracking,
     steering_from_twist,
 )
-from dgt_lib.navigation.mppi import (
-    MPPIConfig,
-    MPPIController,
-    resample_path,
-    rollout_unicycle,
-    vehicle_footprint,
-)
+from dgt_lib.navigation.mppi import MPPIController
+from dgt_lib.navigation.mppi_config import MPPIConfig, vehicle_footprint
 
 WHEELBASE, MAX_STEER = 2.46, math.radians(35.0)  # the jeep
 R_MIN = WHEELBASE / math.tan(MAX_STEER)  # 3.51 m

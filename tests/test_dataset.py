@@ -11,6 +11,7 @@ from dgt_lib.core.executors import SerialExecutor
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL, patch_times, split_by_trajectory
 from dgt_lib.stages.collect import collect_episodes, ensure_bev
 from dgt_lib.stages.dataset import DATASET_RELPATH, ensure_dataset, stage_dataset
+from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import get_world
 
 
@@ -81,7 +82,7 @@ def test_patches_are_cut_where_the_vehicle_was(built):
 def test_dataset_is_cached(built):
     prof, ds = built
     bev = ensure_bev("training", prof, progress=False)
-    assert (artifacts.profile_dir(prof.name) / DATASET_RELPATH).exists()
+    assert (data_dir(prof) / DATASET_RELPATH).exists()
     again = ensure_dataset(prof, executor=SerialExecutor(), progress=False)
     np.testing.assert_array_equal(again.labels, ds.labels)
     assert bev.grid == get_world("training", prof).grid

@@ -48,7 +48,7 @@ def test_dgt_plan_on_a_tiny_custom_world_file(data_dir, tmp_path, capsys):
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "found: length" in out and "figure:" in out
-    assert list((data_dir / "smoke" / "plans").glob("*.png"))
+    assert list((data_dir / "smoke" / "seed-0" / "plans").glob("*.png"))
 
 
 @pytest.mark.parametrize("start,message", [("500,16,0", "off the map"),

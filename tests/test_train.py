@@ -198,8 +198,8 @@ def test_ensure_model_caches_per_kind(dataset, data_dir, monkeypatch):
     first = ensure_model(profile, dataset, "single:vw_van", progress=False)
     again = ensure_model(profile, dataset, "single:vw_van", progress=False)
     assert len(calls) == 1 and calls[0]["vehicles"] == ("vw_van",)
-    assert (data_dir / "smoke" / "models" / "single_vw_van.pt").exists()
-    assert not (data_dir / "smoke" / "models" / "single_vw_van.partial.pt").exists()
+    assert (data_dir / "smoke" / "seed-0" / "models" / "single_vw_van.pt").exists()
+    assert not (data_dir / "smoke" / "seed-0" / "models" / "single_vw_van.partial.pt").exists()
     np.testing.assert_array_equal(predict(first.model, dataset.patches[:20]),
                                   predict(again.model, dataset.patches[:20]))
     assert again.history == first.history
@@ -224,7 +224,7 @@ def test_interrupted_training_is_not_cached(dataset, data_dir, monkeypatch):
     monkeypatch.setattr(train_stage, "train_model", interrupted)
     result = ensure_model(profile, dataset, "single:jeep", progress=False)
     assert result.interrupted and result.best_epoch == 1
-    models = data_dir / "smoke" / "models"
+    models = data_dir / "smoke" / "seed-0" / "models"
     assert (models / "single_jeep.partial.pt").exists()
     assert not (models / "single_jeep.pt").exists()
 

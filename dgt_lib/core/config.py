@@ -34,7 +34,7 @@ class WorldsConfig:
     training_size_m: float = 200.0
     eval_size_m: float = 160.0
     hfield_resolution_m: float = 0.4  # terrain grid cell, metres (MuJoCo behaves at 0.2–0.4)
-    training_seed: int = 0  # added to Profile.seed for the training world
+    training_seed: int = 0  # the training world's terrain seed (the same for every run seed)
     eval_seed: int = 1000  # eval world: a different seed, never used in training
 
 
@@ -152,7 +152,8 @@ class Profile:
     """All sizes of one profile, one frozen section per pipeline stage."""
 
     name: str
-    seed: int = 0
+    seed: int = 0  # the run's seed: collection, training, queries, controller noise
+    seeds: int = 1  # `dgt reproduce` runs seeds seed, seed + 1, …, seed + seeds − 1
     workers: int = 2  # processes for episodes and trials (concurrent.futures)
     worlds: WorldsConfig = field(default_factory=WorldsConfig)
     collect: CollectConfig = field(default_factory=CollectConfig)
@@ -161,9 +162,23 @@ class Profile:
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     experiments: ExperimentsConfig = field(default_factory=ExperimentsConfig)
 
+    def __post_init__(self) -> None:
+        if self.seeds < 1:
+            raise ValueError(f"Profile.seeds must be ≥ 1, got {self.seeds}")
+
     def with_(self, **changes) -> Profile:
         """A copy with some fields changed, e.g. ``p.with_(seed=3)``."""
         return replace(self, **changes)
+
+    def seed_profiles(self) -> list[Profile]:
+        """One profile per run seed: ``seed``, ``seed + 1``, … (``seeds`` of them).
+
+        Seeds change everything random in a run — the episodes (spawn poses, steering),
+        the dataset split, weight initialisation and batch order, the slope-baseline fit,
+        the queries and the controller's samples — and nothing else: the worlds are the
+        same in every seed, so a seed is "the same experiment, run again", as on another
+        machine."""
+        return [self.with_(seed=self.seed + i) for i in range(self.seeds)]
 
 
 def _smoke() -> Profile:
@@ -186,6 +201,7 @@ def _demo() -> Profile:
     """Default for a person: minutes per notebook, qualitatively right results."""
     return Profile(
         name="demo",
+        seeds=3,  # conclusions are reported over seeds (README: per seed and pooled)
         worlds=WorldsConfig(training_size_m=160.0, eval_size_m=120.0),
         collect=CollectConfig(episodes=(40, 40, 30, 20)),
         # width 32: ~3× faster training and inference than 64 (benchmarks/bench_train.py).
@@ -203,6 +219,7 @@ def _paper() -> Profile:
     """The paper's sizes (Section Experiments → Dataset, Tables I and II)."""
     return Profile(
         name="paper",
+        seeds=2,
         # Dataset / Experiment 3: the paper gives no map sizes; 300 m × 300 m holds
         # 1,300 runs of ≤ 100 s at 5 m/s, 200 m × 200 m 100 random start/goal pairs.
         worlds=WorldsConfig(training_size_m=300.0, eval_size_m=200.0),

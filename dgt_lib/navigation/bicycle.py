@@ -4,11 +4,14 @@ a kinematic simulation for testing the tracker without physics (paper: Controlle
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.navigation.mppi import MPPIController
+
+if TYPE_CHECKING:  # the tracker under test (an annotation only: mppi imports this module)
+    from dgt_lib.navigation.mppi import MPPIController
 
 
 def steering_from_twist(v_x, w_z, wheelbase_m: float, max_steer_rad: float, v_eps: float = 0.05):
@@ -172,3 +175,49 @@ def cross_track_errors(path: np.ndarray, positions: np.ndarray) -> np.ndarray:
         diff = qc - (a + t[..., None] * d)
         out[i : i + 256] = np.sqrt((diff * diff).sum(axis=2)).min(axis=1)
     return out
+
+
+def rollout_unicycle(pose, v: np.ndarray, w: np.ndarray, dt: float):
+    """Integrate speed and yaw-rate sequences from ``pose`` with cumulative sums.
+
+    ``v``, ``w``: ``(T, B)`` [m/s], [rad/s], step t held for ``dt`` [s]. Returns
+    ``x, y, yaw`` of shape ``(T, B)``: the state at the end of each step. Yaw is
+    integrated exactly (ψ_t = ψ_0 + Σ ω dt); positions use the step's midpoint
+    heading, which makes constant-(v, ω) arcs second-order accurate.
+    """
+    x0, y0, yaw0 = (float(p) for p in pose)
+    dyaw = w * dt
+    yaw = np.cumsum(dyaw, axis=0)
+    yaw += yaw0
+    mid = yaw - 0.5 * dyaw
+    step = v * dt
+    x = np.cumsum(step * np.cos(mid), axis=0)
+    y = np.cumsum(step * np.sin(mid), axis=0)
+    x += x0
+    y += y0
+    return x, y, yaw
+
+
+def resample_path(path: np.ndarray, spacing_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Resample an ``(N, 3)`` path of (x, y, yaw) to uniform arc-length spacing.
+
+    Returns ``(points (M, 3), s (M,))`` with s the arc length [m] of each point;
+    yaw is interpolated on the circle. Consecutive duplicate points are dropped.
+    Raises ``ValueError`` for fewer than two distinct points.
+    """
+    path = np.asarray(path, dtype=np.float64)
+    if path.ndim != 2 or path.shape[1] != 3 or not np.isfinite(path).all():
+        raise ValueError(f"path must be a finite (N, 3) array of (x, y, yaw), got {path.shape}")
+    seg = np.hypot(np.diff(path[:, 0]), np.diff(path[:, 1]))
+    keep = np.concatenate([[True], seg > 1e-9])
+    path = path[keep]
+    if len(path) < 2:
+        raise ValueError("path needs at least two distinct points")
+    s_in = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(path[:, 0]), np.diff(path[:, 1])))])
+    n = max(2, int(math.ceil(s_in[-1] / spacing_m)) + 1)
+    s = np.linspace(0.0, s_in[-1], n)
+    x = np.interp(s, s_in, path[:, 0])
+    y = np.interp(s, s_in, path[:, 1])
+    c = np.interp(s, s_in, np.cos(path[:, 2]))
+    sn = np.interp(s, s_in, np.sin(path[:, 2]))
+    return np.stack([x, y, np.arctan2(sn, c)], axis=1), s

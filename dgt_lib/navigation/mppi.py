@@ -41,14 +41,14 @@ A tiny demo::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 from scipy.signal import lfilter, savgol_coeffs
 
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.core.vehicles import footprint_circles
+from dgt_lib.navigation.bicycle import resample_path, rollout_unicycle
+from dgt_lib.navigation.mppi_config import MPPIConfig
 
 # ---------------------------------------------------------------------------
 # Steering conversion (paper eq. "steering")
@@ -62,129 +62,12 @@ from dgt_lib.core.vehicles import footprint_circles
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class MPPIConfig:
-    """MPPI settings. Sampling sizes and λ are Nav2's defaults; speeds are scaled to
-    the paper's 5 m/s commanded speed (Nav2's defaults are for a 0.5 m/s robot).
-
-    Critic weights multiply dimensionless costs of order 1 per trajectory (see
-    :meth:`MPPIController.compute`), so ``temperature`` compares directly with them.
-    """
-
-    batch_size: int = 1000  # sampled sequences (Nav2 batch_size)
-    time_steps: int = 56  # horizon steps (Nav2 time_steps)
-    model_dt: float = 0.05  # s per step (Nav2 model_dt): horizon 2.8 s; call compute at 1/dt
-    temperature: float = 0.3  # λ of the softmax weights (Nav2 temperature)
-    accel_std: float = 2.0  # m/s², noise of sampled accelerations (integrated to speeds)
-    w_rate_std: float = 1.5  # rad/s², noise of sampled yaw-rate changes (integrated)
-    v_max: float = 5.5  # m/s
-    v_min: float = 0.0  # m/s; negative allows reversing
-    w_max: float = 1.9  # rad/s (Nav2 wz_max); the turning radius usually binds first
-    speed_time_constant_s: float = 0.5  # s, τ_v of the vehicle's speed loop (0: ideal)
-    accel_max: float = 3.0  # m/s², limit on the commanded speed's rise
-    decel_max: float = 5.0  # m/s², limit on its fall
-    target_speed: float = 5.0  # m/s, the paper's commanded speed
-    goal_decel: float = 1.0  # m/s², v_ref = min(target, √(2·a·d_remaining)) near the goal
-    goal_radius_m: float = 4.0  # remaining path length at which the goal critic turns on
-    lateral_accel_max: float = 4.0  # m/s², |v·ω| above this is penalised
-    smoothing_window: int = 9  # Savitzky–Golay window on the optimal ω (Nav2); < 3 disables
-    path_resolution_m: float = 0.5  # the path is resampled to this spacing
-    path_point_step: int = 4  # every n-th step is scored against the path (Nav2: 4)
-    collision_radius_m: float = 1.2  # clearance below which a footprint circle collides
-    inflation_radius_m: float = 3.0  # clearance below which the occupancy critic rises
-    footprint_offsets_m: tuple[float, ...] = (0.0,)  # circle centres ahead of the pose
-    # Critic weights.
-    path_weight: float = 6.0  # mean cross-track distance [m]
-    path_angle_weight: float = 4.0  # mean 1 − cos(yaw − path yaw)
-    speed_weight: float = 20.0  # mean ((v − v_ref) / target_speed)²
-    goal_weight: float = 2.0  # mean distance to the goal [m], within goal_radius_m
-    collision_weight: float = 1000.0  # (any step collides) + fraction of colliding steps
-    inflation_weight: float = 3.0  # mean closeness to occupied cells, 0..1
-    constraint_weight: float = 4.0  # lateral acceleration excess and reversing
-
-    def __post_init__(self):
-        if self.batch_size < 2 or self.time_steps < 2 or self.model_dt <= 0:
-            raise ValueError("MPPIConfig needs batch_size ≥ 2, time_steps ≥ 2, model_dt > 0")
-        if self.temperature <= 0:
-            raise ValueError(f"temperature must be > 0, got {self.temperature}")
-        if not self.v_min <= 0.0 < self.v_max:
-            raise ValueError(f"need v_min ≤ 0 < v_max, got {self.v_min}, {self.v_max}")
-        if self.path_point_step < 1 or self.path_resolution_m <= 0:
-            raise ValueError("path_point_step must be ≥ 1 and path_resolution_m > 0")
-        if not 0 < self.collision_radius_m < self.inflation_radius_m:
-            raise ValueError("need 0 < collision_radius_m < inflation_radius_m")
-
-    @property
-    def horizon_s(self) -> float:
-        """Length of a rollout [s]."""
-        return self.time_steps * self.model_dt
 
 
-def vehicle_footprint(vehicle, margin_m: float = 0.2) -> dict[str, object]:
-    """Footprint circles for the occupancy critic from a ``VehicleSpec``-like object
-    (``wheelbase_m``, ``length_m``, ``width_m``), as :class:`MPPIConfig` fields::
-
-        cfg = dataclasses.replace(MPPIConfig(), **vehicle_footprint(spec))
-
-    The planner's circles (:func:`dgt_lib.core.vehicles.footprint_circles`, covering the
-    length × width rectangle around the body centre) moved to the rear-axle
-    reference (the body centre is ℓ/2 ahead of it, equal overhangs), radius plus
-    ``margin_m``; the inflation radius is set 1.5 m beyond it.
-    """
-    offsets, radius = footprint_circles(vehicle.length_m, vehicle.width_m)
-    radius += margin_m
-    offsets = offsets + 0.5 * vehicle.wheelbase_m
-    return {
-        "footprint_offsets_m": tuple(round(float(o), 3) for o in offsets),
-        "collision_radius_m": radius,
-        "inflation_radius_m": radius + 1.5,
-    }
 
 
-def rollout_unicycle(pose, v: np.ndarray, w: np.ndarray, dt: float):
-    """Integrate speed and yaw-rate sequences from ``pose`` with cumulative sums.
-
-    ``v``, ``w``: ``(T, B)`` [m/s], [rad/s], step t held for ``dt`` [s]. Returns
-    ``x, y, yaw`` of shape ``(T, B)``: the state at the end of each step. Yaw is
-    integrated exactly (ψ_t = ψ_0 + Σ ω dt); positions use the step's midpoint
-    heading, which makes constant-(v, ω) arcs second-order accurate.
-    """
-    x0, y0, yaw0 = (float(p) for p in pose)
-    dyaw = w * dt
-    yaw = np.cumsum(dyaw, axis=0)
-    yaw += yaw0
-    mid = yaw - 0.5 * dyaw
-    step = v * dt
-    x = np.cumsum(step * np.cos(mid), axis=0)
-    y = np.cumsum(step * np.sin(mid), axis=0)
-    x += x0
-    y += y0
-    return x, y, yaw
 
 
-def resample_path(path: np.ndarray, spacing_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Resample an ``(N, 3)`` path of (x, y, yaw) to uniform arc-length spacing.
-
-    Returns ``(points (M, 3), s (M,))`` with s the arc length [m] of each point;
-    yaw is interpolated on the circle. Consecutive duplicate points are dropped.
-    Raises ``ValueError`` for fewer than two distinct points.
-    """
-    path = np.asarray(path, dtype=np.float64)
-    if path.ndim != 2 or path.shape[1] != 3 or not np.isfinite(path).all():
-        raise ValueError(f"path must be a finite (N, 3) array of (x, y, yaw), got {path.shape}")
-    seg = np.hypot(np.diff(path[:, 0]), np.diff(path[:, 1]))
-    keep = np.concatenate([[True], seg > 1e-9])
-    path = path[keep]
-    if len(path) < 2:
-        raise ValueError("path needs at least two distinct points")
-    s_in = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(path[:, 0]), np.diff(path[:, 1])))])
-    n = max(2, int(math.ceil(s_in[-1] / spacing_m)) + 1)
-    s = np.linspace(0.0, s_in[-1], n)
-    x = np.interp(s, s_in, path[:, 0])
-    y = np.interp(s, s_in, path[:, 1])
-    c = np.interp(s, s_in, np.cos(path[:, 2]))
-    sn = np.interp(s, s_in, np.sin(path[:, 2]))
-    return np.stack([x, y, np.arctan2(sn, c)], axis=1), s
 
 
 class MPPIController:

@@ -1,5 +1,10 @@
 """Where a profile's artifacts live: the one place that maps a :class:`Profile` to its
-directory of the artifact cache (``dgt_lib.core.artifacts``)."""
+directory of the artifact cache (``dgt_lib.core.artifacts``).
+
+Each run seed has its own directory, ``data/<profile>/seed-<seed>/``, so several seeds
+are cached side by side and each resumes on its own; what pools the seeds (the results
+report) lives in ``data/<profile>/``.
+"""
 
 from __future__ import annotations
 
@@ -10,10 +15,17 @@ from dgt_lib.core.config import Profile, as_profile
 
 
 def cache_dir(profile: Profile | str | None) -> str:
-    """The cache key of a profile's artifacts: its directory under ``data/``."""
-    return as_profile(profile).name
+    """The cache key of a profile's artifacts for its run seed: ``<profile>/seed-<seed>``."""
+    prof = as_profile(profile)
+    return f"{prof.name}/seed-{prof.seed}"
 
 
 def data_dir(profile: Profile | str | None) -> Path:
-    """The profile's artifact directory, e.g. ``data/demo``."""
+    """The artifact directory of the profile's run seed, e.g. ``data/demo/seed-0``."""
     return artifacts.profile_dir(cache_dir(profile))
+
+
+def profile_root(profile: Profile | str | None) -> Path:
+    """The profile's directory, ``data/<profile>``: every seed below it, pooled results
+    in ``results/``."""
+    return artifacts.profile_dir(as_profile(profile).name)

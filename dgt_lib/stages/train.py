@@ -158,6 +158,17 @@ def models_stage(profile: Profile, dataset: PatchDataset,
     return StageOutput(paths, "; ".join(parts))
 
 
+def cached_model_metrics(profile: Profile) -> dict[str, dict[str, dict[str, float]]]:
+    """Test metrics ``{kind: {vehicle: metrics}}`` of every model of the profile's run seed
+    that is in the cache (nothing is trained): what the results report prints."""
+    out = {}
+    for kind in MODEL_KINDS:
+        path = data_dir(profile) / model_relpath(kind)
+        if path.exists():
+            out[kind] = artifacts.load(path)["metrics"]
+    return out
+
+
 def stage_train(profile: Profile) -> StageOutput:
     """``dgt reproduce`` stage: the multi-task model and one single-task model per vehicle."""
     return models_stage(profile, ensure_dataset(profile))

@@ -89,6 +89,7 @@ from dgt_lib.viz.training import (
     head_gradient_norms,
     own_head_predictions,
     parameter_table,
+    plot_head_init,
     plot_learning_curves,
     plot_metric_comparison,
     plot_predicted_patches,
@@ -109,7 +110,8 @@ __all__ = [
     "vehicle_table",
     # labels (notebook 02)
     "PAPER_DATASET", "binned_mean", "dataset_table", "directional_table", "gallery_indices",
-    "plot_dataset_counts", "plot_label_histograms", "plot_label_vs_slope",
+    "plot_dataset_counts",
+    "plot_head_init", "plot_label_histograms", "plot_label_vs_slope",
     "plot_locomotion_curve", "plot_patch_gallery", "plot_run_labels",
     # training (notebook 03) and the width trade-off (dgt_lib.learning.tradeoff)
     "METRIC_NAMES", "TRAINING_COLORS", "comparison_table", "head_gradient_norms",

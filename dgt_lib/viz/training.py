@@ -310,3 +310,29 @@ def plot_width_tradeoff(rows: Sequence[Mapping[str, float]], paper_width: int = 
     ax.set_title("network width: accuracy against speed")
     ax.margins(y=0.25)
     return fig
+
+
+def plot_head_init(predictions: Mapping[str, np.ndarray], labels: np.ndarray,
+                   vehicle: str = "jeep", bins: int = 40):
+    """Histograms of one head's test predictions L̂ per head initialisation (e.g.
+    ``{"default": …, "prior": …}``) over the true labels L, each titled with
+    std(L̂) / std(L) — below 0.1 the head has collapsed to a constant
+    (:func:`dgt_lib.learning.training.collapsed_heads`)."""
+    labels = np.asarray(labels, dtype=np.float64)
+    fig, axes = plt.subplots(1, len(predictions), figsize=(5.5 * len(predictions), 3.6),
+                             squeeze=False, sharey=True)
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    for ax, (name, pred) in zip(axes[0], predictions.items(), strict=True):
+        pred = np.asarray(pred, dtype=np.float64)
+        ratio = pred.std() / max(labels.std(), 1e-12)
+        ax.hist(labels, edges, color="0.75", label="true L (test)")
+        ax.hist(pred, edges, histtype="step", lw=2, color=VEHICLE_COLORS.get(vehicle, "k"),
+                label="predicted L̂")
+        ax.set_yscale("log")
+        ax.set_xlabel("locomotion L")
+        state = "collapsed" if ratio < 0.1 else "learning"
+        ax.set_title(f"head init '{name}': std(L̂)/std(L) = {ratio:.2f} ({state})")
+        ax.legend(fontsize=8)
+    axes[0][0].set_ylabel(f"{vehicle} test patches")
+    fig.tight_layout()
+    return fig

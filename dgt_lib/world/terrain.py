@@ -302,11 +302,12 @@ def get_world(name: str, profile: Profile | str | None = None) -> World:
     """The generated world ``name`` (one of :data:`WORLD_NAMES`) sized by ``profile``
     (a :class:`Profile`, a profile name, or ``None`` for ``$DGT_PROFILE``).
 
-    ``training`` and ``eval`` take their sizes and seeds from ``profile.worlds``;
+    ``training`` and ``eval`` take their sizes and terrain seeds from ``profile.worlds``;
     ``hill`` and ``ridge`` are the same in every profile (their features are the
-    experiments). Worlds are cached in memory; generation takes well under a second.
+    experiments). The run seed (``profile.seed``) does not change any world. Worlds are
+    cached in memory; generation takes well under a second.
     """
     if name not in WORLD_NAMES:
         raise UnknownWorldError(f"unknown world {name!r}; valid worlds: {', '.join(WORLD_NAMES)}")
     prof = profile if isinstance(profile, Profile) else get_profile(profile)
-    return _cached(name, prof.worlds, prof.seed)
+    return _cached(name, prof.worlds, 0)

@@ -1,0 +1,193 @@
+"""The search's cost-to-go estimates.
+
+- ``"euclidean"`` (the paper's): h = distance from the pose to the goal point.
+- ``"cost_to_go"``: max(φ·D, d + φ·D_c), a direction-aware 2D lower bound
+  (:class:`CostToGo`), which also refutes unreachable goals before the search.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.geometry import TWO_PI, GridSpec, angle_diff
+from dgt_lib.navigation.planner.primitives import amplified_cost
+
+HEURISTICS: tuple[str, ...] = ("euclidean", "cost_to_go")
+
+_CACHED_GOALS = 4  # cost-to-go fields kept per map (most recently used goals)
+
+
+def euclidean(x: float, y: float, gx: float, gy: float) -> float:
+    """h = ‖(x, y) − (gx, gy)‖ [m], the paper's heuristic (admissible: g_edge ≥ s)."""
+    return math.hypot(x - gx, y - gy)
+
+
+def step_cell_bounds(step_m: float, resolution: float) -> tuple[float, float]:
+    """Largest (octile length, Euclidean length) [m] between the cell centres of two
+    points at most ``step_m`` apart on a grid of ``resolution``.
+
+    A displacement of (a, b) cells needs |Δx| > (a − 1)·res and |Δy| > (b − 1)·res,
+    so the candidates are the integers with max(a−1, 0)² + max(b−1, 0)² < (s/res)²;
+    the octile length of (a, b) is (max + (√2 − 1)·min)·res.
+    """
+    q = step_m / resolution
+    n = math.ceil(q) + 1
+    best_octile = best_dist = 0.0
+    for a in range(n + 1):
+        for b in range(a + 1):
+            if max(a - 1, 0) ** 2 + max(b - 1, 0) ** 2 < q * q:
+                best_octile = max(best_octile, a + (math.sqrt(2) - 1) * b)
+                best_dist = max(best_dist, math.hypot(a, b))
+    return best_octile * resolution, best_dist * resolution
+
+
+class CostToGo:
+    """The 2D cost-to-go lower bound of one map, per goal (the last few goals cached).
+
+    Two direction-aware 2D relaxations on the 8-connected grid, solved once per
+    goal with ``scipy.sparse.csgraph.dijkstra``: D prices a grid move m
+    (direction ψ_m = m·45°, length ℓ_m = res or √2·res) into cell c at
+    ℓ_m·(1 + min_{k ∈ S_m} F_k(c)), and D_c at ℓ_m·min_{k ∈ S_m} F_k(c)
+    (the terrain part alone), where F_k = min of C'_k = C_k(1 + βC_k) over the
+    unblocked cells (those a footprint centre may occupy) within ρ of c, and
+    S_m = the layers within 45° + 180°/K of ψ_m. Let O
+    and E be the largest octile and Euclidean distances between the cells of
+    two points ≤ s apart (:func:`step_cell_bounds`; s = 1.6 m, res = 0.4 m: a
+    (4, 3)-cell jump, O = 2.10 m, E = 2.0 m); ρ = E + res/2. Cells whose
+    centre is closer than clearance − (res/2 + √2·res + σ + Δ/2) to an
+    occupied centre are impassable (σ = s²/(8 r_min) the arc's sagitta, Δ the
+    sub-step spacing); sources are free cells within tol + res·√2/2 of the
+    goal. With φ = s/O (0.76 at s = 1.6 m, res = 0.4 m) the bound is
+
+        h = max(φ·D, max(d − tol, 0) + φ·D_c),
+
+    d the distance from the pose to the goal point (here the cell's nearest
+    point to it). During the search d is the pose's own distance and the
+    "− tol" is dropped, as in the paper's Euclidean heuristic: that
+    overestimates by at most tol, so the search returns a cost within
+    ``goal_tolerance_m`` (× ``heuristic_weight``) of the optimum of its graph.
+
+    Why it is a lower bound. Take any collision-free primitive path p_0..p_n
+    ending within tol of the goal, with cells a_i ∋ p_i (centres c_i); an arc
+    of length s has a chord ≤ s. Join c_{i−1} to c_i by a digital straight
+    line (Bresenham): its moves are the one or two 45°-multiples bracketing the
+    direction of c_i − c_{i−1}, whose nearest layer k* (the one the step pays)
+    is therefore in S_m of every move; its length is the octile length ≤ O;
+    its cells lie within res/2 of the segment c_{i−1}c_i, hence within ρ of
+    c_i, an unblocked cell, so each move costs ≤ ℓ_m(1 + C'_i) and the line ≤ O(1 + C'_i) =
+    g_edge,i/φ (for D_c: ≤ O·C'_i = s·C'_i/φ). Those cells also lie within
+    res/2 + √2·res + σ + Δ/2 of a checked sub-step's cell centre, which is
+    ≥ clearance from occupied centres, so they are passable; a_n is a
+    source. Summing, φ·D(a_0) ≤ J = Σ s(1 + C'_i) and φ·D_c(a_0) ≤ Σ s·C'_i,
+    while Σ s ≥ |p_0 − p_n| ≥ d − tol. Each part is consistent on every edge,
+    hence so is the max. The analytic shot's last piece, shorter than s, is
+    the one place the per-step argument is loose.
+
+    costmap: (K, H, W) in [0, 1]; blocked: (H, W) cells a footprint centre may
+    not occupy; occupied_distance: (H, W) distance [m] from each cell centre to
+    the nearest occupied/unobserved centre; clearance_m: the distance below
+    which a cell is blocked; substep_m: the actual sub-step spacing Δ.
+    """
+
+    def __init__(self, costmap: np.ndarray, blocked: np.ndarray, occupied_distance: np.ndarray,
+                 grid: GridSpec, cfg: PlannerConfig, *, clearance_m: float,
+                 min_turn_radius_m: float, substep_m: float):
+        self.costmap = costmap
+        self.blocked = blocked
+        self.occupied_distance = occupied_distance
+        self.grid = grid
+        self.cfg = cfg
+        self.clearance_m = clearance_m
+        self.min_turn_radius_m = min_turn_radius_m
+        self.substep_m = substep_m
+        self.impassable: np.ndarray | None = None
+        self._graphs: tuple[csr_matrix, csr_matrix] | None = None
+        self.cache: OrderedDict = OrderedDict()
+
+    def field(self, goal_xy) -> np.ndarray:
+        """(H, W) bound h of every cell [cost units] (∞ where the goal is unreachable)."""
+        h_full, h_terrain = self.bounds(goal_xy)
+        X, Y = self.grid.cell_centers()
+        half_diagonal = self.grid.resolution * math.sqrt(2) / 2
+        d = np.hypot(X - float(goal_xy[0]), Y - float(goal_xy[1])) - half_diagonal
+        return np.maximum(h_full, np.maximum(d - self.cfg.goal_tolerance_m, 0.0) + h_terrain)
+
+    def bounds(self, goal_xy, as_lists: bool = False) -> tuple:
+        """(φ·D, φ·D_c), each (H, W), for one goal (cached); with ``as_lists`` flat
+        Python lists (fast scalar lookups in the search loop)."""
+        gx, gy = float(goal_xy[0]), float(goal_xy[1])
+        key = (gx, gy)
+        if key in self.cache:
+            self.cache.move_to_end(key)
+            return self.cache[key][1 if as_lists else 0]
+        res = self.grid.resolution
+        if self._graphs is None:
+            self._graphs = self._relaxation_graphs()
+        X, Y = self.grid.cell_centers()
+        source = np.hypot(X - gx, Y - gy) <= self.cfg.goal_tolerance_m + res * math.sqrt(2) / 2
+        source = np.flatnonzero(source & ~self.impassable)
+        phi = self.cfg.step_m / step_cell_bounds(self.cfg.step_m, res)[0]
+        bounds = []
+        for graph in self._graphs:
+            if len(source) == 0:
+                dist = np.full(self.grid.shape, np.inf)
+            else:
+                dist = dijkstra(graph, directed=True, indices=source, min_only=True)
+            bounds.append(phi * dist.reshape(self.grid.shape))
+        bounds = tuple(bounds)
+        lists = tuple(b.ravel().tolist() for b in bounds)
+        self.cache[key] = (bounds, lists)
+        while len(self.cache) > _CACHED_GOALS:
+            self.cache.popitem(last=False)
+        return lists if as_lists else bounds
+
+    def _relaxation_graphs(self) -> tuple[csr_matrix, csr_matrix]:
+        """The reversed 8-connected graphs (edge v → u carries the cost of the move
+        u → v), for D and D_c, as CSR matrices over flat cell indices."""
+        cfg, res = self.cfg, self.grid.resolution
+        H, W = self.grid.shape
+        s = cfg.step_m
+        rho = (step_cell_bounds(s, res)[1] + res / 2) / res  # [cells]
+        half = math.floor(rho)
+        d = np.arange(-half, half + 1)
+        disk = np.hypot(d[:, None], d[None, :]) <= rho
+        # F_k: min of C'_k over the unblocked cells within ρ (a pose's cell is unblocked)
+        least = np.stack([
+            ndimage.minimum_filter(np.where(self.blocked, np.inf, amplified_cost(layer, cfg.beta)),
+                                   footprint=disk, mode="constant", cval=np.inf)
+            for layer in self.costmap
+        ])
+        sagitta = s * s / (8 * self.min_turn_radius_m)
+        slack = res / 2 + math.sqrt(2) * res + sagitta + self.substep_m / 2
+        self.impassable = self.occupied_distance < self.clearance_m - slack
+        passable = ~self.impassable
+        n_headings = len(self.costmap)
+        theta_k = TWO_PI * np.arange(n_headings) / n_headings
+        index = np.arange(H * W).reshape(H, W)
+        rows, cols, terrain, lengths = [], [], [], []
+        for m in range(8):
+            psi = m * math.pi / 4
+            dr, dc = round(math.sin(psi)), round(math.cos(psi))
+            spread = math.pi / 4 + math.pi / n_headings + 1e-9
+            near = np.abs(angle_diff(theta_k, psi)) <= spread
+            length = res * math.hypot(dr, dc)
+            # moves u -> v = u + (dr, dc) with both cells passable, charged at v
+            u = (slice(max(0, -dr), H - max(0, dr)), slice(max(0, -dc), W - max(0, dc)))
+            v = (slice(max(0, dr), H - max(0, -dr)), slice(max(0, dc), W - max(0, -dc)))
+            ok = passable[u] & passable[v] & np.isfinite(least[near].min(axis=0)[v])
+            rows.append(index[v][ok])
+            cols.append(index[u][ok])
+            terrain.append(length * least[near].min(axis=0)[v][ok])
+            lengths.append(np.full(int(ok.sum()), length))
+        index_pairs = (np.concatenate(rows), np.concatenate(cols))
+        terrain, lengths = np.concatenate(terrain), np.concatenate(lengths)
+        shape = (H * W, H * W)
+        return (csr_matrix((lengths + terrain, index_pairs), shape=shape),
+                csr_matrix((terrain, index_pairs), shape=shape))
