@@ -69,6 +69,7 @@ class CollectConfig:
 
 
 HEAD_INITS: tuple[str, ...] = ("prior", "default")
+LABEL_WEIGHTINGS: tuple[str, ...] = ("none", "inverse_frequency")
 """Valid ``TrainConfig.head_init`` values (checked by ``train_model``)."""
 
 
@@ -94,6 +95,12 @@ class TrainConfig:
     # × 0.1 (DGTNet.init_heads; ours); "default": PyTorch's init, which let the jeep head
     # (97 % of labels ≈ 1) saturate at L̂ = 1 in the first epoch. One of HEAD_INITS.
     head_init: str = "prior"
+    # "inverse_frequency": each sample's loss weighted by 1 / (how common its label is among
+    # its vehicle's training labels, in label_bins bins), capped at max_label_weight, so the
+    # rare low-L patches (a stall on a ridge) count; "none": the paper's plain mean (ours).
+    label_weighting: str = "none"
+    label_bins: int = 5
+    max_label_weight: float = 10.0
 
 
 @dataclass(frozen=True)

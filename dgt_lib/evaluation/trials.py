@@ -17,6 +17,7 @@ passes one that reads the artifact cache).
 from __future__ import annotations
 
 import math
+import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -130,6 +131,13 @@ def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
                            wall_s=time.perf_counter() - t0)
 
 
+def _start_method() -> str:
+    """``fork`` (workers start in milliseconds) unless this process has initialised CUDA,
+    which a forked child cannot use: then ``spawn``."""
+    torch = sys.modules.get("torch")
+    return "spawn" if torch is not None and torch.cuda.is_initialized() else "fork"
+
+
 def run_trials(tasks: Sequence[TrialTask], load_maps: MapsLoader,
                executor: Executor | None = None, *, workers: int = 2, progress: bool = True,
                journal: str | Path | None = None) -> list[TrialResult]:
@@ -153,7 +161,8 @@ def run_trials(tasks: Sequence[TrialTask], load_maps: MapsLoader,
 
     try:
         run_jobs(run_trial, [(t, load_maps) for t in todo], executor=executor,
-                 workers=workers, start_method="fork", on_result=keep, progress=progress,
+                 workers=workers, start_method=_start_method(), on_result=keep,
+                 progress=progress,
                  desc="trials", unit="trial", initial=len(done),
                  postfix=lambda: f"{sum(r.outcome.success for r in done.values())}/"
                                  f"{len(done)} ok")

@@ -34,13 +34,14 @@ import torch
 from scipy import stats
 from tqdm.auto import tqdm
 
-from dgt_lib.core.config import HEAD_INITS, VEHICLES, TrainConfig
+from dgt_lib.core.config import HEAD_INITS, LABEL_WEIGHTINGS, VEHICLES, TrainConfig
 from dgt_lib.learning.checkpoints import TrainResult, save_checkpoint
 from dgt_lib.learning.model import N_CHANNELS, DGTNet, centre_heights
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
 
 
-def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor) -> torch.Tensor:
+def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor,
+                weight: torch.Tensor | None = None) -> torch.Tensor:
     """The multi-task loss of a batch (paper: Multi-Task Learning).
 
         𝓛(P, v) = ‖L̂_v(P) − L_v(t_P)‖²
@@ -48,10 +49,46 @@ def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor) ->
     Only the head of the vehicle that collected patch P contributes; the other
     heads' outputs are not used, so they get exactly zero gradient from P.
     pred: (B, n_heads) predictions; labels: (B,) L_v(t_P); head: (B,) int64 column
-    of each sample's vehicle. Returns the mean over the batch (a scalar).
+    of each sample's vehicle; weight: optional (B,) sample weights w_P
+    (:func:`label_weights`). Returns the mean over the batch, Σ w_P 𝓛(P) / Σ w_P with
+    weights (a scalar).
     """
     chosen = pred.gather(1, head[:, None]).squeeze(1)  # (B,) L̂_v(P)
-    return torch.mean((chosen - labels) ** 2)
+    if weight is None:
+        return torch.mean((chosen - labels) ** 2)
+    return torch.sum(weight * (chosen - labels) ** 2) / torch.sum(weight)
+
+
+def label_weights(labels: np.ndarray, vehicle: np.ndarray, train_index: np.ndarray,
+                  n_bins: int = 5, max_weight: float = 10.0) -> np.ndarray:
+    """Inverse-frequency sample weights (N,) float32 for imbalanced labels (ours).
+
+    Per vehicle v, its training labels are binned in ``n_bins`` equal bins of [0, 1];
+    a sample of v whose label falls in bin b gets
+
+        w = min(n_v / (B_v · n_{v,b}), max_weight),   then scaled to mean 1 over v's
+                                                       training samples,
+
+    with n_v the vehicle's training samples, n_{v,b} those in bin b and B_v its
+    non-empty bins: every occupied bin weighs about the same in the loss. A jeep whose
+    labels are 97 % ≈ 1 then learns from its few stalls instead of averaging them
+    away. Samples of bins with no training sample (validation, test) get the cap.
+    """
+    labels = np.asarray(labels, np.float64)
+    bins = np.clip((labels * n_bins).astype(np.int64), 0, n_bins - 1)
+    weights = np.ones(len(labels), np.float64)
+    train = np.zeros(len(labels), bool)
+    train[train_index] = True
+    for v in np.unique(vehicle):
+        own = vehicle == v
+        counts = np.bincount(bins[own & train], minlength=n_bins).astype(np.float64)
+        if counts.sum() == 0:
+            continue
+        per_bin = np.where(counts > 0, counts.sum() / (np.count_nonzero(counts)
+                                                        * np.maximum(counts, 1)), max_weight)
+        w = np.minimum(per_bin[bins], max_weight)
+        weights[own] = w[own] / w[own & train].mean()
+    return weights.astype(np.float32)
 
 
 def default_device() -> torch.device:
@@ -191,12 +228,15 @@ def evaluate(model: DGTNet, part: PatchDataset,
 
 
 def _validation_loss(model: DGTNet, dataset: PatchDataset, index: np.ndarray,
-                     columns: np.ndarray, batch_size: int, device: torch.device) -> float:
-    """Mean :func:`masked_loss` over the samples ``index`` (eval mode, no gradient)."""
+                     columns: np.ndarray, batch_size: int, device: torch.device,
+                     weights: np.ndarray | None = None) -> float:
+    """Mean :func:`masked_loss` over the samples ``index`` (eval mode, no gradient),
+    weighted like training when ``weights`` (N,) are given."""
     pred = _predict_index(model, dataset.patches, index, batch_size, device)
+    w = None if weights is None else torch.from_numpy(weights[index]).double()
     return masked_loss(torch.from_numpy(pred).double(),
                        torch.from_numpy(dataset.labels[index]).double(),
-                       torch.from_numpy(columns[index])).item()
+                       torch.from_numpy(columns[index]), w).item()
 
 
 def head_prior(dataset: PatchDataset, index: np.ndarray,
@@ -267,6 +307,9 @@ def train_model(
         raise ValueError(f"need epochs ≥ 1 and batch_size ≥ 2, got {cfg.epochs}, {cfg.batch_size}")
     if cfg.head_init not in HEAD_INITS:
         raise ValueError(f"unknown head_init {cfg.head_init!r}; valid: {', '.join(HEAD_INITS)}")
+    if cfg.label_weighting not in LABEL_WEIGHTINGS:
+        raise ValueError(f"unknown label_weighting {cfg.label_weighting!r}; valid: "
+                         f"{', '.join(LABEL_WEIGHTINGS)}")
     chosen = np.isin(dataset.vehicle, [VEHICLES.index(v) for v in vehicles])
     train_idx = np.flatnonzero(chosen & (dataset.split == TRAIN))
     val_idx = np.flatnonzero(chosen & (dataset.split == VAL))
@@ -290,6 +333,11 @@ def train_model(
                                  weight_decay=cfg.weight_decay)
     labels = torch.from_numpy(dataset.labels.astype(np.float32))
     heads = torch.from_numpy(columns)
+    weights = None
+    if cfg.label_weighting == "inverse_frequency":
+        weights = label_weights(dataset.labels, dataset.vehicle, train_idx, cfg.label_bins,
+                                cfg.max_label_weight)
+    sample_w = None if weights is None else torch.from_numpy(weights)
 
     history: list[dict[str, float]] = []
     best_state: dict[str, torch.Tensor] | None = None
@@ -312,7 +360,8 @@ def train_model(
                 if cfg.mirror_augment:  # left ↔ right: a vehicle's locomotion does not care
                     flip = torch.from_numpy(rng.random(len(idx)) < 0.5).to(device)
                     x = torch.where(flip[:, None, None, None], x.flip(-1), x)
-                loss = masked_loss(model(x), labels[idx].to(device), heads[idx].to(device))
+                loss = masked_loss(model(x), labels[idx].to(device), heads[idx].to(device),
+                                   None if sample_w is None else sample_w[idx].to(device))
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 optimizer.step()
@@ -323,7 +372,7 @@ def train_model(
                 if on_batch_end is not None:
                     on_batch_end(epoch, step, value)
             batch_bar.close()
-            val = _validation_loss(model, dataset, val_idx, columns, 1024, device)
+            val = _validation_loss(model, dataset, val_idx, columns, 1024, device, weights)
             history.append({"epoch": epoch, "train_loss": total / seen, "val_loss": val,
                             "seconds": time.perf_counter() - t0})
             if val < best_val:
