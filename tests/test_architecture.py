@@ -63,3 +63,31 @@ def test_no_relative_imports_so_every_import_names_its_layer():
 def test_the_sub_packages_are_the_pipeline_stages():
     packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
     assert packages == set(LAYERS) | {"viz"}
+
+
+def test_module_level_imports_have_no_cycle():
+    """Import order is a DAG: no module needs a module that (indirectly) needs it."""
+    modules = _modules()
+    graph = {}
+    for name, path in modules.items():
+        deps = set()
+        for node in ast.parse(path.read_text()).body:  # module level: what import runs
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                deps |= {m for m in [node.module, *(f"{node.module}.{a.name}"
+                                                     for a in node.names)] if m in modules}
+        graph[name] = deps - {name, "dgt_lib"}
+    cycles, state = [], {}
+
+    def visit(node, stack):
+        state[node] = "open"
+        for dep in graph[node]:
+            if state.get(dep) == "open":
+                cycles.append(stack[stack.index(dep):] + [dep])
+            elif dep not in state:
+                visit(dep, stack + [dep])
+        state[node] = "done"
+
+    for name in graph:
+        if name not in state:
+            visit(name, [name])
+    assert cycles == []

@@ -32,7 +32,8 @@ import pytest
 import torch
 
 from dgt_lib.core.config import VEHICLES, TrainConfig
-from dgt_lib.learning.model import N_CHANNELS, DGTNet
+from dgt_lib.learning.model import DGTNet
+from dgt_lib.learning.synthetic import plane_patches
 from dgt_lib.learning.training import collapsed_heads, head_prior, train_model
 from dgt_lib.perception.dataset import PatchDataset, split_by_trajectory
 
@@ -56,14 +57,7 @@ def slope_dataset(n: int, seed: int, vehicle: str = "jeep", steep_fraction: floa
     steep = rng.random(n) < steep_fraction
     slope = np.where(steep, rng.uniform(0.35, 0.7, n), rng.uniform(-0.3, 0.3, n))
     rough = rng.uniform(0.0, 0.1, n)
-    rows = (21 - np.arange(22)) * 0.4  # distance behind the front row, m
-    patches = np.empty((n, N_CHANNELS, 22, 7), dtype=np.float16)
-    patches[:, 0:3] = np.clip(rng.uniform(0.2, 0.6, (n, 3, 1, 1))
-                              + rng.normal(0, 0.05, (n, 3, 22, 7)), 0, 1)
-    height = (slope[:, None] * rows[None, :])[:, :, None] + rng.uniform(-2, 2, (n, 1, 1))
-    patches[:, 3] = height + rough[:, None, None] * rng.normal(0, 0.3, (n, 22, 7))
-    patches[:, 4] = rough[:, None, None] * (1 + rng.normal(0, 0.1, (n, 22, 7)))
-    patches[:, 5] = np.abs(slope)[:, None, None] + rng.normal(0, 0.02, (n, 22, 7))
+    patches = plane_patches(slope, rough, rng)
     labels = 1.0 - depth / (1.0 + np.exp(-(slope - 0.5) / 0.05))
     labels = np.clip(labels - np.abs(rng.normal(0, 0.005, n)), 0, 1).astype(np.float32)
     code = np.full(n, VEHICLES.index(vehicle), dtype=np.int8)

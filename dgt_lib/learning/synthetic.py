@@ -17,6 +17,23 @@ SYNTHETIC_ROUGHNESS_SCALE = {"jeep": 0.6, "vw_van": 0.4, "mercedes_van": 0.15, "
 """Synthetic rule: roughness σ_H (m) that multiplies a vehicle's L by e^-1."""
 
 
+def plane_patches(slope: np.ndarray, rough: np.ndarray, rng: np.random.Generator
+                  ) -> np.ndarray:
+    """Patches (N, 6, 22, 7) float16 of tilted planes: forward slope ``slope`` (N,)
+    [rise/run, positive = uphill: the height rises toward row 0], roughness ``rough`` (N,)
+    [m] in H̄ and σ_H, ‖∇H̄‖ ≈ |slope|, random uniform colours, a random base height."""
+    n = len(slope)
+    rows = (21 - np.arange(22)) * 0.4  # (22,) distance behind the patch's front row, m
+    patches = np.empty((n, N_CHANNELS, 22, 7), dtype=np.float16)
+    patches[:, 0:3] = np.clip(rng.uniform(0.2, 0.6, (n, 3, 1, 1))
+                              + rng.normal(0, 0.05, (n, 3, 22, 7)), 0, 1)
+    height = (slope[:, None] * rows[None, :])[:, :, None] + rng.uniform(-2, 2, (n, 1, 1))
+    patches[:, 3] = height + rough[:, None, None] * rng.normal(0, 0.3, (n, 22, 7))
+    patches[:, 4] = rough[:, None, None] * (1 + rng.normal(0, 0.1, (n, 22, 7)))
+    patches[:, 5] = np.abs(slope)[:, None, None] + rng.normal(0, 0.02, (n, 22, 7))
+    return patches
+
+
 def synthetic_dataset(
     n_per_vehicle: tuple[int, int, int, int] = (300, 100, 100, 20),
     seed: int = 0,
@@ -36,14 +53,7 @@ def synthetic_dataset(
     vehicle = np.repeat(np.arange(len(VEHICLES), dtype=np.int8), n_per_vehicle)
     slope = rng.uniform(-0.6, 0.6, n)
     rough = rng.uniform(0.0, 0.4, n)
-    rows = (21 - np.arange(22)) * 0.4  # (22,) distance behind the patch's front row, m
-    patches = np.empty((n, N_CHANNELS, 22, 7), dtype=np.float16)
-    patches[:, 0:3] = np.clip(rng.uniform(0.2, 0.6, (n, 3, 1, 1))
-                              + rng.normal(0, 0.05, (n, 3, 22, 7)), 0, 1)
-    height = (slope[:, None] * rows[None, :])[:, :, None] + rng.uniform(-2, 2, (n, 1, 1))
-    patches[:, 3] = height + rough[:, None, None] * rng.normal(0, 0.3, (n, 22, 7))
-    patches[:, 4] = rough[:, None, None] * (1 + rng.normal(0, 0.1, (n, 22, 7)))
-    patches[:, 5] = np.abs(slope)[:, None, None] + rng.normal(0, 0.02, (n, 22, 7))
+    patches = plane_patches(slope, rough, rng)
     s_max = np.array([SYNTHETIC_MAX_SLOPE[v] for v in VEHICLES])[vehicle]
     r_v = np.array([SYNTHETIC_ROUGHNESS_SCALE[v] for v in VEHICLES])[vehicle]
     labels = np.exp(-rough / r_v) / (1 + np.exp((slope - s_max) / 0.05))

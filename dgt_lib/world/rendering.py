@@ -223,7 +223,7 @@ class TerrainRenderer:
             mujoco.mjr_uploadTexture(sim.model, r._mjr_context,
                                      sim.model.texture("terrain_tex").id)
         self._current = key
-        sim._renderers[size] = self._renderer  # Simulator.render_rgbd renders with it
+        sim.share_renderer(self._renderer)  # Simulator.render_rgbd renders with it
         return sim.render_rgbd(pose, intrinsics=self.camera, show_vehicle=False)
 
 

@@ -394,6 +394,12 @@ class Simulator:
                          position=d.cam_xpos[cid].copy(),
                          rotation=d.cam_xmat[cid].reshape(3, 3).copy(), time_s=float(d.time))
 
+    def share_renderer(self, renderer: mujoco.Renderer) -> None:
+        """Render frames of ``renderer``'s size with ``renderer`` instead of a renderer of
+        this simulator's own: simulators of tiles of one world can then share one OpenGL
+        context (:class:`~dgt_lib.world.rendering.TerrainRenderer`)."""
+        self._renderers[(renderer.height, renderer.width)] = renderer
+
     def close(self) -> None:
         """Free the renderers' OpenGL contexts."""
         for r in self._renderers.values():

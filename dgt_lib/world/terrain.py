@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import ndimage
 
-from dgt_lib.core.config import Profile, WorldsConfig, get_profile
+from dgt_lib.core.config import Profile, WorldsConfig, as_profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.world.worlds import (
     UnknownWorldError,
@@ -309,5 +309,5 @@ def get_world(name: str, profile: Profile | str | None = None) -> World:
     """
     if name not in WORLD_NAMES:
         raise UnknownWorldError(f"unknown world {name!r}; valid worlds: {', '.join(WORLD_NAMES)}")
-    prof = profile if isinstance(profile, Profile) else get_profile(profile)
+    prof = as_profile(profile)
     return _cached(name, prof.worlds, 0)
