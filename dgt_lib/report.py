@@ -119,18 +119,27 @@ def write_seed_summary(results: list[ExperimentResult], prof: Profile) -> Path:
     return path
 
 
+def seed_summaries(profile: Profile, *, require_all: bool = False) -> list[dict]:
+    """The ``results/summary.json`` of each of the profile's seeds that has one (all of
+    them, or a FileNotFoundError naming the first missing seed, with ``require_all``)."""
+    prof = as_profile(profile)
+    summaries = []
+    for p in prof.seed_profiles():
+        path = data_dir(p) / SUMMARY_RELPATH
+        if path.exists():
+            summaries.append(json.loads(path.read_text()))
+        elif require_all:
+            raise FileNotFoundError(f"no results for seed {p.seed} ({path}): run "
+                                    f"`dgt reproduce --profile {prof.name}` first")
+    return summaries
+
+
 def write_seeds_report(profile: Profile) -> Path:
     """``data/<profile>/results/README.md``: every experiment over the profile's seeds —
     k/n per seed, pooled with its Wilson interval, the spread — the claims per seed and
     the models' test errors, from each seed's ``results/summary.json``."""
     prof = as_profile(profile)
-    summaries = []
-    for p in prof.seed_profiles():
-        path = data_dir(p) / SUMMARY_RELPATH
-        if not path.exists():
-            raise FileNotFoundError(f"no results for seed {p.seed} ({path}): run "
-                                    f"`dgt reproduce --profile {prof.name}` first")
-        summaries.append(json.loads(path.read_text()))
+    summaries = seed_summaries(prof, require_all=True)
     ids = [s["seed"] for s in summaries]
     parts = [f"# Results — profile `{prof.name}`, {len(ids)} seed(s): "
              + ", ".join(map(str, ids)), "",
@@ -141,14 +150,8 @@ def write_seeds_report(profile: Profile) -> Path:
              + ", ".join(f"[seed {s}](../seed-{s}/results/README.md)" for s in ids) + ".", "",
              "## Claims, seed by seed", "", seeds.claims_table(summaries)]
     for name in EXPERIMENTS:
-        per_vehicle: dict[str, list] = {}
-        for s in summaries:
-            for v, counts in s["experiments"].get(name, {}).get("counts", {}).items():
-                per_vehicle.setdefault(v, []).append(counts)
-        parts += [f"## {TITLES.get(name, name)}", ""]
-        for v, per_seed in per_vehicle.items():
-            parts.append(seeds.pooled_table(seeds.pooled_rows(per_seed), ids,
-                                            PAPER.get(name, {}).get(v), title=v))
+        parts += [f"## {TITLES.get(name, name)}", "",
+                  seeds.experiment_over_seeds(summaries, name, PAPER.get(name))]
     parts += ["## Learned locomotion (test split)", "", seeds.learning_table(summaries)]
     out = profile_root(prof) / "results"
     out.mkdir(parents=True, exist_ok=True)

@@ -78,6 +78,19 @@ def pooled_table(rows: Sequence[dict], seeds: Sequence[int], paper: PaperResult 
     return "\n".join(lines) + "\n"
 
 
+def experiment_over_seeds(summaries: Sequence[Summary], name: str,
+                          paper: Mapping[str, PaperResult] | None = None) -> str:
+    """Markdown: one :func:`pooled_table` per vehicle of experiment ``name`` over the
+    seeds' summaries (``paper``: the paper's results per vehicle, or None)."""
+    per_vehicle: dict[str, list] = {}
+    for s in summaries:
+        for v, counts in s["experiments"].get(name, {}).get("counts", {}).items():
+            per_vehicle.setdefault(v, []).append(counts)
+    ids = [s["seed"] for s in summaries]
+    return "\n".join(pooled_table(pooled_rows(per_seed), ids, (paper or {}).get(v), title=v)
+                     for v, per_seed in per_vehicle.items())
+
+
 def _route_share(summary: Summary, experiment: str, method: str, label: str | None,
                  route: str) -> tuple[int, int]:
     """(plans that took ``route``, plans) of ``method`` in an experiment, over one label
