@@ -6,13 +6,15 @@ model is trained on every vehicle's patches at once with the masked loss
 (:func:`masked_loss`): a patch of vehicle v trains the shared backbone and head v
 only. The single-task variant is the same architecture with one head, trained on
 one vehicle's data. Plain shuffled minibatches over all training samples (the
-dataset's vehicle imbalance is kept, as in the paper).
+dataset's vehicle imbalance is kept, as in the paper). Ours, beyond the paper: each head
+starts at its vehicle's prior (``TrainConfig.head_init``), and the loss can weight rare
+labels up (``TrainConfig.label_weighting``, off by default).
 
 Typical use::
 
     result = train_model(dataset, profile.train, seed=0)              # multi-task
     single = train_model(dataset, profile.train, vehicles=("vw_van",))
-    result = ensure_model(profile, dataset, kind="single:vw_van")     # cached
+    # cached per profile and seed: dgt_lib.stages.train.ensure_model(profile, dataset, kind)
     L_hat = predict(result.model, patches)                            # (N, n_heads)
 
 Training keeps the weights of the epoch with the lowest validation loss; Ctrl-C
@@ -412,37 +414,3 @@ def train_model(
     if checkpoint_path is not None:
         save_checkpoint(checkpoint_path, result)
     return result
-
-
-# ── checkpoints ──────────────────────────────────────────────────────────────
-
-
-
-
-
-
-
-
-# ── cached models ────────────────────────────────────────────────────────────
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-# ── synthetic data (tests, benchmarks, teaching) ─────────────────────────────
-
-
-
-
-

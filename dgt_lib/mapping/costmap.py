@@ -225,7 +225,3 @@ def directional_costmap(bev: BEVMap, predict: Predictor, n_headings: int = 8, *,
     if min(stride) < 1:
         raise ValueError(f"stride must be ≥ 1 cell, got {stride}")
     return _costmap(bev, predict, n_headings, stride, skip_unobserved, batch_size, progress)
-
-
-
-

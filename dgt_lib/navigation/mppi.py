@@ -1,4 +1,4 @@
-"""Path tracking: an MPPI controller and the steering conversion (paper: Controller Integration).
+"""Path tracking with MPPI (paper: Controller Integration).
 
 The paper (Section "Controller Integration") tracks the Hybrid A* path with
 Nav2's MPPI controller, converts its twist (v_x, ω_z) to a steering angle with
@@ -13,10 +13,12 @@ resistance and drag. This module rebuilds those three parts in numpy:
   following, path alignment, speed, goal, occupancy, constraints), and averaged
   with softmax weights exp(−(S − S_min)/λ). Terrain cost is *not* a critic: the
   paper uses the directional costmap for planning only.
-- :func:`steering_from_twist` — δ = atan(ℓ ω_z / v_x), normalised by δ_max.
+- :func:`~dgt_lib.navigation.bicycle.steering_from_twist` — δ = atan(ℓ ω_z / v_x),
+  normalised by δ_max; settings in :mod:`dgt_lib.navigation.mppi_config`.
 - The speed loop (PID + feed-forward for rolling resistance, drag and grade) is
   ``dgt_lib.world.speed_control.SpeedController``; it takes the v_x computed here.
-- :class:`KinematicBicycle` and :func:`simulate_tracking` — a small plant with
+- :class:`~dgt_lib.navigation.bicycle.KinematicBicycle` and
+  :func:`~dgt_lib.navigation.bicycle.simulate_tracking` — a small plant with
   actuator lag and noise, to try the controller without the physics simulator.
 
 Beyond Nav2's defaults (tuned for 0.5 m/s robots) the rollouts model what a
@@ -49,25 +51,6 @@ from scipy.signal import lfilter, savgol_coeffs
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.bicycle import resample_path, rollout_unicycle
 from dgt_lib.navigation.mppi_config import MPPIConfig
-
-# ---------------------------------------------------------------------------
-# Steering conversion (paper eq. "steering")
-# ---------------------------------------------------------------------------
-
-
-
-
-# ---------------------------------------------------------------------------
-# MPPI
-# ---------------------------------------------------------------------------
-
-
-
-
-
-
-
-
 
 
 class MPPIController:
@@ -425,16 +408,3 @@ class MPPIController:
         if cfg.v_min < 0:
             cost += np.maximum(-v, 0.0).mean(axis=0) * np.float32(1.0 / cfg.target_speed)
         return cfg.constraint_weight * cost
-
-
-# ---------------------------------------------------------------------------
-# A kinematic plant for trying the controller without MuJoCo
-# ---------------------------------------------------------------------------
-
-
-
-
-
-
-
-

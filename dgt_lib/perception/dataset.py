@@ -233,10 +233,6 @@ def build_dataset(episodes: Sequence[Episode], bev: BEVMap,
     )
 
 
-
-
-
-
 def dataset_summary(ds: PatchDataset) -> str:
     """One line: patches per vehicle and split, trajectories and mean label."""
     parts = []
@@ -248,5 +244,3 @@ def dataset_summary(ds: PatchDataset) -> str:
         parts.append(f"{name} {int(sel.sum())} ({c[0]}/{c[1]}/{c[2]}, {n_traj} runs, "
                      f"mean L {mean_l:.2f})")
     return f"{len(ds)} patches (train/val/test): " + "; ".join(parts)
-
-

@@ -60,13 +60,6 @@ _DIVERGENCE_WARNINGS = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
 _OTHER, _TERRAIN, _TREE, _CHASSIS, _WHEEL = -1, 0, 1, 2, 3
 
 
-# ----------------------------------------------------------------------------- model
-
-
-
-
-
-
 def immobile_time(immobile_s: float, speed_mps: float, dt_s: float,
                   threshold_mps: float = IMMOBILE_SPEED_MPS) -> float:
     """How long [s] a vehicle has been immobile after one more step of ``dt_s`` [s] at
@@ -75,13 +68,6 @@ def immobile_time(immobile_s: float, speed_mps: float, dt_s: float,
     The one immobility detector of the kit: the simulator's ``immobilized_s`` and the
     outcome rule of a trial (:mod:`dgt_lib.navigation.outcome`) both count with it."""
     return immobile_s + dt_s if abs(speed_mps) < threshold_mps else 0.0
-
-
-
-
-# ----------------------------------------------------------------------------- control
-
-
 
 
 def ackermann_angles(steer: float, vehicle: VehicleSpec) -> tuple[float, float]:
@@ -426,16 +412,3 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
 
 def _replace_done(st: VehicleState, reason: str, time_s: float) -> VehicleState:
     return replace(st, done_reason=reason, time_s=time_s)
-
-
-# ----------------------------------------------------------------------------- driving helpers
-
-
-
-
-
-
-
-
-
-

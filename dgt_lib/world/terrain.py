@@ -34,29 +34,15 @@ from dgt_lib.world.worlds import (
 WORLD_NAMES: tuple[str, ...] = ("training", "hill", "ridge", "eval")
 
 
-
-
-
-
-
-
-
-
 def _point_at(polyline: np.ndarray, s: float) -> tuple[float, float]:
     """The (x, y) point at arc length ``s`` [m] along a (M, 2) polyline."""
     cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(polyline, axis=0), axis=1))])
     return (float(np.interp(s, cum, polyline[:, 0])), float(np.interp(s, cum, polyline[:, 1])))
 
 
-
-
-
-
 def _grid(size_x_m: float, size_y_m: float, resolution: float) -> GridSpec:
     return GridSpec((0.0, 0.0), resolution, (int(round(size_y_m / resolution)),
                                              int(round(size_x_m / resolution))))
-
-
 
 
 def _place_trees(

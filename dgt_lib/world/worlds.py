@@ -26,7 +26,6 @@ TREE_COLUMNS: tuple[str, ...] = ("x", "y", "radius", "height")
 PATCH_SIZE_M: tuple[float, float] = (8.8, 2.8)  # paper: Patches
 
 
-
 class UnknownWorldError(ValueError):
     """A world name that is not one of :data:`WORLD_NAMES`."""
 
@@ -165,42 +164,6 @@ def _raster_distance(grid: GridSpec, polyline: np.ndarray) -> np.ndarray:
     if free.all():
         return np.full(grid.shape, np.inf)
     return ndimage.distance_transform_edt(free) * grid.resolution
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-# ----------------------------------------------------------------------------- generators
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-# ----------------------------------------------------------------------------- factory
-
-
-
-
 
 
 # ----------------------------------------------------------------------------- your own terrain
