@@ -330,3 +330,33 @@ def test_sparse_statistics_restore_the_accumulator():
     np.testing.assert_allclose(restored.channels[:3], ref.channels[:3], atol=0.5 / 255 + 1e-6)
     with pytest.raises(ValueError, match="grid"):
         BEVAccumulator(GridSpec((0.0, 0.0), 0.4, (10, 10))).add_sparse(sparse)
+
+
+def test_a_cells_colour_does_not_depend_on_who_looked_at_it():
+    """Training patches are cut from a BEV built from onboard and survey frames, costmaps
+    from survey-only BEVs: the same ground must get the same colour in both. (With
+    MuJoCo's headlight the onboard view rendered grass at 0.64× the survey's brightness.)"""
+    from dgt_lib.world.rendering import TerrainRenderer
+    from dgt_lib.world.simulator import look_at
+    from dgt_lib.world.worlds import from_heightmap
+
+    grass = np.array([0.32, 0.50, 0.20], np.float32)
+    x = np.arange(150) * 0.4
+    heights = np.tile(np.where(x > 30, (x - 30) * np.tan(np.radians(15)), 0.0), (150, 1))
+    colors = np.broadcast_to(grass, (150, 150, 3)).copy()
+    world = from_heightmap(heights.astype(np.float32), 0.4, colors=colors, name="grass")
+    renderer = TerrainRenderer(world, max_depth_m=20.0)
+    views = {"survey (nadir)": ((20.0, 30.0, 15.0), (20.0, 30.01, 0.0)),
+             "onboard (grazing)": ((5.0, 30.0, 2.0), (15.0, 30.0, 0.0)),
+             "oblique 45°": ((5.0, 30.0, 10.0), (15.0, 30.0, 0.0))}
+    flat_colour = {}
+    for name, (eye, target) in views.items():
+        acc = BEVAccumulator(world.grid)
+        acc.add_frame(renderer.render(look_at(np.array(eye), np.array(target))), max_depth_m=20.0)
+        bev = acc.result()
+        cx, _ = world.grid.cell_centers()
+        cells = bev.observed & (cx > 6.0) & (cx < 28.0)  # flat ground seen by every view
+        assert cells.sum() > 50, name
+        flat_colour[name] = bev.channels[:3, cells].mean(axis=1)
+    for name, colour in flat_colour.items():
+        np.testing.assert_allclose(colour, grass, atol=0.01, err_msg=name)

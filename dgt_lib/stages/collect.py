@@ -42,7 +42,7 @@ from dgt_lib.perception.episodes import (
 )
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
-from dgt_lib.world.mujoco_model import CAMERA
+from dgt_lib.world.mujoco_model import CAMERA, LIGHTING
 from dgt_lib.world.rendering import survey_frames, survey_poses
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
@@ -77,7 +77,7 @@ def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, obje
     """What one episode depends on (its artifact's cache key)."""
     return {"format": EPISODE_FORMAT, "episode": _fields(profile.collect, EPISODE_FIELDS),
             "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
-            "index": int(index), "camera": CAMERA}
+            "index": int(index), "camera": CAMERA, "lighting": LIGHTING}
 
 
 def _episode_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:
@@ -155,7 +155,7 @@ def bev_config(world_name: str, profile: Profile) -> dict[str, object]:
     """What the BEV of ``world_name`` depends on: the world, the survey and, for the
     training world, the episodes."""
     cfg: dict[str, object] = {"world": world_name, "worlds": profile.worlds,
-                              "seed": profile.seed, "camera": CAMERA,
+                              "seed": profile.seed, "camera": CAMERA, "lighting": LIGHTING,
                               "survey": _fields(profile.collect, SURVEY_FIELDS)}
     if world_name == "training":  # one digest, not 1,300 configurations in the metadata
         cfg["episodes"] = artifacts.config_hash(

@@ -11,6 +11,7 @@ Physics runs at 4 ms (implicitfast, pyramidal friction cones). The onboard camer
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import mujoco  # dgt_lib/__init__.py has set MUJOCO_GL=egl before this import
 import numpy as np
@@ -32,6 +33,25 @@ SUSPENSION_ZETA = 0.5
 SUSPENSION_TRAVEL_M = 0.15
 FRICTION = 1.0  # tyre–ground friction coefficient
 CAMERA = CameraIntrinsics(width=160, height=120, fovy_rad=math.radians(70.0))  # the onboard camera
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """The scene's light: a sun (a directional light) at the zenith plus ambient light,
+    no headlight, no specular, no shadows. A surface of albedo a renders as
+    a·(ambient + diffuse·max(0, n·z)) whatever the camera: flat ground shows its albedo
+    from the survey's nadir view and from a vehicle's onboard view alike, so a BEV cell's
+    colour does not depend on who looked at it. (MuJoCo's default headlight shines along
+    the view axis; with it, the onboard camera's grazing view rendered flat grass at 0.64×
+    the survey's brightness, and the training world's BEV, built from both, came out
+    darker than every survey-only BEV the costmaps are computed on.)"""
+
+    ambient: float = 0.55
+    diffuse: float = 0.45
+
+
+LIGHTING = Lighting()
+"""The light every world is rendered with (part of the frames' and BEV maps' cache keys)."""
 
 
 def _add_terrain(spec: mujoco.MjSpec, world: World) -> None:
@@ -183,9 +203,11 @@ def build_model(world: World, vehicle: str | VehicleSpec) -> mujoco.MjModel:
     spec.option.timestep = TIMESTEP_S
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-    spec.visual.headlight.ambient = [0.55, 0.55, 0.55]
-    spec.visual.headlight.diffuse = [0.45, 0.45, 0.45]
-    spec.visual.headlight.specular = [0.0, 0.0, 0.0]
+    spec.visual.headlight.active = 0
+    spec.worldbody.add_light(name="sun", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+                             dir=[0.0, 0.0, -1.0], pos=[0.0, 0.0, 100.0],
+                             ambient=[LIGHTING.ambient] * 3, diffuse=[LIGHTING.diffuse] * 3,
+                             specular=[0.0] * 3, castshadow=False)
     x0, x1, y0, y1 = world.extent
     extent = max(x1 - x0, y1 - y0)
     spec.stat.extent = extent
