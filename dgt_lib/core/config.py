@@ -43,9 +43,9 @@ class CollectConfig:
     """Self-supervised data collection (``dgt_lib.stages.collect``, ``dgt_lib.perception.dataset``).
 
     Episodes: spawn at a random free pose, drive at ``speed_mps`` with smooth
-    random (Ornstein–Uhlenbeck) steering until ``episode_duration_s``, a simulator
-    end (flipped, off_map, diverged) or ``immobilized_limit_s`` below the
-    simulator's immobile speed. Survey: nadir frames of the same camera from
+    random (Ornstein–Uhlenbeck) steering until ``episode_duration_s`` or a simulator
+    end (flipped, off_map, diverged); ``immobilized_limit_s`` below the simulator's
+    immobile speed turns the vehicle around (``turn_around_after_stall``) or ends the run. Survey: nadir frames of the same camera from
     ``survey_altitude_m`` above the terrain on a lattice (complete BEV maps).
     """
 
@@ -53,6 +53,13 @@ class CollectConfig:
     episode_duration_s: float = 100.0  # paper: runs end at 100 s or when immobilized
     speed_mps: float = 5.0  # u, commanded speed (paper: Locomotion)
     immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
+    # True (ours, an option): after a stall the vehicle turns around where it stopped and
+    # drives on (a new segment); False = the paper's runs, which end at the first stall.
+    # Measured on the demo training world (20 carla_cola runs, benchmarks/diagnose_descent.py
+    # explains why it matters): 2× the driving time, but steep descents stay rare (samples
+    # steeper than 15° downhill: 0 → 2), because the truck stalls at the foot of steep slopes.
+    turn_around_after_stall: bool = False
+    turn_around_min_m: float = 5.0  # a segment stalling closer than this to its start ends the run
     steer_tau_s: float = 2.0  # OU steering correlation time [s]
     steer_sigma: float = 0.3  # OU stationary std of the normalised steer
     edge_margin_m: float = 15.0  # closer to the map edge, steer back toward the centre [m]

@@ -178,8 +178,10 @@ def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None 
                     window_s: float | None = None) -> dict[str, np.ndarray]:
     """Patches of one run (a :class:`dgt_lib.perception.episodes.Episode`) cut from ``bev`` with
     their labels L_v(t_P) (paper: "each patch P extracted at time t_P is paired with
-    L_v(t_P)"), at :func:`patch_times`; none in the last 2 s of a run that fell off
-    the map or diverged (:data:`ARTIFACT_ENDS`).
+    L_v(t_P)"), at :func:`patch_times` of each of the run's segments (a segment is
+    treated as a run of its own: it starts from rest after a turn-around, and no label
+    window spans two); none in the last 2 s of a run that fell off the map or diverged
+    (:data:`ARTIFACT_ENDS`).
 
     Returns ``times`` (M,), ``pose`` (M, 3), ``patches`` (M, 6, 22, 7) float32,
     ``observed`` (M, 22, 7) bool and ``labels`` (M,) float32 in [0, 1].
@@ -193,16 +195,25 @@ def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None 
     valid = np.asarray(episode.valid, dtype=bool)
     if episode.end_reason in ARTIFACT_ENDS:  # the last moments show the map edge / a glitch
         valid = valid & (t <= t[-1] - ARTIFACT_END_S)
-    at = patch_times(t, valid, cfg.patch_interval_s, cfg.patch_start_s, w)
-    if len(at) == 0:
-        return {"times": at, "pose": np.zeros((0, 3)),
+    times, poses, labels = [], [], []
+    for seg in episode.segments():
+        ts, t0 = t[seg], t[seg][0]
+        at = t0 + patch_times(ts - t0, valid[seg], cfg.patch_interval_s, cfg.patch_start_s, w)
+        if len(at) == 0:
+            continue
+        xy_yaw = np.asarray(episode.pose[seg], dtype=np.float64)
+        times.append(at)
+        poses.append(_pose_at(ts, xy_yaw, at))
+        labels.append(locomotion_signal(ts, xy_yaw[:, :2], window_s=w, u=cfg.speed_mps,
+                                        at_s=at))
+    if not times:
+        return {"times": np.zeros(0), "pose": np.zeros((0, 3)),
                 "patches": np.zeros((0, 6, 22, 7), np.float32),
                 "observed": np.zeros((0, 22, 7), bool), "labels": np.zeros(0, np.float32)}
-    pose = _pose_at(t, episode.pose, at)
+    pose = np.concatenate(poses)
     patches, observed = extract_patches(bev, pose)
-    labels = locomotion_signal(t, episode.pose[:, :2], window_s=w, u=cfg.speed_mps, at_s=at)
-    return {"times": at, "pose": pose, "patches": patches, "observed": observed,
-            "labels": labels.astype(np.float32)}
+    return {"times": np.concatenate(times), "pose": pose, "patches": patches,
+            "observed": observed, "labels": np.concatenate(labels).astype(np.float32)}
 
 
 def build_dataset(episodes: Sequence[Episode], bev: BEVMap,

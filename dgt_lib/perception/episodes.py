@@ -7,11 +7,23 @@ speed controller with smooth random steering — an Ornstein–Uhlenbeck process
 (:class:`OUSteering`), turned back toward the map centre near the edge and around tree
 trunks ahead (ours: random driving hits a trunk every few hundred metres on our maps,
 which would end most runs for every vehicle alike; the paper's jeep ran nearly full
-100 s runs, ≈ 75 patches each) — and ends after ``episode_duration_s`` (paper: 100 s),
-when immobilized for ``immobilized_limit_s`` (the simulator's immobility clock; ours:
-5 s, shorter than the 10 s of the evaluation so a stuck run wastes little simulation
-while still giving ~4 patches of the stall), or at a simulator end (``flipped``,
-``off_map``, ``diverged``).
+100 s runs, ≈ 75 patches each) — and ends after ``episode_duration_s`` (paper: 100 s)
+or at a simulator end (``flipped``, ``off_map``, ``diverged``).
+
+**Stalls.** Immobilized for ``immobilized_limit_s`` (the simulator's immobility clock;
+ours: 5 s, shorter than the 10 s of the evaluation, so a stall still gives ~4 patches),
+the paper's run ends. Optionally (ours, off by default), with
+``turn_around_after_stall``, the vehicle is put back where it stopped facing the other
+way and drives on, in a new
+*segment* of the same episode (labels and patches never span two segments); the episode
+ends ``immobilized`` only when a segment stalls less than ``turn_around_min_m`` from
+where it began (stuck both ways). Why: a weak vehicle's runs end at the first slope it
+cannot climb, so its data are stalls uphill and hardly any descents — on the demo
+training world carla_cola had 9 patches more than 10° downhill against 255 uphill, and
+its head could not learn that it descends what it cannot climb (the directional claim
+of Experiment 1). Turning around descends the slope it stalled on — but a truck stalls
+near the foot of a steep slope, so this doubles its data without adding steep descents
+(measured: ``CollectConfig.turn_around_after_stall``); hence off by default.
 
 The pose is recorded at the 25 Hz control rate; an onboard RGB-D frame is rendered
 every 5 m driven (about once a second at u; rendering dominates the cost, and a stalled
@@ -148,7 +160,9 @@ class Episode:
     yaw [rad]. z: (T,) chassis height [m]. speed_mps: (T,) signed speed along the
     heading. angular_rate_dps: (T,) body angular-rate magnitude [°/s].
     valid: (T,) bool, False where the angular rate exceeds the glitch threshold.
-    end_reason: one of :data:`END_REASONS`. n_frames: onboard frames rendered.
+    segment: (T,) int, the segment of each sample (0 until the first turn-around after a
+    stall, then 1, …; see the module docstring). end_reason: one of :data:`END_REASONS`.
+    n_frames: onboard frames rendered.
     bev: the frames' accumulated BEV statistics in sparse form (``None`` when
     loaded without it), see :meth:`BEVAccumulator.to_sparse`.
     """
@@ -165,6 +179,19 @@ class Episode:
     end_reason: str
     n_frames: int
     bev: dict[str, np.ndarray] | None = None
+    segment: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.segment is None:  # one segment (the paper's runs; older artifacts)
+            self.segment = np.zeros(len(self.time_s), np.int16)
+
+    def segments(self) -> list[slice]:
+        """The sample ranges of the episode's segments, in order."""
+        seg = np.asarray(self.segment)
+        cuts = np.flatnonzero(np.diff(seg) != 0) + 1
+        bounds = np.concatenate([[0], cuts, [len(seg)]])
+        return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+                if b > a]
 
     @property
     def duration_s(self) -> float:
@@ -178,6 +205,7 @@ class Episode:
             "z": self.z, "speed_mps": self.speed_mps,
             "angular_rate_dps": self.angular_rate_dps, "valid": self.valid,
             "end_reason": np.array(self.end_reason), "n_frames": np.array(self.n_frames),
+            "segment": np.asarray(self.segment, np.int16),
         }
         for k, v in (self.bev or {}).items():
             out[f"bev_{k}"] = v
@@ -192,7 +220,7 @@ class Episode:
             z=arrays["z"], speed_mps=arrays["speed_mps"],
             angular_rate_dps=arrays["angular_rate_dps"], valid=arrays["valid"],
             end_reason=str(arrays["end_reason"]), n_frames=int(arrays["n_frames"]),
-            bev=bev if with_bev and bev else None,
+            bev=bev if with_bev and bev else None, segment=arrays.get("segment"),
         )
 
 
@@ -239,13 +267,14 @@ def run_episode(
         renderer.restart()
     st = sim.reset(float(pose0[0]), float(pose0[1]), float(pose0[2]))
     n_max = int(round(cfg.episode_duration_s / CONTROL_DT_S)) + 1
-    rows = np.empty((n_max, 7))  # t, x, y, yaw, z, speed, |ω| [°/s]
+    rows = np.empty((n_max, 8))  # t, x, y, yaw, z, speed, |ω| [°/s], segment
     n, n_frames, reason = 0, 0, "timeout"
     travelled, next_frame_m, last_xy = 0.0, 0.0, st.position[:2].copy()
+    segment, t0, segment_start = 0, 0.0, st.position[:2].copy()  # t0: the segment's start [s]
     while True:
         rate = math.degrees(float(np.linalg.norm(st.angular_rate)))
-        rows[n] = (st.time_s, st.position[0], st.position[1], st.yaw, st.position[2],
-                   st.speed_mps, rate)
+        rows[n] = (t0 + st.time_s, st.position[0], st.position[1], st.yaw, st.position[2],
+                   st.speed_mps, rate, segment)
         n += 1
         travelled += float(np.hypot(*(st.position[:2] - last_xy)))
         last_xy = st.position[:2].copy()
@@ -257,11 +286,20 @@ def run_episode(
         if st.done_reason is not None:
             reason = st.done_reason
             break
+        if n >= n_max or t0 + st.time_s >= cfg.episode_duration_s - 1e-9:
+            break
         if st.immobilized_s > cfg.immobilized_limit_s:
-            reason = "immobilized"
-            break
-        if n >= n_max or st.time_s >= cfg.episode_duration_s - 1e-9:
-            break
+            moved = float(np.hypot(*(st.position[:2] - segment_start)))
+            if not cfg.turn_around_after_stall or moved < cfg.turn_around_min_m:
+                reason = "immobilized"
+                break
+            # Turn around where it stopped: a new segment, starting a control step later.
+            t0 += st.time_s + CONTROL_DT_S
+            segment += 1
+            st = sim.reset(float(st.position[0]), float(st.position[1]), st.yaw + math.pi)
+            segment_start, last_xy = st.position[:2].copy(), st.position[:2].copy()
+            ou.value = 0.0
+            continue
         if steer is not None:
             s = steer(st)
         else:
@@ -281,6 +319,7 @@ def run_episode(
         angular_rate_dps=rows[:, 6].astype(np.float32),
         valid=rows[:, 6] <= cfg.max_angular_rate_dps, end_reason=reason,
         n_frames=n_frames, bev=acc.to_sparse() if render else None,
+        segment=rows[:, 7].astype(np.int16),
     )
 
 

@@ -51,10 +51,11 @@ EPISODE_FIELDS: tuple[str, ...] = (
     "episode_duration_s", "speed_mps", "immobilized_limit_s", "steer_tau_s", "steer_sigma",
     "edge_margin_m", "tree_lookahead_m", "spawn_margin_m", "spawn_max_slope_deg",
     "max_angular_rate_dps", "frame_spacing_m", "frame_max_depth_m",
+    "turn_around_after_stall", "turn_around_min_m",
 )
 """The :class:`CollectConfig` fields an episode depends on (its cache key)."""
 
-EPISODE_FORMAT = 1
+EPISODE_FORMAT = 2  # 2: per-sample segment (turn-arounds after stalls)
 """Version of the episode artifact's layout (part of its cache key)."""
 
 SURVEY_FIELDS: tuple[str, ...] = ("survey_altitude_m", "survey_overlap")
