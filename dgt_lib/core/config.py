@@ -45,8 +45,9 @@ class CollectConfig:
     Episodes: spawn at a random free pose, drive at ``speed_mps`` with smooth
     random (Ornstein–Uhlenbeck) steering until ``episode_duration_s`` or a simulator
     end (flipped, off_map, diverged); ``immobilized_limit_s`` below the simulator's
-    immobile speed turns the vehicle around (``turn_around_after_stall``) or ends the run. Survey: nadir frames of the same camera from
-    ``survey_altitude_m`` above the terrain on a lattice (complete BEV maps).
+    immobile speed ends the run (or, with ``turn_around_after_stall``, turns the vehicle
+    around). Survey: nadir frames of the same camera from ``survey_altitude_m`` above the
+    terrain on a lattice (complete BEV maps).
     """
 
     episodes: tuple[int, int, int, int] = (40, 40, 30, 20)  # per vehicle, VEHICLES order
