@@ -14,6 +14,7 @@ from dgt_lib.learning.checkpoints import (
     CheckpointError,
     checkpoint_dict,
     load_checkpoint,
+    prediction_digest,
     save_checkpoint,
 )
 from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, centre_heights
@@ -146,6 +147,18 @@ def test_checkpoint_round_trip_gives_identical_predictions(trained, dataset, tmp
     assert loaded.best_epoch == trained.best_epoch
     assert loaded.metrics == trained.metrics
     assert loaded.config == trained.config
+
+
+def test_prediction_digest_follows_the_weights_not_the_training_record(trained):
+    ckpt = checkpoint_dict(trained)
+    digest = prediction_digest(ckpt)
+    timings = [{**h, "seconds": h["seconds"] + 1.0} for h in ckpt["history"]]
+    assert prediction_digest({**ckpt, "history": timings, "metrics": {}}) == digest
+    for name in ("input_mean", next(iter(ckpt["state_dict"]))):  # normalisation, a weight
+        state = dict(ckpt["state_dict"])
+        state[name] = state[name].clone()
+        state[name].view(-1)[0] += 1e-3
+        assert prediction_digest({**ckpt, "state_dict": state}) != digest
 
 
 def test_wrong_architecture_or_vehicles_is_a_clear_error(trained, tmp_path):

@@ -21,6 +21,7 @@ from dgt_lib.learning.checkpoints import (
     TrainResult,
     checkpoint_dict,
     load_checkpoint,
+    prediction_digest,
 )
 from dgt_lib.learning.training import collapsed_heads, default_device, train_model
 from dgt_lib.perception.dataset import PatchDataset
@@ -85,7 +86,10 @@ def ensure_model(
     :func:`dataset_fingerprint`), ``profile.train`` (architecture and training
     settings), the kind, the seed (default ``profile.seed``) and whether ImageNet
     RGB weights were used (``rgb_weights``, default :func:`default_rgb_weights`,
-    only with width 64). Ctrl-C (KeyboardInterrupt) while training propagates at
+    only with width 64). The artifact's fingerprint, which keys the costmaps and
+    experiments built on the model, is its
+    :func:`~dgt_lib.learning.checkpoints.prediction_digest`: retraining to the same
+    weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training propagates at
     once and writes nothing: an interrupted model is never cached as a finished one,
     and the next call trains it again from the start.
     """
@@ -107,7 +111,8 @@ def ensure_model(
             dataset, cfg, vehicles=vehicles, seed=seed, device=device, progress=progress,
             rgb_weights=rgb_weights, keep_best_on_interrupt=False))
 
-    ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile))
+    ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile),
+                            fingerprint=prediction_digest)
     return load_checkpoint(ckpt, vehicles=vehicles,
                            device=device if device is not None else default_device())
 
