@@ -89,9 +89,9 @@ def ensure_model(
     only with width 64). The artifact's fingerprint, which keys the costmaps and
     experiments built on the model, is its
     :func:`~dgt_lib.learning.checkpoints.prediction_digest`: retraining to the same
-    weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training propagates at
-    once and writes nothing: an interrupted model is never cached as a finished one,
-    and the next call trains it again from the start.
+    weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training
+    propagates at once and writes nothing: an interrupted model is never cached as a
+    finished one, and the next call trains it again from the start.
     """
     vehicles = parse_kind(kind)
     cfg = profile.train
