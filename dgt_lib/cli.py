@@ -10,12 +10,22 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 import time
 
 from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import data_dir, profile_root
+
+EXIT_INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT, as a shell reports it)."""
+
+
+def _interrupted_message(seed: int, stage: registry.Stage, command: str) -> str:
+    """The one line ``dgt reproduce`` prints when Ctrl-C stops it in a stage."""
+    return (f"dgt: interrupted in seed {seed} · {stage.name}. Kept: the earlier stages' "
+            f"outputs; {stage.kept}. Rerun `{command}` to resume.")
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -36,11 +46,17 @@ def _reproduce(args: argparse.Namespace) -> int:
 
     rows = []
     jobs = [(run, stage) for run in runs for stage in stages]
-    for run, stage in tqdm(jobs, desc="pipeline", unit="stage"):
-        tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
-        t0 = time.perf_counter()
-        result = stage.load()(run)
-        rows.append((run.seed, stage.name, time.perf_counter() - t0, result))
+    run, stage = jobs[0]
+    try:
+        with tqdm(jobs, desc="pipeline", unit="stage") as bar:
+            for run, stage in bar:
+                tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
+                t0 = time.perf_counter()
+                result = stage.load()(run)
+                rows.append((run.seed, stage.name, time.perf_counter() - t0, result))
+    except KeyboardInterrupt:
+        print(_interrupted_message(run.seed, stage, args.command_line), file=sys.stderr)
+        return EXIT_INTERRUPTED
     print("\nSummary")
     for seed, name, seconds, result in rows:
         print(f"  seed {seed} {name:<12} {seconds:8.1f} s  {result.summary}")
@@ -141,12 +157,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status.
+
+    Ctrl-C ends any command with one line on stderr and status 130 (no traceback):
+    what the artifact cache holds stays, and the same command resumes from it.
+    """
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(argv)
+    args.command_line = shlex.join(["dgt", *argv])
     try:
         return args.func(args)
     except (UnknownProfileError, registry.UnknownStageError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"dgt: interrupted; kept everything finished so far. Rerun "
+              f"`{args.command_line}` to resume.", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

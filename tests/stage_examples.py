@@ -1,6 +1,9 @@
-"""Two tiny stages used by tests/test_cli.py to exercise `dgt reproduce`."""
+"""Tiny stages used by tests/test_cli.py to exercise `dgt reproduce`."""
+
+import time
 
 from dgt_lib.core import artifacts
+from dgt_lib.core.executors import run_jobs
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
 
@@ -14,3 +17,20 @@ def first(profile):
 def second(profile):
     value = artifacts.load(data_dir(profile) / "example.json")
     return StageOutput([], f"read n={value['n']} of seed {value['seed']}")
+
+
+def _job(index, seconds):
+    time.sleep(seconds)
+    return index
+
+
+def pool(profile):
+    """Three jobs in a process pool, each result saved as it arrives; the first takes no
+    time, the other two a minute (test_cli stops it with Ctrl-C in between)."""
+    def save(job, index):
+        artifacts.ensure(f"jobs/{index}.json", {"job": index}, lambda: {"job": index},
+                         profile=cache_dir(profile))
+
+    run_jobs(_job, [(0, 0.0), (1, 60.0), (2, 60.0)], workers=2, start_method="fork",
+             on_result=save, progress=False)
+    return StageOutput([], "ran 3 jobs")

@@ -135,3 +135,23 @@ def test_formats_round_trip(tmp_path, suffix, value):
     assert set(back) == set(value)
     for k in value:
         np.testing.assert_array_equal(np.asarray(back[k]), np.asarray(value[k]))
+
+
+def test_a_fingerprint_keys_what_is_built_on_an_artifact_by_content():
+    """Dependents are keyed by stored_digest: the fingerprint when one was given (what the
+    value means), else the file's SHA-256 (which changes with incidental bytes)."""
+    def build(seconds):
+        return lambda: {"weights": [1, 2], "seconds": seconds}
+
+    def meaning(value):
+        return str(value["weights"])
+
+    artifacts.ensure("m.json", {"v": 1}, build(3.2), profile="smoke", fingerprint=meaning)
+    first = artifacts.stored_digest("m.json", profile="smoke")
+    artifacts.ensure("m.json", {"v": 2}, build(4.7), profile="smoke", fingerprint=meaning,
+                     log=lambda _: None)
+    assert artifacts.stored_digest("m.json", profile="smoke") == first == "[1, 2]"
+    artifacts.ensure("p.json", {"v": 1}, build(3.2), profile="smoke")
+    plain = artifacts.stored_digest("p.json", profile="smoke")
+    artifacts.ensure("p.json", {"v": 2}, build(4.7), profile="smoke", log=lambda _: None)
+    assert artifacts.stored_digest("p.json", profile="smoke") != plain

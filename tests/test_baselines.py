@@ -63,3 +63,22 @@ def test_slope_costmap_costs_more_uphill_for_a_weak_climber():
     up, down = cost[0, 0][centre].mean(), cost[0, 4][centre].mean()
     assert up > 0.95 and down < 0.4  # weak climber: uphill impassable, downhill fine
     assert cost[1, 0][centre].mean() < up - 0.5
+
+
+def test_ctrl_c_during_the_slope_fit_stops_it_without_a_traceback(capfd, monkeypatch):
+    """Optuna would log an interrupted trial as a failure with its traceback."""
+    calls = []
+    real = SlopeModel.locomotion
+
+    def interrupted(self, theta):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(self, theta)
+
+    monkeypatch.setattr(SlopeModel, "locomotion", interrupted)
+    theta = np.linspace(-0.3, 0.3, 50)
+    with pytest.raises(KeyboardInterrupt):
+        fit_slope_model(theta, np.clip(1 - theta, 0, 1), n_trials=10)
+    out, err = capfd.readouterr()
+    assert len(calls) == 3 and "Traceback" not in out + err

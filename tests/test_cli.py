@@ -1,8 +1,18 @@
+import importlib
+import os
+import signal
 import subprocess
 import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
 
 from dgt_lib.cli import main
 from dgt_lib.stages import registry as pipeline
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_reproduce_runs_and_summarises(capsys, tmp_path, monkeypatch):
@@ -56,3 +66,66 @@ def test_python_dash_m_entry_point():
     done = subprocess.run([sys.executable, "-m", "dgt_lib", "--help"], capture_output=True,
                           text=True, check=True)
     assert "reproduce" in done.stdout
+
+
+@pytest.mark.parametrize("interrupted", [s.name for s in pipeline.STAGES])
+def test_ctrl_c_in_any_stage_stops_the_run_with_one_line_and_status_130(
+        interrupted, capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    ran = []
+
+    def fake(name):
+        def stage(profile):
+            ran.append(name)
+            if name == interrupted:
+                raise KeyboardInterrupt
+            return pipeline.StageOutput([], f"{name} done")
+        return stage
+
+    for stage in pipeline.STAGES:
+        module, _, func = stage.entry_point.partition(":")
+        monkeypatch.setattr(importlib.import_module(module), func, fake(stage.name))
+    try:
+        assert main(["reproduce", "--profile", "smoke"]) == 130
+    except KeyboardInterrupt:
+        pytest.fail("Ctrl-C escaped `dgt reproduce` (a traceback for the user)")
+    names = [s.name for s in pipeline.STAGES]
+    assert ran == names[: names.index(interrupted) + 1]  # no later stage ran
+    out, err = capsys.readouterr()
+    said = [line for line in (out + err).splitlines() if "interrupted" in line]
+    kept = pipeline.STAGES[names.index(interrupted)].kept
+    assert said == [f"dgt: interrupted in seed 0 · {interrupted}. Kept: the earlier stages' "
+                    f"outputs; {kept}. Rerun `dgt reproduce --profile smoke` to resume."]
+    assert "Traceback" not in out + err and "Summary" not in out
+
+
+def test_ctrl_c_in_a_terminal_stops_a_pool_stage_in_seconds_and_keeps_its_results(tmp_path):
+    """The real thing: SIGINT to the whole process group (as a terminal sends it) while a
+    stage runs jobs in worker processes."""
+    script = textwrap.dedent("""
+        import sys
+        from dgt_lib.stages import registry
+        registry.STAGES[:] = [registry.Stage("pool", "tests.stage_examples:pool", "jobs"),
+                              registry.Stage("first", "tests.stage_examples:first", "next")]
+        from dgt_lib.cli import main
+        sys.exit(main(["reproduce", "--profile", "smoke"]))
+    """)
+    env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    saved = tmp_path / "smoke" / "seed-0" / "jobs" / "0.json.meta.json"
+    deadline = time.monotonic() + 60
+    while not saved.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert saved.exists()
+    t0 = time.monotonic()
+    os.killpg(proc.pid, signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and time.monotonic() - t0 < 15
+    assert "Traceback" not in out + err
+    assert [line for line in err.splitlines() if "interrupted" in line] == [
+        "dgt: interrupted in seed 0 · pool. Kept: the earlier stages' outputs; what it had "
+        "finished. Rerun `dgt reproduce --profile smoke` to resume."]
+    assert (tmp_path / "smoke" / "seed-0" / "jobs" / "0.json").exists()
+    assert not (tmp_path / "smoke" / "seed-0" / "example.json").exists()  # "first" never ran

@@ -1,5 +1,6 @@
 """Closed-loop trials: routes, queries, the trial runner's error handling, and tables."""
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -8,7 +9,7 @@ import pytest
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation import trials
 from dgt_lib.evaluation.experiments import ExperimentResult, run_experiment
-from dgt_lib.evaluation.journal import read_journal
+from dgt_lib.evaluation.journal import Journal, read_journal
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import Query, classify_route, hill_queries, ridge_queries
 from dgt_lib.evaluation.trials import (
@@ -126,17 +127,73 @@ def test_an_interrupted_run_resumes_from_its_journal(tmp_path, monkeypatch):
     assert [r.outcome.success for r in results] == [True, False] * 3
 
 
-def test_a_journal_cut_short_by_a_crash_keeps_its_whole_records(tmp_path):
+def _journal_task(i):
+    return TrialTask("x", "hill", "dgt", "jeep", Query((i, 0, 0), (9, 9)), i, PROFILE, i)
+
+
+def _journaled(i):
+    return TrialResult(_journal_task(i), TrialOutcome(True, "success", 1.0),
+                       path=np.full((40, 2), float(i)))
+
+
+def _damaged_journal(path, damage):
+    """Five trials journaled; the third damaged: cut short by a crash with the last two
+    appended after it (as a resumed run of the previous code did), or a byte of it
+    changed on disk."""
+    ends = [0]
+    with Journal(path) as log:
+        for i in range(5):
+            log.append(_journaled(i))
+            ends.append(path.stat().st_size)
+    if damage == "crash":
+        data = path.read_bytes()
+        path.write_bytes(data[:ends[3] - 9] + data[ends[3]:])
+    else:
+        data = bytearray(path.read_bytes())
+        data[(ends[2] + ends[3]) // 2] ^= 0xFF
+        path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("damage", ["crash", "corrupt"])
+def test_a_damaged_journal_record_is_skipped_and_the_records_after_it_are_kept(
+        tmp_path, damage):
+    path = tmp_path / "j.pkl"
+    _damaged_journal(path, damage)
+    with pytest.warns(UserWarning, match="skipped 1 damaged record"):
+        done = read_journal(path)
+        assert list(done) == [_journal_task(i) for i in (0, 1, 3, 4)]
+    np.testing.assert_array_equal(done[_journal_task(4)].path, np.full((40, 2), 4.0))
+    assert read_journal(tmp_path / "missing.pkl") == {}
+
+
+def test_a_resumed_run_redoes_only_the_damaged_trial(tmp_path, monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+
+    path = tmp_path / "j.pkl"
+    _damaged_journal(path, "crash")
+    ran = []
+    monkeypatch.setattr(trials, "run_trial",
+                        lambda task, load_maps: ran.append(task.index) or _journaled(task.index))
+    tasks = [_journal_task(i) for i in range(5)]
+    with ThreadPoolExecutor(1) as pool, pytest.warns(UserWarning, match="damaged"):
+        results = run_trials(tasks, trial_maps, pool, progress=False, journal=path)
+    assert ran == [2] and [r.task for r in results] == tasks
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the damaged record was dropped: said once only
+        assert list(read_journal(path)) == [_journal_task(i) for i in (0, 1, 3, 4, 2)]
+
+
+def test_a_journal_of_bare_pickles_is_still_read_and_appended_to(tmp_path):
+    """Journals written before records were framed (one pickle after another)."""
     import pickle
 
-    task = TrialTask("x", "hill", "dgt", "jeep", Query((0, 0, 0), (1, 1)), 0, PROFILE, 0)
     path = tmp_path / "j.pkl"
-    good = TrialResult(task, TrialOutcome(True, "success", 1.0))
-    later = TrialResult(replace(task, index=1), TrialOutcome.failure("error", detail="boom"))
-    data = pickle.dumps(good) + pickle.dumps(later)
-    path.write_bytes(data[:-7])  # the crash hit while the second record was written
-    assert list(read_journal(path)) == [task]
-    assert read_journal(tmp_path / "missing.pkl") == {}
+    path.write_bytes(pickle.dumps(_journaled(0)) + pickle.dumps(_journaled(1))[:-7])
+    with pytest.warns(UserWarning, match="skipped 1 damaged record"):
+        assert list(read_journal(path)) == [_journal_task(0)]
+    with Journal(path) as log:
+        log.append(_journaled(1))
+    assert list(read_journal(path)) == [_journal_task(0), _journal_task(1)]
 
 
 def test_a_customised_profile_travels_with_its_trials():

@@ -14,6 +14,7 @@ from dgt_lib.learning.checkpoints import (
     CheckpointError,
     checkpoint_dict,
     load_checkpoint,
+    prediction_digest,
     save_checkpoint,
 )
 from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, centre_heights
@@ -148,6 +149,18 @@ def test_checkpoint_round_trip_gives_identical_predictions(trained, dataset, tmp
     assert loaded.config == trained.config
 
 
+def test_prediction_digest_follows_the_weights_not_the_training_record(trained):
+    ckpt = checkpoint_dict(trained)
+    digest = prediction_digest(ckpt)
+    timings = [{**h, "seconds": h["seconds"] + 1.0} for h in ckpt["history"]]
+    assert prediction_digest({**ckpt, "history": timings, "metrics": {}}) == digest
+    for name in ("input_mean", next(iter(ckpt["state_dict"]))):  # normalisation, a weight
+        state = dict(ckpt["state_dict"])
+        state[name] = state[name].clone()
+        state[name].view(-1)[0] += 1e-3
+        assert prediction_digest({**ckpt, "state_dict": state}) != digest
+
+
 def test_wrong_architecture_or_vehicles_is_a_clear_error(trained, tmp_path):
     path = save_checkpoint(tmp_path / "m.pt", trained)
     with pytest.raises(ArchitectureMismatchError, match="width"):
@@ -210,24 +223,36 @@ def test_ensure_model_caches_per_kind(dataset, data_dir, monkeypatch):
         ensure_model(profile, dataset, "single:truck")
 
 
-def test_interrupted_training_is_not_cached(dataset, data_dir, monkeypatch):
+def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
+        dataset, data_dir, monkeypatch):
+    """Ctrl-C is not swallowed: the stage stops (no next model, nothing saved for the
+    interrupted one), the models finished before stay cached, and a rerun trains only
+    what is missing."""
     profile = get_profile("smoke").with_(train=TrainConfig(epochs=3, batch_size=64, width=8,
                                                           fc_hidden=32))
-    real = train.train_model
+    real, trained, stop = train.train_model, [], [True]
 
     def interrupt_in_epoch_2(epoch, step, loss):
-        if epoch == 2:
+        if epoch == 2 and stop[0]:
             raise KeyboardInterrupt
 
-    def interrupted(*a, **k):
-        return real(*a, **k, on_batch_end=interrupt_in_epoch_2)
+    def train_model(*a, **k):
+        trained.append(k["vehicles"])
+        return real(*a, **k, on_batch_end=interrupt_in_epoch_2 if k["vehicles"] == ("jeep",)
+                    else None)
 
-    monkeypatch.setattr(train_stage, "train_model", interrupted)
-    result = ensure_model(profile, dataset, "single:jeep", progress=False)
-    assert result.interrupted and result.best_epoch == 1
+    monkeypatch.setattr(train_stage, "train_model", train_model)
+    kinds = ("single:carla_cola", "single:jeep", "single:vw_van")
+    with pytest.raises(KeyboardInterrupt):
+        train_stage.models_stage(profile, dataset, kinds=kinds, progress=False)
+    assert trained == [("carla_cola",), ("jeep",)]  # stopped: vw_van never started
     models = data_dir / "smoke" / "seed-0" / "models"
-    assert (models / "single_jeep.partial.pt").exists()
-    assert not (models / "single_jeep.pt").exists()
+    assert sorted(p.name for p in models.glob("*.pt")) == ["single_carla_cola.pt"]
+    stop[0] = False
+    trained.clear()
+    out = train_stage.models_stage(profile, dataset, kinds=kinds, progress=False)
+    assert trained == [("jeep",), ("vw_van",)]  # carla_cola is reused
+    assert all(p.exists() for p in out.paths) and len(out.paths) == 3
 
 
 def test_channel_statistics_skip_nan_and_match_numpy():

@@ -160,12 +160,16 @@ def ensure(
     *,
     profile: str,
     log: Callable[[str], None] = print,
+    fingerprint: Callable[[T], str] | None = None,
 ) -> T:
     """Load ``data/<profile>/<relpath>`` if it was built from ``config``; else build and save it.
 
     ``build()`` returns the value to store (a dict of arrays for ``.npz``). A
     mismatched hash, a missing metadata file or a corrupt artifact prints one line
-    saying why, and the artifact is rebuilt.
+    saying why, and the artifact is rebuilt. ``fingerprint(value)``, when given, is a
+    digest of what the value means (a model's weights, not its training's timings),
+    recorded in the metadata when it is built; :func:`stored_digest` returns it in
+    place of the file's SHA-256, so the artifacts built on this one are keyed by content.
     """
     path = profile_dir(profile) / Path(relpath)
     want = config_hash(config)
@@ -181,16 +185,20 @@ def ensure(
     save(path, value)
     meta = {"config_hash": want, "size": path.stat().st_size, "sha256": _file_digest(path),
             "config": _jsonable(config)}
+    if fingerprint is not None:
+        meta["fingerprint"] = fingerprint(value)
     _atomic_write(_meta_path(path), lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
     return value
 
 
 def stored_digest(relpath: str | Path, *, profile: str) -> str:
-    """The SHA-256 recorded when ``data/<profile>/<relpath>`` was written: a cheap
-    fingerprint of an artifact for the configuration of the stages built on it."""
+    """The fingerprint recorded when ``data/<profile>/<relpath>`` was written (see
+    :func:`ensure`), else its SHA-256: a cheap digest of an artifact for the
+    configuration of the stages built on it."""
     meta_path = _meta_path(profile_dir(profile) / Path(relpath))
     try:
-        return json.loads(meta_path.read_text())["sha256"]
+        meta = json.loads(meta_path.read_text())
+        return meta.get("fingerprint") or meta["sha256"]
     except (OSError, ValueError, KeyError) as exc:
         raise FileNotFoundError(f"no valid artifact at {meta_path.with_suffix('')}: {exc}") from exc
 

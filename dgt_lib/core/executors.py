@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
 import sys
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
@@ -51,6 +52,27 @@ class SerialExecutor(Executor):
         return future
 
 
+def init_worker() -> None:
+    """Initializer of the kit's pool workers: one thread (:func:`limit_threads`), and
+    SIGINT ignored — a terminal's Ctrl-C reaches every process of the group, and the
+    parent, not each worker, decides what happens (:func:`run_jobs` stops the pool)."""
+    limit_threads()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def stop_workers(executor: Executor) -> None:
+    """Shut ``executor`` down without waiting for the jobs it is running: pending jobs
+    are cancelled and the processes of a :class:`ProcessPoolExecutor` terminated (what
+    Ctrl-C needs: stop within seconds, not when the longest job ends)."""
+    processes = dict(getattr(executor, "_processes", None) or {})  # shutdown clears it
+    executor.shutdown(wait=False, cancel_futures=True)
+    for proc in processes.values():
+        if proc.is_alive():
+            proc.terminate()
+    for proc in processes.values():
+        proc.join(timeout=5)
+
+
 @contextlib.contextmanager
 def worker_environment() -> Iterator[None]:
     """Environment inherited by spawned workers: single-threaded BLAS."""
@@ -77,7 +99,7 @@ def default_executor(workers: int, start_method: str = "spawn") -> Executor:
     if workers <= 1:
         return SerialExecutor()
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(
-        start_method), initializer=limit_threads)
+        start_method), initializer=init_worker)
 
 
 def run_jobs(
@@ -99,8 +121,11 @@ def run_jobs(
     """Run ``fn(*job)`` for every job; returns ``{job: result}``.
 
     executor: any Executor; default :func:`default_executor` (``workers``,
-    ``start_method``), shut down
-    afterwards (pending jobs cancelled on an exception or Ctrl-C). At most
+    ``start_method``), shut down afterwards. On an exception or Ctrl-C
+    (KeyboardInterrupt) the jobs not yet finished are cancelled and the exception
+    re-raised; the default pool's workers are terminated at once (:func:`stop_workers`),
+    so Ctrl-C stops within seconds, and every result already handed to ``on_result``
+    stays with the caller. At most
     ``max_in_flight`` jobs are submitted at once (default 2 per worker, 1 for a
     :class:`SerialExecutor`), in ``jobs`` order. ``on_result(job, result)`` runs in this
     process for each finished job, in ``jobs`` order among those finishing together.
@@ -143,8 +168,14 @@ def run_jobs(
                     if postfix is not None:
                         bar.set_postfix_str(postfix())
                 fill()
+    except BaseException:
+        for fut in pending:
+            fut.cancel()
+        if own:
+            stop_workers(ex)
+        raise
     finally:
         bar.close()
-        if own:
-            ex.shutdown(wait=True, cancel_futures=True)
+    if own:
+        ex.shutdown(wait=True)
     return out

@@ -62,6 +62,15 @@ def checkpoint_dict(result: TrainResult) -> dict[str, Any]:
     }
 
 
+def prediction_digest(ckpt: dict[str, Any]) -> str:
+    """A digest of what determines a checkpoint's predictions: its architecture and
+    every tensor of its ``state_dict`` (weights, BatchNorm statistics, the input
+    normalisation) — not its history, timings, metrics or settings. Two trainings that
+    end with bit-identical weights have the same digest (16 hex digits)."""
+    tensors = {name: t.detach().cpu().numpy() for name, t in ckpt["state_dict"].items()}
+    return artifacts.config_hash({"architecture": ckpt["architecture"], "state_dict": tensors})
+
+
 def save_checkpoint(path: str | Path, result: TrainResult) -> Path:
     """Write ``result`` to ``path`` (``.pt``) atomically; returns the path."""
     path = Path(path)

@@ -19,7 +19,8 @@ Typical use::
 
 Training keeps the weights of the epoch with the lowest validation loss; Ctrl-C
 (KeyboardInterrupt) stops it cleanly and returns (and, with ``checkpoint_path``,
-has saved) that best model.
+has saved) that best model — or, with ``keep_best_on_interrupt=False`` (the cached
+pipeline), lets the interrupt through so that nothing half-trained is kept.
 """
 
 from __future__ import annotations
@@ -277,6 +278,7 @@ def train_model(
     rgb_weights: str | Path | None = None,
     checkpoint_path: str | Path | None = None,
     on_batch_end: Callable[[int, int, float], None] | None = None,
+    keep_best_on_interrupt: bool = True,
 ) -> TrainResult:
     """Train a DGTNet with Adam and the masked loss; keep the best validation epoch.
 
@@ -299,10 +301,11 @@ def train_model(
         checkpoint_path: if given, the best model so far is saved there (atomically,
             :func:`save_checkpoint`) each time the validation loss improves.
         on_batch_end: called as ``on_batch_end(epoch, step, loss)`` after every step.
-
-    Ctrl-C (KeyboardInterrupt) ends training after the last finished epoch: the
-    result holds the best weights so far and ``interrupted=True``. An interrupt
-    before the first epoch finishes has nothing to keep and is re-raised.
+        keep_best_on_interrupt: what Ctrl-C (KeyboardInterrupt) does. True: training
+            ends after the last finished epoch and the result holds the best weights so
+            far with ``interrupted=True`` (an interrupt before the first epoch finishes
+            has nothing to keep and is re-raised). False: the interrupt is re-raised at
+            once (the caller stops; nothing is evaluated or saved).
     """
     vehicles = _vehicle_tuple(vehicles)
     if cfg.epochs < 1 or cfg.batch_size < 2:
@@ -389,7 +392,7 @@ def train_model(
             if cfg.patience is not None and epoch - best_epoch >= cfg.patience:
                 break
     except KeyboardInterrupt:
-        if best_state is None:
+        if best_state is None or not keep_best_on_interrupt:
             raise
         interrupted = True
         tqdm.write(f"[dgt] training interrupted: keeping epoch {best_epoch} "

@@ -92,6 +92,8 @@ def load_model(profile: Profile | str | None, kind: str = "multitask", *,
 
 
 def _model_fingerprint(profile: Profile, kind: str) -> str:
+    """What a costmap of model ``kind`` is keyed by: the digest of the model's weights
+    and architecture (not of its checkpoint file, which holds training timings)."""
     return artifacts.stored_digest(model_relpath(kind), profile=cache_dir(profile))
 
 
@@ -152,10 +154,19 @@ def world_occupancy(world: World | str, profile: Profile | str | None = None
     return occupancy_map(bev, ensure_tau_s(prof)), bev.grid
 
 
+INFERENCE_FIELDS: tuple[str, ...] = ("n_headings", "stride")
+"""The :class:`CostmapConfig` fields a stored costmap depends on (its cache key, with its
+source). Not ``batch_size`` (patches per call: the same costmap up to float rounding), nor
+``slope_trials`` (the slope fit, which keys the slope map through its own digest), nor
+``tau_s_margin`` (the occupancy map, not stored with the costmaps)."""
+
+
 def _costmap_config(prof: Profile, bev_path: str, method: str, source: str) -> dict:
+    """The cache key of a stored costmap: the BEV map, the method, its ``source`` (the
+    model's or the slope fit's digest) and the :data:`INFERENCE_FIELDS`."""
     return {"stage": "costmap", "bev_path": bev_path, "method": method, "source": source,
             "bev": artifacts.stored_digest(bev_path, profile=cache_dir(prof)),
-            "costmap": prof.costmap}
+            "costmap": {f: getattr(prof.costmap, f) for f in INFERENCE_FIELDS}}
 
 
 def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None = None,

@@ -3,9 +3,9 @@
 A stage is a named, cached entry point ``run(profile) -> StageOutput``: it goes
 through the artifact cache (``dgt_lib.core.artifacts.ensure``), so a second run
 reuses what the first wrote. Issues that build a stage add it to :data:`STAGES`
-(keep DESIGN.md's data-flow order). Entry points are named as
-``"module:function"`` strings and imported only when run, so ``dgt --help``
-stays fast and a stage's heavy imports are paid only when it runs.
+(keep DESIGN.md's data-flow order), saying what stays cached when Ctrl-C stops it.
+Entry points are named as ``"module:function"`` strings and imported only when run,
+so ``dgt --help`` stays fast and a stage's heavy imports are paid only when it runs.
 """
 
 from __future__ import annotations
@@ -31,6 +31,8 @@ class Stage:
     name: str
     entry_point: str  # "dgt_lib.module:function", function(profile) -> StageOutput
     description: str
+    kept: str = "what it had finished"
+    """What stays in the cache when the stage is stopped by Ctrl-C (said to the user)."""
 
     def load(self) -> Callable[[Profile], StageOutput]:
         module, _, func = self.entry_point.partition(":")
@@ -39,17 +41,23 @@ class Stage:
 
 STAGES: list[Stage] = [
     Stage("collect", "dgt_lib.stages.collect:stage_collect",
-          "drive every vehicle on the training world (episodes, sparse RGB-D)"),
+          "drive every vehicle on the training world (episodes, sparse RGB-D)",
+          "every episode finished so far"),
     Stage("bev", "dgt_lib.stages.collect:stage_bev",
-          "global BEV maps of the training, hill, ridge and eval worlds"),
+          "global BEV maps of the training, hill, ridge and eval worlds",
+          "every BEV map finished so far"),
     Stage("dataset", "dgt_lib.stages.dataset:stage_dataset",
-          "heading-aligned patches + locomotion labels, split by trajectory"),
+          "heading-aligned patches + locomotion labels, split by trajectory",
+          "the episodes and BEV maps it needs (the dataset itself is built again)"),
     Stage("train", "dgt_lib.stages.train:stage_train",
-          "multi-task model and one single-task model per vehicle"),
+          "multi-task model and one single-task model per vehicle",
+          "every model finished so far (the interrupted one is not saved)"),
     Stage("costmaps", "dgt_lib.stages.costmaps:stage_costmaps",
-          "directional costmaps of every method, occupancy maps (τ_s)"),
+          "directional costmaps of every method, occupancy maps (τ_s)",
+          "every costmap finished so far"),
     Stage("experiments", "dgt_lib.report:stage_experiments",
-          "Experiments 1–3 in closed loop: tables, figures, rerun recordings"),
+          "Experiments 1–3 in closed loop: tables, figures, rerun recordings",
+          "every finished experiment and every finished trial (journaled)"),
 ]
 
 

@@ -21,6 +21,7 @@ from dgt_lib.learning.checkpoints import (
     TrainResult,
     checkpoint_dict,
     load_checkpoint,
+    prediction_digest,
 )
 from dgt_lib.learning.training import collapsed_heads, default_device, train_model
 from dgt_lib.perception.dataset import PatchDataset
@@ -67,12 +68,6 @@ def default_rgb_weights() -> Path | None:
     return next((p for p in candidates if p.is_file()), None)
 
 
-class _Interrupted(Exception):
-    def __init__(self, result: TrainResult) -> None:
-        super().__init__("training interrupted")
-        self.result = result
-
-
 def ensure_model(
     profile: Profile,
     dataset: PatchDataset,
@@ -91,9 +86,12 @@ def ensure_model(
     :func:`dataset_fingerprint`), ``profile.train`` (architecture and training
     settings), the kind, the seed (default ``profile.seed``) and whether ImageNet
     RGB weights were used (``rgb_weights``, default :func:`default_rgb_weights`,
-    only with width 64). While training, the best model so far is kept in
-    ``<kind>.partial.pt``; on Ctrl-C that file remains, nothing enters the cache,
-    and the best model so far is returned (``interrupted=True``).
+    only with width 64). The artifact's fingerprint, which keys the costmaps and
+    experiments built on the model, is its
+    :func:`~dgt_lib.learning.checkpoints.prediction_digest`: retraining to the same
+    weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training
+    propagates at once and writes nothing: an interrupted model is never cached as a
+    finished one, and the next call trains it again from the start.
     """
     vehicles = parse_kind(kind)
     cfg = profile.train
@@ -104,26 +102,17 @@ def ensure_model(
     if rgb_weights is not None:
         rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
     relpath = model_relpath(kind)
-    partial = data_dir(profile) / relpath.with_suffix(".partial.pt")
     config = {"stage": "train", "kind": kind, "vehicles": list(vehicles),
               "dataset": dataset_hash or dataset_fingerprint(dataset), "train": cfg,
               "seed": seed, "rgb_weights": rgb, "checkpoint_version": CHECKPOINT_VERSION}
 
     def build() -> dict[str, Any]:
-        result = train_model(dataset, cfg, vehicles=vehicles, seed=seed, device=device,
-                             progress=progress, rgb_weights=rgb_weights,
-                             checkpoint_path=partial)
-        if result.interrupted:
-            raise _Interrupted(result)
-        return checkpoint_dict(result)
+        return checkpoint_dict(train_model(
+            dataset, cfg, vehicles=vehicles, seed=seed, device=device, progress=progress,
+            rgb_weights=rgb_weights, keep_best_on_interrupt=False))
 
-    try:
-        ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile))
-    except _Interrupted as stop:
-        print(f"[dgt] {kind}: interrupted; best model so far kept in {partial} "
-              f"(not cached: a rerun trains again)")
-        return stop.result
-    partial.unlink(missing_ok=True)
+    ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile),
+                            fingerprint=prediction_digest)
     return load_checkpoint(ckpt, vehicles=vehicles,
                            device=device if device is not None else default_device())
 
@@ -135,7 +124,8 @@ def models_stage(profile: Profile, dataset: PatchDataset,
     Returns the checkpoint paths and a summary with each model's test MSE and
     Spearman ρ per vehicle. A single-task model whose vehicle has no training or
     no validation samples (possible in the tiny ``smoke`` profile) is skipped,
-    and the summary says so.
+    and the summary says so. Ctrl-C propagates (:func:`ensure_model`): the models
+    finished before it stay cached, the interrupted one is not saved.
     """
     paths, parts = [], []
     counts = dataset.counts()

@@ -1,0 +1,87 @@
+"""The costmaps stage's cache: a stored costmap is rebuilt when what it depends on
+changes (the model's weights, the slope fit, the inference settings), and only then."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import TrainConfig, get_profile
+from dgt_lib.learning.synthetic import synthetic_dataset
+from dgt_lib.stages import costmaps
+from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.stages.experiments import experiment_config
+from dgt_lib.stages.paths import cache_dir, data_dir
+from dgt_lib.stages.train import model_relpath
+from tests.test_costmap import ramp, synthetic_bev
+
+TINY = TrainConfig(epochs=2, batch_size=64, learning_rate=2e-3, width=8, fc_hidden=32)
+PROFILE = get_profile("smoke").with_(train=TINY)
+PROFILE = PROFILE.with_(costmap=replace(PROFILE.costmap, slope_trials=8))
+BEV_PATH = "bev/custom/ramp.npz"
+pytestmark = pytest.mark.filterwarnings("ignore:.*near-constant")  # 2 epochs learn little
+
+
+@pytest.fixture(scope="module")
+def dataset():
+    return synthetic_dataset((120, 60, 60, 40), seed=0)
+
+
+@pytest.fixture
+def built(tmp_path, monkeypatch, dataset):
+    """ensure_world_costmaps on a small synthetic world and dataset, on the CPU; returns
+    the list of costmaps built (the method of each, in order)."""
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    bev = synthetic_bev(ramp((40, 30)))
+
+    def world_bev(world, prof, progress=True):
+        artifacts.ensure(BEV_PATH, {"ramp": 1}, bev.to_arrays, profile=cache_dir(prof))
+        return bev, BEV_PATH
+
+    monkeypatch.setattr(costmaps, "world_bev", world_bev)
+    monkeypatch.setattr(costmaps, "ensure_dataset", lambda prof, progress=True: dataset)
+    monkeypatch.setattr(costmaps, "ensure_tau_s", lambda prof: 0.6)
+    real_load = costmaps.ensure_model
+    monkeypatch.setattr(costmaps, "ensure_model",
+                        lambda *a, **k: real_load(*a, **k, device="cpu"))
+    log = []
+    real_network, real_slope = costmaps.directional_costmap, costmaps.slope_costmap
+    monkeypatch.setattr(costmaps, "directional_costmap",
+                        lambda *a, **k: log.append("network") or real_network(*a, **k))
+    monkeypatch.setattr(costmaps, "slope_costmap",
+                        lambda *a, **k: log.append("slope") or real_slope(*a, **k))
+    return log
+
+
+def _maps(prof):
+    return ensure_world_costmaps("ramp", ("jeep",), prof, methods=("dgt", "slope"),
+                                 progress=False)
+
+
+def test_a_model_retrained_to_the_same_weights_invalidates_no_costmap(built):
+    first = _maps(PROFILE)
+    assert built == ["network", "slope"]
+    model = data_dir(PROFILE) / model_relpath("multitask")
+    sha, experiment = artifacts._file_digest(model), experiment_config("experiment1", PROFILE)
+    model.unlink()  # retrained: same data and seed, same weights; other timings in the file
+    again = _maps(PROFILE)
+    assert artifacts._file_digest(model) != sha  # the checkpoint file did change
+    assert built == ["network", "slope"]  # the costmap built on it did not
+    assert experiment_config("experiment1", PROFILE) == experiment  # nor the experiments
+    np.testing.assert_array_equal(again.costmap("dgt", "jeep"), first.costmap("dgt", "jeep"))
+    _maps(PROFILE.with_(train=replace(TINY, learning_rate=1e-3)))  # other weights
+    assert built == ["network", "slope", "network"]
+
+
+def test_more_slope_trials_rebuild_the_slope_map_not_the_networks(built):
+    _maps(PROFILE)
+    more = PROFILE.with_(costmap=replace(PROFILE.costmap, slope_trials=9))
+    _maps(more)
+    assert built == ["network", "slope", "slope"]
+    fits = data_dir(PROFILE) / "baselines" / "slope_models.json.meta.json"
+    assert '"trials": 9' in fits.read_text()
+    _maps(more.with_(costmap=replace(more.costmap, batch_size=64)))  # same maps, other chunks
+    assert built == ["network", "slope", "slope"]
+    _maps(more.with_(costmap=replace(more.costmap, stride=(2, 1))))  # other windows
+    assert built == ["network", "slope", "slope", "network", "slope"]

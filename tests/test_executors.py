@@ -1,0 +1,58 @@
+"""The parallel-jobs harness: what Ctrl-C does to a pool of worker processes."""
+
+import os
+import signal
+import time
+
+import pytest
+
+from dgt_lib.core.executors import run_jobs
+
+
+def _sleep_then_return(index: int, seconds: float, pid_dir: str) -> int:
+    (open(os.path.join(pid_dir, str(os.getpid())), "w")).close()
+    time.sleep(seconds)
+    return index
+
+
+def _ctrl_c_in_the_terminal() -> str:
+    """A terminal's Ctrl-C sends SIGINT to every process of the group, workers included."""
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.2)
+    return "still working"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_ctrl_c_stops_the_pool_within_seconds_and_keeps_finished_results(tmp_path):
+    kept = []
+
+    def save_then_ctrl_c(job, result):
+        kept.append(result)  # what the caller saved (an episode, a journaled trial)
+        raise KeyboardInterrupt  # the user presses Ctrl-C while the others still run
+
+    jobs = [(0, 0.0, str(tmp_path))] + [(i, 60.0, str(tmp_path)) for i in (1, 2, 3)]
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        run_jobs(_sleep_then_return, jobs, workers=2, start_method="fork",
+                 on_result=save_then_ctrl_c, progress=False)
+    assert time.perf_counter() - t0 < 15  # not when the 60 s jobs end
+    assert kept == [0]
+    workers = [int(p.name) for p in tmp_path.iterdir()]
+    assert workers and not any(_alive(pid) for pid in workers)
+
+
+def test_workers_leave_a_terminal_ctrl_c_to_the_parent():
+    """A worker does not die with a KeyboardInterrupt (and its traceback) of its own."""
+    try:
+        out = run_jobs(_ctrl_c_in_the_terminal, [()], workers=2, start_method="fork",
+                       progress=False)
+    except KeyboardInterrupt:
+        pytest.fail("the worker's Ctrl-C came back as the job's exception")
+    assert out == {(): "still working"}
