@@ -13,7 +13,7 @@ import argparse
 import sys
 import time
 
-from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile
+from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile, profile_name
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import data_dir, profile_root
 
@@ -59,6 +59,18 @@ def _stages(_: argparse.Namespace) -> int:
     for s in registry.STAGES:
         print(f"{s.name:<14} {s.description}")
     return 0
+
+
+def _profile_arg(text: str) -> str:
+    """``--profile``: the rule of ``$DGT_PROFILE`` (:func:`profile_name`, case-insensitive)."""
+    try:
+        return profile_name(text)
+    except UnknownProfileError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+PROFILE_METAVAR = "{" + ",".join(PROFILE_NAMES) + "}"
+PROFILE_HELP = "profile (default: $DGT_PROFILE or demo; case-insensitive)"
 
 
 def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
@@ -110,8 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dgt", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("reproduce", help="run the pipeline stages (cached) for a profile")
-    rep.add_argument("--profile", choices=PROFILE_NAMES, default=None,
-                     help="profile (default: $DGT_PROFILE or demo)")
+    rep.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
+                     help=PROFILE_HELP)
     rep.add_argument("--stages", nargs="+", metavar="STAGE",
                      help="only these stages (see `dgt stages`)")
     rep.add_argument("--seeds", type=int, default=None, metavar="N",
@@ -131,7 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--method", default="dgt",
                     choices=("dgt", "isotropic", "single-task", "slope", "binary"))
     pl.add_argument("--drive", action="store_true", help="drive the path in MuJoCo")
-    pl.add_argument("--profile", choices=PROFILE_NAMES, default=None)
+    pl.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
+                    help=PROFILE_HELP)
     pl.add_argument("--resolution", type=float, default=0.4,
                     help="heightmap file: metres per pixel (default 0.4)")
     pl.add_argument("--vertical-scale", type=float, default=None,

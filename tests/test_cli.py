@@ -1,7 +1,9 @@
 import subprocess
 import sys
 
-from dgt_lib.cli import main
+import pytest
+
+from dgt_lib.cli import build_parser, main
 from dgt_lib.stages import registry as pipeline
 
 
@@ -56,3 +58,22 @@ def test_python_dash_m_entry_point():
     done = subprocess.run([sys.executable, "-m", "dgt_lib", "--help"], capture_output=True,
                           text=True, check=True)
     assert "reproduce" in done.stdout
+
+
+def test_profile_names_follow_one_rule_on_the_command_line_and_in_the_environment(
+        capsys, tmp_path, monkeypatch):
+    """`DGT_PROFILE=Smoke` works, so `--profile Smoke` must too (case-insensitive both)."""
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [])
+    monkeypatch.setenv("DGT_PROFILE", "Smoke")
+    assert main(["reproduce"]) == 0
+    assert "profile 'smoke'" in capsys.readouterr().out
+    monkeypatch.delenv("DGT_PROFILE")
+    assert main(["reproduce", "--profile", "Smoke"]) == 0
+    assert "profile 'smoke'" in capsys.readouterr().out
+    args = build_parser().parse_args(["plan", "--world", "hill", "--vehicle", "jeep",
+                                      "--start", "1,2,0", "--goal", "3,4", "--profile", "PAPER"])
+    assert args.profile == "paper"
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--profile", "huge"])
+    assert "valid profiles: smoke, demo, paper" in capsys.readouterr().err
