@@ -1,5 +1,7 @@
 """Bring your own terrain: a custom world through survey → costmap → `dgt plan`."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -70,3 +72,27 @@ def test_dgt_plan_rejects_unknown_world_and_bad_numbers(data_dir, capsys):
     with pytest.raises(SystemExit):
         main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2",
               "--goal", "3,4"])
+
+
+def test_a_mostly_unobserved_map_warns_why_and_the_error_says_unobserved(data_dir, tmp_path,
+                                                                         capsys):
+    """Heights in centimetres (600 m of relief): most of the map is below the survey's
+    depth reach. The user must hear why, not just that the start is 'in an obstacle'."""
+    x = (np.arange(150) + 0.5) * RES
+    ramp_cm = np.clip((x - 15.0) * np.tan(np.radians(15.0)), 0.0, 6.0) * 100.0
+    np.save(tmp_path / "ramp_cm.npy", np.tile(ramp_cm, (100, 1)))
+    with pytest.warns(UserWarning, match="unobserved in its BEV map") as caught:
+        assert main(["plan", "--world", str(tmp_path / "ramp_cm.npy"), "--vehicle", "jeep",
+                     "--start", "5,20,0", "--goal", "55,20", "--method", "binary",
+                     "--profile", "smoke"]) == 2
+    assert "heights span 0.0 to 600.0 m" in str(caught[0].message)
+    err = capsys.readouterr().err
+    assert "in an obstacle" in err and "hits unobserved cells" in err
+
+
+def test_a_well_observed_custom_map_does_not_warn(data_dir):
+    from dgt_lib.stages.collect import UnobservedMapWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnobservedMapWarning)
+        world_bev(ramp_world(), get_profile("smoke"), progress=False)
