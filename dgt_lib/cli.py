@@ -15,7 +15,7 @@ import time
 
 from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile, profile_name
 from dgt_lib.stages import registry
-from dgt_lib.stages.paths import data_dir, profile_root
+from dgt_lib.stages.paths import profile_root
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -86,22 +86,17 @@ def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
 
 
 def _plan(args: argparse.Namespace) -> int:
+    """``dgt plan``: the query is checked before any data is collected or model trained
+    (:func:`dgt_lib.query.check_query`), which also says when training comes first."""
     from dgt_lib.core.config import VEHICLES
     from dgt_lib.navigation.planner import InvalidQueryError
     from dgt_lib.query import plan_query
-    from dgt_lib.stages.train import model_relpath
 
     profile = get_profile(args.profile)
     if args.vehicle not in VEHICLES:
         print(f"dgt: error: unknown vehicle {args.vehicle!r}; valid vehicles: "
               f"{', '.join(VEHICLES)}", file=sys.stderr)
         return 2
-    kind = "multitask" if args.method in ("dgt", "isotropic") else f"single:{args.vehicle}"
-    if args.method in ("dgt", "isotropic", "single-task") and not (
-            data_dir(profile) / model_relpath(kind)).exists():
-        print(f"No trained {kind} model for profile {profile.name!r} yet: collecting data and "
-              f"training it first ({TRAINING_TIME.get(profile.name, 'a while')} on a 2-core "
-              "laptop; later queries reuse it).")
     try:
         report = plan_query(args.world, args.vehicle, args.start, args.goal,
                             method=args.method, profile=profile, drive=args.drive,
@@ -111,11 +106,6 @@ def _plan(args: argparse.Namespace) -> int:
         return 2
     print(report.summary())
     return 0 if report.plan.success else 1
-
-
-TRAINING_TIME = {"smoke": "about a minute", "demo": "about 40 minutes",
-                 "paper": "a few hours"}
-"""What ``dgt plan`` says when it must build the data and models first (measured, README)."""
 
 
 def build_parser() -> argparse.ArgumentParser:

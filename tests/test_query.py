@@ -96,3 +96,51 @@ def test_a_well_observed_custom_map_does_not_warn(data_dir):
     with warnings.catch_warnings():
         warnings.simplefilter("error", UnobservedMapWarning)
         world_bev(ramp_world(), get_profile("smoke"), progress=False)
+
+
+def tiny_world():
+    """48 m × 32 m of flat ground with a 3 m block (x 22–26 m, y 12–20 m) and one tree."""
+    heights = np.zeros((80, 120), np.float32)
+    heights[30:50, 55:65] = 3.0
+    return from_heightmap(heights, RES, trees=[(40.0, 26.0, 0.3, 6.0)], name="tiny")
+
+
+def _no_artifacts(*args, **kwargs):
+    raise AssertionError("no artifact may be built before the query is checked")
+
+
+HILL_TREE = "18.38,127.67"  # the hill world's first tree (smoke profile)
+
+
+@pytest.mark.parametrize("start,goal,message", [
+    ("500,14,0", "30,96", "start (500.00, 14.00) m is off the map"),
+    (f"{HILL_TREE},0", "30,96", "is on a tree: the carla_cola's"),
+    ("30,14,0.8", HILL_TREE, "goal (18.38, 127.67) m is inside the tree trunk"),
+    ("0.5,70,0", "30,96", "too close to the map edge"),
+])
+def test_a_start_or_goal_bad_on_the_world_alone_fails_before_any_work(
+        tmp_path, monkeypatch, capsys, start, goal, message):
+    """On an empty data directory an off-map start used to be reported after collecting,
+    training and mapping (58 s in smoke, hours in paper)."""
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    monkeypatch.setattr(artifacts, "ensure", _no_artifacts)
+    assert main(["plan", "--world", "hill", "--vehicle", "carla_cola", "--start", start,
+                 "--goal", goal, "--method", "dgt", "--profile", "smoke"]) == 2
+    out, err = capsys.readouterr()
+    assert message in err and "training" not in out
+    assert list(tmp_path.iterdir()) == []  # nothing collected, trained or written
+
+
+def test_a_start_on_steep_ground_fails_before_the_dataset_and_model(data_dir, monkeypatch,
+                                                                     capsys):
+    """Steepness needs the occupancy map (‖∇H̄‖ > τ_s): it is checked on the BEV maps alone,
+    before collection and training, with the planner's own rule."""
+    import dgt_lib.stages.costmaps as costmaps
+    from dgt_lib.navigation.planner import InvalidQueryError
+    from dgt_lib.query import plan_query
+
+    monkeypatch.setattr(costmaps, "ensure_dataset", _no_artifacts)
+    with pytest.raises(InvalidQueryError, match="in an obstacle: .* hits occupied cells"):
+        plan_query(tiny_world(), "jeep", (24.0, 16.0, 0.0), (40.0, 16.0), method="dgt",
+                   profile="smoke", progress=False)
+    assert "training" not in capsys.readouterr().out

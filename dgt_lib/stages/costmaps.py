@@ -153,11 +153,13 @@ def ensure_tau_s(profile: Profile | str | None = None) -> float:
                                   profile=cache_dir(prof))["tau_s"])
 
 
-def world_occupancy(world: World | str, profile: Profile | str | None = None
-                    ) -> tuple[np.ndarray, GridSpec]:
-    """The occupancy map (H, W) uint8 of a world's BEV with the profile's τ_s, and its grid."""
+def world_occupancy(world: World | str, profile: Profile | str | None = None, *,
+                    progress: bool = True) -> tuple[np.ndarray, GridSpec]:
+    """The occupancy map (H, W) uint8 of a world's BEV with the profile's τ_s, and its grid:
+    what :func:`ensure_world_costmaps` gives the planner, without a dataset or a model
+    (the BEV maps only; the training world's needs its episodes)."""
     prof = as_profile(profile)
-    bev, _ = world_bev(world, prof)
+    bev, _ = world_bev(world, prof, progress=progress)
     return occupancy_map(bev, ensure_tau_s(prof)), bev.grid
 
 

@@ -166,6 +166,12 @@ class HybridAStar:
             )
         return float(sx), float(sy), float(wrap_angle(sth)), float(gx), float(gy), gth
 
+    def check_query(self, start, goal) -> None:
+        """Raise :class:`InvalidQueryError` where :meth:`plan` would, without searching:
+        a start or goal off the map, a start pose whose footprint collides, a goal point
+        in an occupied or unobserved cell, a goal pose whose footprint collides."""
+        self._check_query(start, goal)
+
     def _what_blocks(self, pose) -> str:
         """What the footprint at ``pose`` (x, y, θ) collides with, in words: occupied
         and/or unobserved cells within the clearance of its circles, or the map edge."""
