@@ -10,6 +10,8 @@
 from __future__ import annotations
 
 import argparse
+import math
+import re
 import sys
 import time
 
@@ -74,15 +76,47 @@ PROFILE_HELP = "profile (default: $DGT_PROFILE or demo; case-insensitive)"
 
 
 def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
+    """``x,y[,yaw]`` → n finite floats; an argparse error naming the format otherwise."""
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
         values = ()
-    if len(values) != n:
+    if len(values) != n or not all(math.isfinite(v) for v in values):
         names = "x,y,yaw" if n == 3 else "x,y"
-        raise argparse.ArgumentTypeError(f"{what} must be {names} in metres (yaw in radians), "
-                                         f"got {text!r}")
+        raise argparse.ArgumentTypeError(f"{what} must be {names}: finite numbers in metres "
+                                         f"(yaw in radians), got {text!r}")
     return values
+
+
+COORDINATE_OPTIONS: tuple[str, ...] = ("--start", "--goal")
+"""Options whose value is a comma-separated list of numbers, possibly negative."""
+
+_NEGATIVE_NUMBER = re.compile(r"-\.?\d")
+
+
+def _glue_negative_coordinates(argv: list[str]) -> list[str]:
+    """``--start -5,14,0.8`` → ``--start=-5,14,0.8``.
+
+    argparse reads a value that starts with '-' as an option unless it is one plain
+    negative number, so ``-5,14,0.8`` ended in "expected one argument". Gluing the
+    value to its option is argparse's own spelling for such values; only the options
+    of :data:`COORDINATE_OPTIONS` followed by a value that starts like a negative
+    number are rewritten, every other argument is left as it is."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if (arg in COORDINATE_OPTIONS and i + 1 < len(argv)
+                and _NEGATIVE_NUMBER.match(argv[i + 1])):
+            out.append(f"{arg}={argv[i + 1]}")
+            i += 2
+            continue
+        if arg == "--":  # everything after it is positional: leave it alone
+            out.extend(argv[i:])
+            break
+        out.append(arg)
+        i += 1
+    return out
 
 
 def _plan(args: argparse.Namespace) -> int:
@@ -127,7 +161,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="hill, ridge, eval, training, or a .npy / 16-bit .png heightmap")
     pl.add_argument("--vehicle", required=True, help="jeep, vw_van, mercedes_van, carla_cola")
     pl.add_argument("--start", required=True, type=lambda t: _floats(t, 3, "--start"),
-                    help="x,y,yaw [m, m, rad]")
+                    help="x,y,yaw [m, m, rad]; negative values are fine (-5,14,0.8)")
     pl.add_argument("--goal", required=True, type=lambda t: _floats(t, 2, "--goal"),
                     help="x,y [m]")
     pl.add_argument("--method", default="dgt",
@@ -144,7 +178,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser().parse_args(_glue_negative_coordinates(argv))
     try:
         return args.func(args)
     except (UnknownProfileError, registry.UnknownStageError) as exc:

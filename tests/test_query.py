@@ -144,3 +144,15 @@ def test_a_start_on_steep_ground_fails_before_the_dataset_and_model(data_dir, mo
         plan_query(tiny_world(), "jeep", (24.0, 16.0, 0.0), (40.0, 16.0), method="dgt",
                    profile="smoke", progress=False)
     assert "training" not in capsys.readouterr().out
+
+
+def test_negative_coordinates_parse_on_the_command_line(tmp_path, monkeypatch, capsys):
+    """`--start -5,14,0.8` was an argparse error ("expected one argument")."""
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    assert main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "-5,14,0.8",
+                 "--goal", "-3.5,-4", "--profile", "smoke"]) == 2
+    assert "start (-5.00, 14.00) m is off the map" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # still a number list, or an error naming the format
+        main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "-5,nan,0",
+              "--goal", "3,4"])
+    assert "--start must be x,y,yaw: finite numbers" in capsys.readouterr().err
