@@ -72,7 +72,10 @@ class QueryReport:
         p = self.plan
         lines = [f"{METHOD_LABELS[self.method]} plan for {self.vehicle} on {self.world}: "
                  f"{self.start} → {self.goal}"]
-        if p.success:
+        if p.success and len(p.path) < 2:
+            lines.append("  found: the start is already within the goal tolerance (a path of "
+                         "length 0 m)")
+        elif p.success:
             lines.append(f"  found: length {p.length_m:.1f} m, cost {p.cost:.1f}, "
                          f"{p.expansions} expansions, {p.time_s:.2f} s")
             if self.high_cost:

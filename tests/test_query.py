@@ -156,3 +156,14 @@ def test_negative_coordinates_parse_on_the_command_line(tmp_path, monkeypatch, c
         main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "-5,nan,0",
               "--goal", "3,4"])
     assert "--start must be x,y,yaw: finite numbers" in capsys.readouterr().err
+
+
+def test_a_goal_within_the_tolerance_plans_and_drives_a_zero_length_path(data_dir):
+    """--drive with a goal 0.5 m away failed: "path needs at least two distinct points"."""
+    from dgt_lib.query import plan_query
+
+    report = plan_query(tiny_world(), "jeep", (8.0, 16.0, 0.0), (8.5, 16.0), method="binary",
+                        profile="smoke", drive=True, progress=False)
+    assert report.plan.success and report.plan.length_m == 0.0
+    assert report.outcome.success and report.outcome.duration_s == 0.0
+    assert "already within the goal tolerance" in report.summary()
