@@ -6,8 +6,8 @@ run: against the world alone (off the map, on a tree trunk:
 occupancy map (steep ground, unobserved terrain; needs only the BEV maps). Then it
 builds the method's costmap with the profile's trained model (training first if
 needed), plans with Hybrid A*, summarises the path — length, cost, time, and where it
-passes high cost — saves a figure and a rerun recording, and optionally drives the
-path in MuJoCo::
+passes high cost — saves a figure and a rerun recording named by the query
+(:func:`output_stem`), and optionally drives the path in MuJoCo::
 
     report = plan_query("hill", "carla_cola", (30, 14, 0.8), (30, 96), method="dgt")
     print(report.summary())
@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
@@ -143,6 +144,25 @@ def check_query(world: World, vehicle: str, start, goal, profile: Profile | str 
     HybridAStar.for_vehicle(free, occupancy, grid, vehicle, prof.planner).check_query(start, goal)
 
 
+def output_stem(world: World, vehicle: str, method: str, start, goal, *,
+                drive: bool = False) -> str:
+    """File name (no suffix) of a query's figure and recording: readable — world, vehicle,
+    method, start x, y [m] and heading [deg], goal x, y [m] — and unique: it ends in a
+    hash of the exact query and the world's terrain, so distinct queries (another
+    heading, a start 0.3 m away, another heightmap of the same name, driven or not)
+    never overwrite each other, and the same query replaces its own files."""
+    sx, sy, sth = (float(v) for v in start)
+    gx, gy = (float(v) for v in tuple(goal)[:2])
+    key = artifacts.config_hash({
+        "world": {"name": world.name, "grid": world.grid, "heights": world.heights,
+                  "colors": world.colors, "trees": world.trees},
+        "vehicle": vehicle, "method": method, "start": [sx, sy, sth], "goal": [gx, gy],
+        "drive": bool(drive)})[:8]
+    heading_deg = float(np.degrees(sth)) % 360.0
+    return (f"{world.name}_{vehicle}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
+            f"{gx:.1f}_{gy:.1f}{'_driven' if drive else ''}_{key}")
+
+
 def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "dgt",
                profile: Profile | str | None = None, drive: bool = False,
                resolution_m: float = 0.4, vertical_scale_m: float | None = None,
@@ -174,8 +194,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
     out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
     out_dir.mkdir(parents=True, exist_ok=True)
-    stem = (f"{w.name}_{vehicle}_{method}_{start[0]:.0f}_{start[1]:.0f}_to_"
-            f"{goal[0]:.0f}_{goal[1]:.0f}")
+    stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success)
     report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
     if drive and result.success:
         from dgt_lib.navigation.drive import drive as drive_path

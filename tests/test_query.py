@@ -167,3 +167,26 @@ def test_a_goal_within_the_tolerance_plans_and_drives_a_zero_length_path(data_di
     assert report.plan.success and report.plan.length_m == 0.0
     assert report.outcome.success and report.outcome.duration_s == 0.0
     assert "already within the goal tolerance" in report.summary()
+
+
+def test_distinct_queries_write_distinct_files(data_dir):
+    """Files were named by rounded x, y only: another heading, a start 0.3 m away or
+    another terrain of the same name overwrote the previous query's figure and recording."""
+    from dgt_lib.query import plan_query
+
+    world = tiny_world()
+    starts = [(8.0, 16.0, 0.0), (8.0, 16.0, np.pi / 2), (8.3, 16.2, 0.0)]
+    figures = set()
+    for start in starts:
+        report = plan_query(world, "jeep", start, (40.0, 16.0), method="binary",
+                            profile="smoke", progress=False)
+        assert report.figure.exists() and report.recording.exists()
+        figures.add(report.figure)
+    assert len(figures) == 3
+    other = from_heightmap(world.heights + 0.1, RES, trees=world.trees, name="tiny")
+    again = plan_query(other, "jeep", starts[0], (40.0, 16.0), method="binary",
+                       profile="smoke", progress=False)
+    assert again.figure not in figures  # same name, other terrain
+    same = plan_query(world, "jeep", starts[0], (40.0, 16.0), method="binary",
+                      profile="smoke", progress=False)
+    assert same.figure in figures  # the same query replaces its own files
