@@ -120,8 +120,9 @@ def _glue_negative_coordinates(argv: list[str]) -> list[str]:
 
 
 def _plan(args: argparse.Namespace) -> int:
-    """``dgt plan``: the query is checked before any data is collected or model trained
-    (:func:`dgt_lib.query.check_query`), which also says when training comes first."""
+    """``dgt plan``: :func:`dgt_lib.query.plan_query` checks the query before any data is
+    collected or model trained (:func:`dgt_lib.query.check_query`), then says when
+    training comes first."""
     from dgt_lib.core.config import VEHICLES
     from dgt_lib.navigation.planner import InvalidQueryError
     from dgt_lib.query import plan_query
