@@ -10,13 +10,15 @@
 from __future__ import annotations
 
 import argparse
+import math
+import re
 import shlex
 import sys
 import time
 
-from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile
+from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile, profile_name
 from dgt_lib.stages import registry
-from dgt_lib.stages.paths import data_dir, profile_root
+from dgt_lib.stages.paths import profile_root
 
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT, as a shell reports it)."""
@@ -77,35 +79,75 @@ def _stages(_: argparse.Namespace) -> int:
     return 0
 
 
+def _profile_arg(text: str) -> str:
+    """``--profile``: the rule of ``$DGT_PROFILE`` (:func:`profile_name`, case-insensitive)."""
+    try:
+        return profile_name(text)
+    except UnknownProfileError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+PROFILE_METAVAR = "{" + ",".join(PROFILE_NAMES) + "}"
+PROFILE_HELP = "profile (default: $DGT_PROFILE or demo; case-insensitive)"
+
+
 def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
+    """``x,y[,yaw]`` → n finite floats; an argparse error naming the format otherwise."""
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
         values = ()
-    if len(values) != n:
+    if len(values) != n or not all(math.isfinite(v) for v in values):
         names = "x,y,yaw" if n == 3 else "x,y"
-        raise argparse.ArgumentTypeError(f"{what} must be {names} in metres (yaw in radians), "
-                                         f"got {text!r}")
+        raise argparse.ArgumentTypeError(f"{what} must be {names}: finite numbers in metres "
+                                         f"(yaw in radians), got {text!r}")
     return values
 
 
+COORDINATE_OPTIONS: tuple[str, ...] = ("--start", "--goal")
+"""Options whose value is a comma-separated list of numbers, possibly negative."""
+
+_NEGATIVE_NUMBER = re.compile(r"-\.?\d")
+
+
+def _glue_negative_coordinates(argv: list[str]) -> list[str]:
+    """``--start -5,14,0.8`` → ``--start=-5,14,0.8``.
+
+    argparse reads a value that starts with '-' as an option unless it is one plain
+    negative number, so ``-5,14,0.8`` ended in "expected one argument". Gluing the
+    value to its option is argparse's own spelling for such values; only the options
+    of :data:`COORDINATE_OPTIONS` followed by a value that starts like a negative
+    number are rewritten, every other argument is left as it is."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if (arg in COORDINATE_OPTIONS and i + 1 < len(argv)
+                and _NEGATIVE_NUMBER.match(argv[i + 1])):
+            out.append(f"{arg}={argv[i + 1]}")
+            i += 2
+            continue
+        if arg == "--":  # everything after it is positional: leave it alone
+            out.extend(argv[i:])
+            break
+        out.append(arg)
+        i += 1
+    return out
+
+
 def _plan(args: argparse.Namespace) -> int:
+    """``dgt plan``: :func:`dgt_lib.query.plan_query` checks the query before any data is
+    collected or model trained (:func:`dgt_lib.query.check_query`), then says when
+    training comes first."""
     from dgt_lib.core.config import VEHICLES
     from dgt_lib.navigation.planner import InvalidQueryError
     from dgt_lib.query import plan_query
-    from dgt_lib.stages.train import model_relpath
 
     profile = get_profile(args.profile)
     if args.vehicle not in VEHICLES:
         print(f"dgt: error: unknown vehicle {args.vehicle!r}; valid vehicles: "
               f"{', '.join(VEHICLES)}", file=sys.stderr)
         return 2
-    kind = "multitask" if args.method in ("dgt", "isotropic") else f"single:{args.vehicle}"
-    if args.method in ("dgt", "isotropic", "single-task") and not (
-            data_dir(profile) / model_relpath(kind)).exists():
-        print(f"No trained {kind} model for profile {profile.name!r} yet: collecting data and "
-              f"training it first ({TRAINING_TIME.get(profile.name, 'a while')} on a 2-core "
-              "laptop; later queries reuse it).")
     try:
         report = plan_query(args.world, args.vehicle, args.start, args.goal,
                             method=args.method, profile=profile, drive=args.drive,
@@ -117,17 +159,12 @@ def _plan(args: argparse.Namespace) -> int:
     return 0 if report.plan.success else 1
 
 
-TRAINING_TIME = {"smoke": "about a minute", "demo": "about 40 minutes",
-                 "paper": "a few hours"}
-"""What ``dgt plan`` says when it must build the data and models first (measured, README)."""
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dgt", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("reproduce", help="run the pipeline stages (cached) for a profile")
-    rep.add_argument("--profile", choices=PROFILE_NAMES, default=None,
-                     help="profile (default: $DGT_PROFILE or demo)")
+    rep.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
+                     help=PROFILE_HELP)
     rep.add_argument("--stages", nargs="+", metavar="STAGE",
                      help="only these stages (see `dgt stages`)")
     rep.add_argument("--seeds", type=int, default=None, metavar="N",
@@ -141,13 +178,14 @@ def build_parser() -> argparse.ArgumentParser:
                     help="hill, ridge, eval, training, or a .npy / 16-bit .png heightmap")
     pl.add_argument("--vehicle", required=True, help="jeep, vw_van, mercedes_van, carla_cola")
     pl.add_argument("--start", required=True, type=lambda t: _floats(t, 3, "--start"),
-                    help="x,y,yaw [m, m, rad]")
+                    help="x,y,yaw [m, m, rad]; negative values are fine (-5,14,0.8)")
     pl.add_argument("--goal", required=True, type=lambda t: _floats(t, 2, "--goal"),
                     help="x,y [m]")
     pl.add_argument("--method", default="dgt",
                     choices=("dgt", "isotropic", "single-task", "slope", "binary"))
     pl.add_argument("--drive", action="store_true", help="drive the path in MuJoCo")
-    pl.add_argument("--profile", choices=PROFILE_NAMES, default=None)
+    pl.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
+                    help=PROFILE_HELP)
     pl.add_argument("--resolution", type=float, default=0.4,
                     help="heightmap file: metres per pixel (default 0.4)")
     pl.add_argument("--vertical-scale", type=float, default=None,
@@ -163,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     what the artifact cache holds stays, and the same command resumes from it.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(_glue_negative_coordinates(argv))
     args.command_line = shlex.join(["dgt", *argv])
     try:
         return args.func(args)

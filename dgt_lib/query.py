@@ -1,9 +1,13 @@
 """One planning query on any world: the engine of ``dgt plan``.
 
-Maps the world (cached), builds the method's costmap with the profile's trained
-model (training first if needed), plans with Hybrid A*, summarises the path —
-length, cost, time, and where it passes high cost — saves a figure and a rerun
-recording, and optionally drives the path in MuJoCo::
+Checks the query cheapest first, so a bad start or goal costs seconds, not a training
+run: against the world alone (off the map, on a tree trunk:
+:func:`~dgt_lib.navigation.planner.check_query_on_world`), then against the world's
+occupancy map (steep ground, unobserved terrain; needs only the BEV maps). Then it
+builds the method's costmap with the profile's trained model (training first if
+needed), plans with Hybrid A*, summarises the path — length, cost, time, and where it
+passes high cost — saves a figure and a rerun recording named by the query
+(:func:`output_stem`), and optionally drives the path in MuJoCo::
 
     report = plan_query("hill", "carla_cola", (30, 14, 0.8), (30, 96), method="dgt")
     print(report.summary())
@@ -16,15 +20,17 @@ from pathlib import Path
 
 import numpy as np
 
+from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.trials import trial_time_limit_s
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.navigation.outcome import TrialOutcome
-from dgt_lib.navigation.planner import HybridAStar, PlanResult
-from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.navigation.planner import HybridAStar, PlanResult, check_query_on_world
+from dgt_lib.stages.costmaps import ensure_world_costmaps, world_occupancy
 from dgt_lib.stages.paths import data_dir
+from dgt_lib.stages.train import model_relpath
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World, load_heightmap
 
@@ -67,7 +73,10 @@ class QueryReport:
         p = self.plan
         lines = [f"{METHOD_LABELS[self.method]} plan for {self.vehicle} on {self.world}: "
                  f"{self.start} → {self.goal}"]
-        if p.success:
+        if p.success and len(p.path) < 2:
+            lines.append("  found: the start is already within the goal tolerance (a path of "
+                         "length 0 m)")
+        elif p.success:
             lines.append(f"  found: length {p.length_m:.1f} m, cost {p.cost:.1f}, "
                          f"{p.expansions} expansions, {p.time_s:.2f} s")
             if self.high_cost:
@@ -103,6 +112,57 @@ def _high_cost_cells(path: np.ndarray, cost: np.ndarray, grid) -> list:
              float(c[a : b + 1].max())) for a, b in zip(starts, ends, strict=True)]
 
 
+TRAINING_TIME = {"smoke": "about a minute", "demo": "about 40 minutes",
+                 "paper": "a few hours"}
+"""What ``dgt plan`` says when it must build the data and models first (measured, README)."""
+
+
+def training_notice(method: str, vehicle: str, profile: Profile) -> str | None:
+    """The line announcing that ``method`` needs a model the profile has not trained yet
+    (collection and training come first), or None when it has one or needs none."""
+    if method not in ("dgt", "isotropic", "single-task"):
+        return None
+    kind = "multitask" if method in ("dgt", "isotropic") else f"single:{vehicle}"
+    if (data_dir(profile) / model_relpath(kind)).exists():
+        return None
+    return (f"No trained {kind} model for profile {profile.name!r} yet: collecting data and "
+            f"training it first ({TRAINING_TIME.get(profile.name, 'a while')} on a 2-core "
+            "laptop; later queries reuse it).")
+
+
+def check_query(world: World, vehicle: str, start, goal, profile: Profile | str | None = None,
+                *, progress: bool = True) -> None:
+    """Raise :class:`~dgt_lib.navigation.planner.InvalidQueryError` for a start or goal
+    that cannot be planned, before any dataset or model is built: first from the world
+    alone (:func:`~dgt_lib.navigation.planner.check_query_on_world`: writes nothing),
+    then on the world's occupancy map, exactly as the planner will check it (needs the
+    BEV maps and τ_s — seconds, or the episodes for the training world)."""
+    prof = as_profile(profile)
+    check_query_on_world(world, vehicle, start, goal)
+    occupancy, grid = world_occupancy(world, prof, progress=progress)
+    free = np.zeros((1, *grid.shape), np.float32)  # the costmap plays no part in the check
+    HybridAStar.for_vehicle(free, occupancy, grid, vehicle, prof.planner).check_query(start, goal)
+
+
+def output_stem(world: World, vehicle: str, method: str, start, goal, *,
+                drive: bool = False) -> str:
+    """File name (no suffix) of a query's figure and recording: readable — world, vehicle,
+    method, start x, y [m] and heading [deg], goal x, y [m] — and unique: it ends in a
+    hash of the exact query and the world's terrain, so distinct queries (another
+    heading, a start 0.3 m away, another heightmap of the same name, driven or not)
+    never overwrite each other, and the same query replaces its own files."""
+    sx, sy, sth = (float(v) for v in start)
+    gx, gy = (float(v) for v in tuple(goal)[:2])
+    key = artifacts.config_hash({
+        "world": {"name": world.name, "grid": world.grid, "heights": world.heights,
+                  "colors": world.colors, "trees": world.trees},
+        "vehicle": vehicle, "method": method, "start": [sx, sy, sth], "goal": [gx, gy],
+        "drive": bool(drive)})[:8]
+    heading_deg = float(np.degrees(sth)) % 360.0
+    return (f"{world.name}_{vehicle}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
+            f"{gx:.1f}_{gy:.1f}{'_driven' if drive else ''}_{key}")
+
+
 def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "dgt",
                profile: Profile | str | None = None, drive: bool = False,
                resolution_m: float = 0.4, vertical_scale_m: float | None = None,
@@ -111,26 +171,30 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
 
     start (x, y, yaw) [m, m, rad], goal (x, y) [m]. Raises
     :class:`dgt_lib.navigation.planner.InvalidQueryError` when the start or goal is off the map
-    or in an obstacle (the message names which).
+    or in an obstacle (the message names which) — found before any dataset or model is
+    built (:func:`check_query`). With ``progress``, prints when a model must be trained.
     """
     prof = as_profile(profile)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
     get_vehicle(vehicle)  # an unknown vehicle is a clear error before any work
     w = resolve_world(world, prof, resolution_m=resolution_m, vertical_scale_m=vertical_scale_m)
+    start = tuple(float(v) for v in start)
+    goal = tuple(float(v) for v in goal)[:2]
+    check_query(w, vehicle, start, goal, prof, progress=progress)
+    notice = training_notice(method, vehicle, prof)
+    if progress and notice:
+        print(notice, flush=True)
     maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
     cost = maps.costmap(method, vehicle)
     planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle, prof.planner)
-    start = tuple(float(v) for v in start)
-    goal = tuple(float(v) for v in goal)[:2]
     result = planner.plan(start, goal)
     report = QueryReport(w.name, vehicle, method, start, goal, result)
     if result.success:
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
     out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
     out_dir.mkdir(parents=True, exist_ok=True)
-    stem = (f"{w.name}_{vehicle}_{method}_{start[0]:.0f}_{start[1]:.0f}_to_"
-            f"{goal[0]:.0f}_{goal[1]:.0f}")
+    stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success)
     report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
     if drive and result.success:
         from dgt_lib.navigation.drive import drive as drive_path

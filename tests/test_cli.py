@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from dgt_lib.cli import main
+import pytest
+
+from dgt_lib.cli import build_parser, main
 from dgt_lib.stages import registry as pipeline
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -129,3 +131,22 @@ def test_ctrl_c_in_a_terminal_stops_a_pool_stage_in_seconds_and_keeps_its_result
         "finished. Rerun `dgt reproduce --profile smoke` to resume."]
     assert (tmp_path / "smoke" / "seed-0" / "jobs" / "0.json").exists()
     assert not (tmp_path / "smoke" / "seed-0" / "example.json").exists()  # "first" never ran
+
+
+def test_profile_names_follow_one_rule_on_the_command_line_and_in_the_environment(
+        capsys, tmp_path, monkeypatch):
+    """`DGT_PROFILE=Smoke` works, so `--profile Smoke` must too (case-insensitive both)."""
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [])
+    monkeypatch.setenv("DGT_PROFILE", "Smoke")
+    assert main(["reproduce"]) == 0
+    assert "profile 'smoke'" in capsys.readouterr().out
+    monkeypatch.delenv("DGT_PROFILE")
+    assert main(["reproduce", "--profile", "Smoke"]) == 0
+    assert "profile 'smoke'" in capsys.readouterr().out
+    args = build_parser().parse_args(["plan", "--world", "hill", "--vehicle", "jeep",
+                                      "--start", "1,2,0", "--goal", "3,4", "--profile", "PAPER"])
+    assert args.profile == "paper"
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--profile", "huge"])
+    assert "valid profiles: smoke, demo, paper" in capsys.readouterr().err

@@ -248,6 +248,25 @@ def test_start_in_obstacle_or_off_map_is_a_clear_error(hill):
         planner_for(costmap, occupancy, grid, heuristic="manhattan")
 
 
+def test_a_rejected_query_says_whether_it_hit_unobserved_or_occupied_ground():
+    """A start on terrain the BEV map never saw is not 'in an obstacle' like a cliff: the
+    message must say which, or a user chases a slope that is not there."""
+    costmap, occupancy, grid = empty_map()
+    occupancy[:, :40] = 2  # x < 20 m: unobserved
+    occupancy[:, 80:] = 1  # x ≥ 40 m: too steep
+    planner = planner_for(costmap, occupancy, grid)
+    with pytest.raises(InvalidQueryError, match="start .* obstacle") as unseen:
+        planner.plan((10.0, 20.0, 0.0), (30.0, 20.0))
+    assert "hits unobserved cells" in str(unseen.value) and "occupied" not in str(unseen.value)
+    with pytest.raises(InvalidQueryError, match="start .* obstacle") as steep:
+        planner.plan((50.0, 20.0, 0.0), (30.0, 20.0))
+    assert "hits occupied cells" in str(steep.value) and "unobserved" not in str(steep.value)
+    with pytest.raises(InvalidQueryError, match="goal .* unobserved cells"):
+        planner.plan((30.0, 20.0, 0.0), (10.0, 20.0))
+    with pytest.raises(InvalidQueryError, match="start .* the map edge"):
+        planner.plan((30.0, 0.5, math.pi / 2), (30.0, 20.0))
+
+
 def test_unreachable_goal_ends_with_no_path(hill):
     costmap, occupancy, grid = hill
     closed = occupancy.copy()

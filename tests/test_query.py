@@ -1,5 +1,7 @@
 """Bring your own terrain: a custom world through survey → costmap → `dgt plan`."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -70,3 +72,121 @@ def test_dgt_plan_rejects_unknown_world_and_bad_numbers(data_dir, capsys):
     with pytest.raises(SystemExit):
         main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2",
               "--goal", "3,4"])
+
+
+def test_a_mostly_unobserved_map_warns_why_and_the_error_says_unobserved(data_dir, tmp_path,
+                                                                         capsys):
+    """Heights in centimetres (600 m of relief): most of the map is below the survey's
+    depth reach. The user must hear why, not just that the start is 'in an obstacle'."""
+    x = (np.arange(150) + 0.5) * RES
+    ramp_cm = np.clip((x - 15.0) * np.tan(np.radians(15.0)), 0.0, 6.0) * 100.0
+    np.save(tmp_path / "ramp_cm.npy", np.tile(ramp_cm, (100, 1)))
+    with pytest.warns(UserWarning, match="unobserved in its BEV map") as caught:
+        assert main(["plan", "--world", str(tmp_path / "ramp_cm.npy"), "--vehicle", "jeep",
+                     "--start", "5,20,0", "--goal", "55,20", "--method", "binary",
+                     "--profile", "smoke"]) == 2
+    assert "heights span 0.0 to 600.0 m" in str(caught[0].message)
+    err = capsys.readouterr().err
+    assert "in an obstacle" in err and "hits unobserved cells" in err
+
+
+def test_a_well_observed_custom_map_does_not_warn(data_dir):
+    from dgt_lib.stages.collect import UnobservedMapWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnobservedMapWarning)
+        world_bev(ramp_world(), get_profile("smoke"), progress=False)
+
+
+def tiny_world():
+    """48 m × 32 m of flat ground with a 3 m block (x 22–26 m, y 12–20 m) and one tree."""
+    heights = np.zeros((80, 120), np.float32)
+    heights[30:50, 55:65] = 3.0
+    return from_heightmap(heights, RES, trees=[(40.0, 26.0, 0.3, 6.0)], name="tiny")
+
+
+def _no_artifacts(*args, **kwargs):
+    raise AssertionError("no artifact may be built before the query is checked")
+
+
+HILL_TREE = "18.38,127.67"  # the hill world's first tree (smoke profile)
+
+
+@pytest.mark.parametrize("start,goal,message", [
+    ("500,14,0", "30,96", "start (500.00, 14.00) m is off the map"),
+    (f"{HILL_TREE},0", "30,96", "is on a tree: the carla_cola's"),
+    ("30,14,0.8", HILL_TREE, "goal (18.38, 127.67) m is inside the tree trunk"),
+    ("0.5,70,0", "30,96", "too close to the map edge"),
+])
+def test_a_start_or_goal_bad_on_the_world_alone_fails_before_any_work(
+        tmp_path, monkeypatch, capsys, start, goal, message):
+    """On an empty data directory an off-map start used to be reported after collecting,
+    training and mapping (58 s in smoke, hours in paper)."""
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    monkeypatch.setattr(artifacts, "ensure", _no_artifacts)
+    assert main(["plan", "--world", "hill", "--vehicle", "carla_cola", "--start", start,
+                 "--goal", goal, "--method", "dgt", "--profile", "smoke"]) == 2
+    out, err = capsys.readouterr()
+    assert message in err and "training" not in out
+    assert list(tmp_path.iterdir()) == []  # nothing collected, trained or written
+
+
+def test_a_start_on_steep_ground_fails_before_the_dataset_and_model(data_dir, monkeypatch,
+                                                                     capsys):
+    """Steepness needs the occupancy map (‖∇H̄‖ > τ_s): it is checked on the BEV maps alone,
+    before collection and training, with the planner's own rule."""
+    import dgt_lib.stages.costmaps as costmaps
+    from dgt_lib.navigation.planner import InvalidQueryError
+    from dgt_lib.query import plan_query
+
+    monkeypatch.setattr(costmaps, "ensure_dataset", _no_artifacts)
+    with pytest.raises(InvalidQueryError, match="in an obstacle: .* hits occupied cells"):
+        plan_query(tiny_world(), "jeep", (24.0, 16.0, 0.0), (40.0, 16.0), method="dgt",
+                   profile="smoke", progress=False)
+    assert "training" not in capsys.readouterr().out
+
+
+def test_negative_coordinates_parse_on_the_command_line(tmp_path, monkeypatch, capsys):
+    """`--start -5,14,0.8` was an argparse error ("expected one argument")."""
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    assert main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "-5,14,0.8",
+                 "--goal", "-3.5,-4", "--profile", "smoke"]) == 2
+    assert "start (-5.00, 14.00) m is off the map" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # still a number list, or an error naming the format
+        main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "-5,nan,0",
+              "--goal", "3,4"])
+    assert "--start must be x,y,yaw: finite numbers" in capsys.readouterr().err
+
+
+def test_a_goal_within_the_tolerance_plans_and_drives_a_zero_length_path(data_dir):
+    """--drive with a goal 0.5 m away failed: "path needs at least two distinct points"."""
+    from dgt_lib.query import plan_query
+
+    report = plan_query(tiny_world(), "jeep", (8.0, 16.0, 0.0), (8.5, 16.0), method="binary",
+                        profile="smoke", drive=True, progress=False)
+    assert report.plan.success and report.plan.length_m == 0.0
+    assert report.outcome.success and report.outcome.duration_s == 0.0
+    assert "already within the goal tolerance" in report.summary()
+
+
+def test_distinct_queries_write_distinct_files(data_dir):
+    """Files were named by rounded x, y only: another heading, a start 0.3 m away or
+    another terrain of the same name overwrote the previous query's figure and recording."""
+    from dgt_lib.query import plan_query
+
+    world = tiny_world()
+    starts = [(8.0, 16.0, 0.0), (8.0, 16.0, np.pi / 2), (8.3, 16.2, 0.0)]
+    figures = set()
+    for start in starts:
+        report = plan_query(world, "jeep", start, (40.0, 16.0), method="binary",
+                            profile="smoke", progress=False)
+        assert report.figure.exists() and report.recording.exists()
+        figures.add(report.figure)
+    assert len(figures) == 3
+    other = from_heightmap(world.heights + 0.1, RES, trees=world.trees, name="tiny")
+    again = plan_query(other, "jeep", starts[0], (40.0, 16.0), method="binary",
+                       profile="smoke", progress=False)
+    assert again.figure not in figures  # same name, other terrain
+    same = plan_query(world, "jeep", starts[0], (40.0, 16.0), method="binary",
+                      profile="smoke", progress=False)
+    assert same.figure in figures  # the same query replaces its own files

@@ -70,6 +70,30 @@ def test_api_misuse_is_a_clear_error(bumpy):
         sim.step()
 
 
+@pytest.mark.parametrize("pose", [(math.nan, 10.0, 0.0), (0.0, math.inf, 0.0),
+                                  (0.0, 10.0, math.nan)])
+def test_a_non_finite_reset_pose_is_a_value_error_naming_it(bumpy, pose):
+    sim = Simulator(bumpy, "jeep")
+    with pytest.raises(ValueError, match="Simulator.reset needs finite numbers"):
+        sim.reset(*pose)
+
+
+@pytest.mark.parametrize("command", [{"speed_cmd_mps": 5.0, "steer": math.nan},
+                                     {"speed_cmd_mps": math.nan},
+                                     {"throttle": math.inf},
+                                     {"throttle": 0.5, "brake": math.nan},
+                                     {"speed_cmd_mps": 5.0, "duration_s": math.nan}])
+def test_a_non_finite_command_is_a_value_error_not_ignored(bumpy, command):
+    """NaN steering used to be zeroed by MuJoCo without a word: the run went straight on."""
+    sim = Simulator(bumpy, "jeep")
+    sim.reset(0.0, 10.0, 0.0)
+    before = sim.state
+    name = next(k for k, v in command.items() if not math.isfinite(v))
+    with pytest.raises(ValueError, match=name):
+        sim.step(**command)
+    assert sim.state is before  # nothing was simulated
+
+
 def test_divergence_ends_the_run_without_raising(bumpy):
     sim = Simulator(bumpy, "jeep")
     sim.reset(0.0, 10.0, 0.0)

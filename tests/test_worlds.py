@@ -171,6 +171,21 @@ def test_bad_heightmaps_are_clear_errors(heights, resolution, message):
         from_heightmap(heights, resolution)
 
 
+def test_heights_beyond_float32_are_rejected_before_they_reach_mujoco(tmp_path):
+    """1e40 is finite as float64 but inf as float32, the world's dtype: it used to pass and
+    fail inside MuJoCo ("nan size in geom")."""
+    heights = np.zeros((30, 30))
+    heights[3, 4] = 1e40
+    with pytest.raises(HeightmapError, match="beyond float32"):
+        from_heightmap(heights, 0.4)
+    np.save(tmp_path / "huge.npy", heights)
+    with pytest.raises(HeightmapError, match="beyond float32"):
+        load_heightmap(tmp_path / "huge.npy", 0.4)
+    with pytest.raises(HeightmapError, match="trees must be finite"):
+        from_heightmap(np.zeros((30, 30)), 0.4, trees=[(1e40, 2.0, 0.3, 5.0)])
+    assert from_heightmap(heights * 1e-3, 0.4).heights.max() == np.float32(1e37)  # still fine
+
+
 def test_smallest_valid_map_is_one_patch():
     assert from_heightmap(np.zeros((22, 7)), 0.4).grid.shape == (22, 7)
     with pytest.raises(HeightmapError, match="colors must have shape"):

@@ -2,7 +2,8 @@
 
 ``smoke`` runs every code path in CI in minutes, ``demo`` is the default for a
 person stepping through the notebooks, ``paper`` uses the paper's sizes.
-Select with the ``DGT_PROFILE`` environment variable or an explicit name::
+Select with the ``DGT_PROFILE`` environment variable or an explicit name (one rule for
+both, and for ``dgt --profile``: case and surrounding blanks do not matter)::
 
     from dgt_lib.core.config import get_profile
     profile = get_profile()          # DGT_PROFILE, default "demo"
@@ -265,7 +266,11 @@ class UnknownProfileError(ValueError):
 
 
 def profile_name(name: str | None = None) -> str:
-    """Resolve a profile name: the argument, else ``$DGT_PROFILE``, else ``demo``."""
+    """Resolve a profile name: the argument, else ``$DGT_PROFILE``, else ``demo``.
+
+    Case-insensitive, surrounding blanks ignored ("Smoke " is "smoke"); the command
+    line's ``--profile`` goes through here too, so the two accept the same names.
+    Raises :class:`UnknownProfileError` naming the valid profiles."""
     chosen = name if name is not None else os.environ.get(ENV_VAR) or DEFAULT_PROFILE
     chosen = chosen.strip().lower()
     if chosen not in _BUILDERS:

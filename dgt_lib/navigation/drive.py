@@ -64,21 +64,29 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
 
     Returns (outcome, trajectory (T, 4) [t, x, y, z] every :data:`LOG_DT_S`, speed (T,)).
     Judged by :class:`OutcomeRule` with the paper's 5 m and 10 s and ``time_limit_s``.
+    A path of one pose (the planner's answer when the start is already within its goal
+    tolerance) has nothing to track: the vehicle holds still and the rule judges where
+    it stands (success at t = 0 when that is within 5 m of the goal).
     """
     spec = get_vehicle(vehicle)
     sim = Simulator(world, spec)
+    path = np.asarray(path, float)
     try:
         x, y, yaw = (float(v) for v in path[0])
         sim.reset(x, y, yaw)
-        cfg = replace(MPPIConfig(batch_size=mppi_batch_size), **vehicle_footprint(spec))
-        ctrl = MPPIController.from_vehicle(spec, cfg, seed=seed)
-        # the controller works on the rear-axle centre, the planner on the body centre
-        ctrl.set_path(rear_axle_pose(path[:, :2], path[:, 2], spec.wheelbase_m))
+        if _has_length(path):
+            cfg = replace(MPPIConfig(batch_size=mppi_batch_size), **vehicle_footprint(spec))
+            ctrl = MPPIController.from_vehicle(spec, cfg, seed=seed)
+            # the controller works on the rear-axle centre, the planner on the body centre
+            ctrl.set_path(rear_axle_pose(path[:, :2], path[:, 2], spec.wheelbase_m))
 
-        def mppi(state: VehicleState) -> tuple[float, float]:
-            pose = rear_axle_pose(state.position, state.yaw, spec.wheelbase_m)
-            v_x, w_z = ctrl.compute(pose, state.speed_mps, occupancy, grid)
-            return v_x, steering_from_twist(v_x, w_z, spec.wheelbase_m, spec.max_steer_rad)
+            def policy(state: VehicleState) -> tuple[float, float]:
+                pose = rear_axle_pose(state.position, state.yaw, spec.wheelbase_m)
+                v_x, w_z = ctrl.compute(pose, state.speed_mps, occupancy, grid)
+                return v_x, steering_from_twist(v_x, w_z, spec.wheelbase_m, spec.max_steer_rad)
+        else:
+            def policy(state: VehicleState) -> tuple[float, float]:
+                return 0.0, 0.0  # hold still: nothing to track
 
         rows, speeds = [], []
         next_log = [0.0]
@@ -89,7 +97,7 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
                 speeds.append(state.speed_mps)
                 next_log[0] += LOG_DT_S
 
-        outcome = drive_loop(sim, mppi, OutcomeRule(time_limit_s=time_limit_s), goal=goal,
+        outcome = drive_loop(sim, policy, OutcomeRule(time_limit_s=time_limit_s), goal=goal,
                              dt_s=MPPI_DT_S, on_state=log)
         state = sim.state
         rows.append((state.time_s, *state.position))
@@ -97,6 +105,11 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
         return outcome, np.asarray(rows, float), np.asarray(speeds, float)
     finally:
         sim.close()
+
+
+def _has_length(path: np.ndarray) -> bool:
+    """Whether an (N, 3) path has two distinct positions (something to track)."""
+    return bool(len(path) > 1 and np.any(np.hypot(*np.diff(path[:, :2], axis=0).T) > 1e-9))
 
 
 @dataclass

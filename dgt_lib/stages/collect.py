@@ -22,6 +22,7 @@ Example::
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from concurrent.futures import Executor
 from pathlib import Path
@@ -42,7 +43,7 @@ from dgt_lib.perception.episodes import (
 )
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
-from dgt_lib.world.mujoco_model import CAMERA, LIGHTING
+from dgt_lib.world.mujoco_model import CAMERA, LIGHTING, MAX_DEPTH_M
 from dgt_lib.world.rendering import survey_frames, survey_poses
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
@@ -189,6 +190,46 @@ def build_world_bev(world: World, config: CollectConfig | None = None,
             acc.add_sparse(ep.bev)
         n_episode += ep.n_frames
     return acc.result(), n_survey, n_episode
+
+
+UNOBSERVED_WARN_FRACTION = 0.10
+"""Warn when more than this fraction of a world's interior is unobserved in its BEV map
+(the kit's worlds: at most 1.7 %, README → Speed)."""
+
+
+class UnobservedMapWarning(UserWarning):
+    """Much of a world's BEV map is unobserved; the planner treats those cells as obstacles."""
+
+
+def warn_if_unobserved(bev: BEVMap, world: World, config: CollectConfig | None = None
+                       ) -> float:
+    """The fraction of ``world``'s interior that ``bev`` left unobserved; warns
+    (:class:`UnobservedMapWarning`) with the likely cause when it exceeds
+    :data:`UNOBSERVED_WARN_FRACTION`.
+
+    The usual cause is relief: each survey view looks down from ``survey_altitude_m``
+    above the highest terrain inside it and the camera sees :data:`MAX_DEPTH_M` deep, so
+    ground more than MAX_DEPTH_M − survey_altitude_m [m] below a view's highest point is
+    never mapped (e.g. heights given in centimetres instead of metres)."""
+    cfg = config or CollectConfig()
+    unobserved = 1.0 - bev_quality(bev, world)["coverage"]
+    if unobserved <= UNOBSERVED_WARN_FRACTION:
+        return unobserved
+    lo, hi = float(world.heights.min()), float(world.heights.max())
+    reach = MAX_DEPTH_M - cfg.survey_altitude_m
+    if hi - lo > reach:
+        why = (f"Its heights span {lo:.1f} to {hi:.1f} m: each survey view looks down from "
+               f"{cfg.survey_altitude_m:.0f} m above the highest terrain in it and sees "
+               f"{MAX_DEPTH_M:.0f} m deep, so ground more than {reach:.0f} m below a view's "
+               "highest point is not mapped. Are the heights in metres? Scale them down (a "
+               "PNG: a smaller --vertical-scale / vertical_scale_m).")
+    else:
+        why = (f"Its relief ({hi - lo:.1f} m) is within the survey's {reach:.0f} m depth "
+               "reach, so something else hid the ground (dense trees, a tiny map?).")
+    warnings.warn(f"{unobserved:.0%} of world {world.name!r} is unobserved in its BEV map; "
+                  "the planner treats unobserved cells as obstacles (a start or goal there "
+                  f"is 'in an obstacle'). {why}", UnobservedMapWarning, stacklevel=2)
+    return unobserved
 
 
 def ensure_bev(world_name: str, profile: Profile | str | None = None, *,

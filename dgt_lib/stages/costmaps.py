@@ -40,7 +40,12 @@ from dgt_lib.mapping.occupancy import (
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.dataset import PatchDataset
-from dgt_lib.stages.collect import bev_relpath, build_world_bev, ensure_bev
+from dgt_lib.stages.collect import (
+    bev_relpath,
+    build_world_bev,
+    ensure_bev,
+    warn_if_unobserved,
+)
 from dgt_lib.stages.dataset import ensure_dataset
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
@@ -59,7 +64,9 @@ def world_bev(world: World | str, profile: Profile | str | None = None, *,
 
     A name of the kit's worlds goes through :func:`~dgt_lib.stages.collect.ensure_bev`; any other
     :class:`World` (your own terrain, ``worlds.from_heightmap``) is surveyed the same way
-    and cached as ``bev/custom/<name>_<hash>.npz`` keyed by its heights, colours and trees.
+    and cached as ``bev/custom/<name>_<hash>.npz`` keyed by its heights, colours and trees;
+    when much of it stays unobserved, it warns why
+    (:func:`~dgt_lib.stages.collect.warn_if_unobserved`).
     """
     prof = as_profile(profile)
     if isinstance(world, str) or (world.name in WORLD_NAMES
@@ -72,7 +79,9 @@ def world_bev(world: World | str, profile: Profile | str | None = None, *,
     arrays = artifacts.ensure(relpath, config,
                               lambda: build_world_bev(world, prof.collect, progress=progress)[0]
                               .to_arrays(), profile=cache_dir(prof))
-    return BEVMap.from_arrays(arrays), relpath
+    bev = BEVMap.from_arrays(arrays)
+    warn_if_unobserved(bev, world, prof.collect)  # built now or cached: say why, every time
+    return bev, relpath
 
 
 def _world_key(world: World | str, bev_path: str) -> str:
@@ -146,11 +155,13 @@ def ensure_tau_s(profile: Profile | str | None = None) -> float:
                                   profile=cache_dir(prof))["tau_s"])
 
 
-def world_occupancy(world: World | str, profile: Profile | str | None = None
-                    ) -> tuple[np.ndarray, GridSpec]:
-    """The occupancy map (H, W) uint8 of a world's BEV with the profile's τ_s, and its grid."""
+def world_occupancy(world: World | str, profile: Profile | str | None = None, *,
+                    progress: bool = True) -> tuple[np.ndarray, GridSpec]:
+    """The occupancy map (H, W) uint8 of a world's BEV with the profile's τ_s, and its grid:
+    what :func:`ensure_world_costmaps` gives the planner, without a dataset or a model
+    (the BEV maps only; the training world's needs its episodes)."""
     prof = as_profile(profile)
-    bev, _ = world_bev(world, prof)
+    bev, _ = world_bev(world, prof, progress=progress)
     return occupancy_map(bev, ensure_tau_s(prof)), bev.grid
 
 

@@ -56,6 +56,16 @@ _DIVERGENCE_WARNINGS = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
                                  int(mujoco.mjtWarning.mjWARN_BADQACC)])
 
 
+def check_finite(where: str, **values: float | None) -> None:
+    """Raise ValueError naming each argument of ``where`` that is not a finite number
+    (NaN, ±inf); None passes. MuJoCo would otherwise index with NaN (an IndexError) or
+    zero a NaN control silently (its bad-control warning)."""
+    bad = [f"{name}={value!r}" for name, value in values.items()
+           if value is not None and not math.isfinite(float(value))]
+    if bad:
+        raise ValueError(f"{where} needs finite numbers, got {', '.join(bad)}")
+
+
 # Geom kinds for contact classification (world kinds sort below vehicle kinds).
 _OTHER, _TERRAIN, _TREE, _CHASSIS, _WHEEL = -1, 0, 1, 2, 3
 
@@ -175,7 +185,13 @@ class Simulator:
 
     def reset(self, x: float, y: float, yaw: float, *, settle_s: float = 1.0) -> VehicleState:
         """Place the vehicle at (x, y) [m] heading ``yaw`` [rad], drop it onto the
-        terrain, let it settle ``settle_s`` with brakes on, then set time to 0."""
+        terrain, let it settle ``settle_s`` with brakes on, then set time to 0.
+
+        Raises ValueError for a non-finite x, y, yaw or settle_s, or settle_s < 0. A
+        pose off the map is allowed: the state's ``done_reason`` is then "off_map"."""
+        check_finite("Simulator.reset", x=x, y=y, yaw=yaw, settle_s=settle_s)
+        if settle_s < 0:
+            raise ValueError(f"Simulator.reset needs settle_s ≥ 0 s, got {settle_s}")
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         v = self.vehicle
@@ -216,7 +232,12 @@ class Simulator:
         """Advance ``duration_s`` [s] holding one command: a target speed [m/s]
         (through :attr:`speed_controller`) or a raw ``throttle`` ∈ [−1, 1] with
         ``brake`` ∈ [0, 1]; ``steer`` ∈ [−1, 1] of the maximum steering angle.
-        After a run ends (``state.done_reason``) further steps change nothing."""
+        After a run ends (``state.done_reason``) further steps change nothing.
+        Raises ValueError for a non-finite command or a duration ≤ 0."""
+        check_finite("Simulator.step", speed_cmd_mps=speed_cmd_mps, steer=steer,
+                     throttle=throttle, brake=brake, duration_s=duration_s)
+        if not duration_s > 0:
+            raise ValueError(f"Simulator.step needs duration_s > 0 s, got {duration_s}")
         if self._state is None:
             raise RuntimeError("call Simulator.reset(x, y, yaw) before step()")
         if self._done is not None:

@@ -185,7 +185,8 @@ def from_heightmap(
 
     colors: optional (H, W, 3) RGB, float in 0..1 or uint8 (default: slope-based
     grass/rock). trees: optional (N, 4) x, y, radius, height [m].
-    Raises :class:`HeightmapError` for a wrong rank or dtype, NaN/inf heights, a
+    Raises :class:`HeightmapError` for a wrong rank or dtype, heights that are NaN/inf
+    as float32 (the world's dtype: 1e40 passes as float64 and is inf as float32), a
     map smaller than one 8.8 m × 2.8 m patch, resolution ≤ 0, or bad colours/trees.
     """
     arr = np.asarray(heights)
@@ -199,9 +200,12 @@ def from_heightmap(
         raise HeightmapError(f"resolution must be a number of metres, got {resolution!r}") from None
     if not (np.isfinite(res) and res > 0):
         raise HeightmapError(f"resolution must be > 0 m, got {resolution}")
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.count_nonzero(~np.isfinite(arr)))
-        raise HeightmapError(f"heights contain {bad} NaN/inf values")
+    with np.errstate(over="ignore"):
+        hm = arr.astype(np.float32)  # what MuJoCo and the maps use
+    if not np.all(np.isfinite(hm)):
+        bad = int(np.count_nonzero(~np.isfinite(hm)))
+        raise HeightmapError(f"heights contain {bad} values that are NaN/inf or beyond float32's "
+                             f"range (|h| > {np.finfo(np.float32).max:.1e} m)")
     min_cells = int(np.ceil(PATCH_SIZE_M[1] / res - 1e-9))
     long_cells = int(np.ceil(PATCH_SIZE_M[0] / res - 1e-9))
     h, w = arr.shape
@@ -210,7 +214,6 @@ def from_heightmap(
             f"height map of {h}×{w} cells at {res} m is smaller than one "
             f"{PATCH_SIZE_M[0]} m × {PATCH_SIZE_M[1]} m patch "
             f"(needs at least {long_cells}×{min_cells} cells)")
-    hm = arr.astype(np.float32)
     grid = GridSpec(tuple(origin), res, (h, w))
     if colors is None:
         rgb = _colorize(hm, res, np.random.default_rng(0))
@@ -227,9 +230,12 @@ def from_heightmap(
         else:
             raise HeightmapError(f"colors must be uint8 or finite floats, got {c.dtype}")
     tr = np.asarray(trees, np.float64).reshape(-1, 4) if len(trees) else np.zeros((0, 4))
+    with np.errstate(over="ignore"):
+        tr = tr.astype(np.float32)
     if not np.all(np.isfinite(tr)) or np.any(tr[:, 2:] <= 0):
-        raise HeightmapError("trees must be finite (N, 4) rows x, y, radius > 0, height > 0")
-    return World(name, grid, hm, rgb, tr.astype(np.float32), dict(landmarks or {}), {}, None)
+        raise HeightmapError("trees must be finite float32 (N, 4) rows x, y, radius > 0, "
+                             "height > 0")
+    return World(name, grid, hm, rgb, tr, dict(landmarks or {}), {}, None)
 
 
 def load_heightmap(

@@ -69,6 +69,7 @@ from dgt_lib.navigation.planner.primitives import (
 from dgt_lib.navigation.planner.result import InvalidQueryError, PlanResult
 from dgt_lib.navigation.planner.search import HybridAStar, plan
 from dgt_lib.navigation.planner.shots import dubins_path, sample_segments, turn_then_straight
+from dgt_lib.navigation.planner.validation import check_query_on_world
 
 __all__ = [
     "HEURISTICS",
@@ -78,6 +79,7 @@ __all__ = [
     "PlanResult",
     "amplified_cost",
     "arc_poses",
+    "check_query_on_world",
     "dubins_path",
     "edge_cost",
     "footprint_circles",

@@ -32,6 +32,10 @@ from dgt_lib.navigation.planner.result import (
 from dgt_lib.navigation.planner.shots import shot_cost, shot_poses
 from dgt_lib.navigation.planner.validation import check_config, check_maps
 
+BLOCKING_CELLS = {1: "occupied cells (steeper than τ_s: a slope, a step or a tree)",
+                  2: "unobserved cells (terrain the BEV map did not see)"}
+"""How a rejected query names the occupancy values that block it."""
+
 heappush, hypot = heapq.heappush, math.hypot
 _new_node = tuple.__new__  # _new_node(Node, fields): Node(*fields) at a plain tuple's cost
 
@@ -85,6 +89,7 @@ class HybridAStar:
         self.clearance_m = self._blocked.clearance_m
         # distance [m] from every cell centre to the nearest occupied/unobserved cell centre
         self._occupied_distance = self._blocked.occupied_distance
+        self._occupancy = occupancy  # to say what a rejected start or goal hits
         self._bin_table, self._bin_reach = travel_bin_table(
             cfg.step_m, grid.resolution, self.n_headings)
         self._cost_to_go = CostToGo(
@@ -145,20 +150,46 @@ class HybridAStar:
         if self.collides(start)[0]:
             raise InvalidQueryError(
                 f"start pose ({sx:.2f}, {sy:.2f}, {sth:.2f}) is in an obstacle: the "
-                f"{self.footprint[0]:.2f}×{self.footprint[1]:.2f} m footprint hits an occupied "
-                "or unobserved cell (or the map edge)"
+                f"{self.footprint[0]:.2f}×{self.footprint[1]:.2f} m footprint hits "
+                f"{self._what_blocks(start)}"
             )
         r, c = self.grid.xy_to_cell(gx, gy)
         if self._occupied_distance[r, c] == 0:
             raise InvalidQueryError(
-                f"goal ({gx:.2f}, {gy:.2f}) is in an occupied or unobserved cell"
+                f"goal ({gx:.2f}, {gy:.2f}) is in an obstacle: on "
+                f"{BLOCKING_CELLS[int(self._occupancy[r, c])]}"
             )
         if gth is not None and self.collides((gx, gy, gth))[0]:
             raise InvalidQueryError(
                 f"goal pose ({gx:.2f}, {gy:.2f}, {gth:.2f}) is in an obstacle: the footprint "
-                "hits an occupied or unobserved cell (or the map edge)"
+                f"hits {self._what_blocks((gx, gy, gth))}"
             )
         return float(sx), float(sy), float(wrap_angle(sth)), float(gx), float(gy), gth
+
+    def check_query(self, start, goal) -> None:
+        """Raise :class:`InvalidQueryError` where :meth:`plan` would, without searching:
+        a start or goal off the map, a start pose whose footprint collides, a goal point
+        in an occupied or unobserved cell, a goal pose whose footprint collides."""
+        self._check_query(start, goal)
+
+    def _what_blocks(self, pose) -> str:
+        """What the footprint at ``pose`` (x, y, θ) collides with, in words: occupied
+        and/or unobserved cells within the clearance of its circles, or the map edge."""
+        x, y, th = (float(v) for v in pose)
+        res, (h, w) = self.grid.resolution, self.grid.shape
+        n = math.ceil(self.clearance_m / res) + 1
+        found = []
+        for off in self.circle_offsets:
+            px, py = x + off * math.cos(th), y + off * math.sin(th)
+            if not self.grid.contains(px, py):
+                found.append("the map edge")
+                continue
+            r, c = (int(v) for v in self.grid.xy_to_cell(px, py))
+            rows, cols = np.mgrid[max(r - n, 0):min(r + n + 1, h), max(c - n, 0):min(c + n + 1, w)]
+            near = np.hypot(rows - r, cols - c) * res < self.clearance_m
+            found += [BLOCKING_CELLS[int(v)] for v in np.unique(self._occupancy[rows, cols][near])
+                      if v in BLOCKING_CELLS]
+        return " and ".join(sorted(set(found))) or "an occupied or unobserved cell"
 
     def plan(self, start, goal) -> PlanResult:
         """Plan from ``start`` (x, y, θ) to ``goal`` (x, y) or (x, y, θ) [m, m, rad].
