@@ -385,20 +385,25 @@ class BEVAccumulator:
                              f"got {colors.shape}")
         if len(points) == 0:
             return 0
-        finite = np.isfinite(points).all(axis=1) & np.isfinite(colors).all(axis=1)
-        points, colors = points[finite], colors[finite]
+        # x + y + z is NaN or ±inf iff one of them is (or all are huge, hence off the grid).
+        ok = np.isfinite(points[:, 0] + points[:, 1] + points[:, 2])
+        if np.issubdtype(colors.dtype, np.floating):
+            ok &= np.isfinite(colors[:, 0] + colors[:, 1] + colors[:, 2])
+        if not ok.all():  # (indexing copies: skipped when every point is finite)
+            points, colors = points[ok], colors[ok]
         g = self.grid
         row, col = g.xy_to_cell(points[:, 0], points[:, 1])
         keep = (row >= 0) & (row < g.height) & (col >= 0) & (col < g.width)
-        if not keep.any():
-            return 0
-        row, col = row[keep], col[keep]
+        if not keep.all():  # (indexing copies: skipped when every point is kept)
+            if not keep.any():
+                return 0
+            points, colors, row, col = points[keep], colors[keep], row[keep], col[keep]
         flat = row * g.width + col
         vals = np.empty((len(MOMENTS), len(flat)))  # one contiguous float64 row per sum
-        vals[:3] = colors[keep].T
-        vals[_X] = points[keep, 0] - (g.origin_xy[0] + (col + 0.5) * g.resolution)
-        vals[_Y] = points[keep, 1] - (g.origin_xy[1] + (row + 0.5) * g.resolution)
-        vals[_Z] = points[keep, 2]
+        vals[:3] = colors.T
+        vals[_X] = points[:, 0] - (g.origin_xy[0] + (col + 0.5) * g.resolution)
+        vals[_Y] = points[:, 1] - (g.origin_xy[1] + (row + 0.5) * g.resolution)
+        vals[_Z] = points[:, 2]
         x, y, z = vals[_X], vals[_Y], vals[_Z]
         np.multiply(x, x, out=vals[_XX])
         np.multiply(x, y, out=vals[_XY])
