@@ -451,6 +451,28 @@ def test_a_lone_point_or_a_line_of_points_falls_back_to_the_neighbours_slope():
                                atol=1e-3)
 
 
+def test_ground_beside_a_wall_keeps_its_height():
+    """A neighbourhood that is no plane (a trunk, crown or cliff beside the cell) must not
+    lend its slope to a sparsely sampled ground cell: one point 0.15 m off the centre of
+    flat ground next to a 3 m wall would otherwise move H̄ by ~slope·0.15 m."""
+    rng = np.random.default_rng(2)
+    grid = GridSpec((0.0, 0.0), 0.4, (8, 8))
+    cx, cy = grid.cell_centers()
+    ground = np.column_stack([cx.ravel() + rng.choice([-0.15, 0.15], cx.size),
+                              cy.ravel() + rng.choice([-0.15, 0.15], cx.size),
+                              np.zeros(cx.size)])
+    wall = np.column_stack([rng.uniform(1.6, 2.0, 400), rng.uniform(0.0, 3.2, 400),
+                            rng.uniform(0.0, 3.0, 400)])  # column 4, 3 m tall
+    acc = BEVAccumulator(grid)
+    acc.add_points(np.concatenate([ground, wall]), np.full((cx.size + 400, 3), 0.5))
+    bev = acc.result()
+    beside = np.zeros(grid.shape, bool)
+    beside[:, [3, 5]] = True
+    assert np.abs(bev.mean_height[beside]).max() < 0.01
+    assert bev.mean_height[:, 4].min() > 1.0  # the wall stands
+    assert bev.gradient[:, [3, 5]].min() > 1.5  # and is enclosed by high gradient
+
+
 def _ramp(angle_deg: float, azimuth_deg: float, n: int = 100, length_m: float = 16.0):
     """Heights of a ramp of ``angle_deg`` rising towards ``azimuth_deg`` across the map's
     centre over ``length_m``, level before and after (res 0.4 m, n × n cells)."""

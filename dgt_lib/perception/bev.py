@@ -31,11 +31,11 @@ lines of outliers where survey frames meet — above τ_s on terrain that is tra
 Here H̄ and σ_H are the mean and std of the *terrain's* height over the cell's area,
 which the points' mean and std equal when the points cover the cell evenly; for ground
 that is planar at the scale of a cell they no longer depend on the sampling (on the same
-surveys: H̄ within 0.12 cm, ‖∇H̄‖ within 0.012 of the truth on 10–28° ramps; 2.1 cm and
+surveys: H̄ within 0.14 cm, ‖∇H̄‖ within 0.014 of the truth on 10–28° ramps; 2.1 cm and
 0.023 on a 1.5 m high, 30° steep Gaussian ridge, whose curvature a plane misses).
 ``result("points")`` gives the literal reading. ‖∇H̄‖ keeps the paper's central
 differences of H̄: they are closer to the terrain's central differences than the planes'
-own slopes ‖(a, b)‖ (p99 error 0.017 vs 0.067 on that ridge, 0.005 vs 0.013 on a bump,
+own slopes ‖(a, b)‖ (p99 error 0.018 vs 0.072 on that ridge, 0.005 vs 0.013 on a bump,
 equal on ramps; ``benchmarks/bev_slopes.py``), and a tree's trunk and crown still stand
 out with a high gradient around them.
 
@@ -238,6 +238,12 @@ SLOPE_PRIOR_FRACTION = 0.1
 """A cell's plane slope is pulled towards its 3×3 neighbourhood's with the weight of a
 spread of offsets of (0.1·cell size)² [m²] (see :func:`fit_cell_planes`)."""
 
+PLANAR_SCALE_M = 0.1
+"""The 3×3 neighbourhood's slope is trusted as far as its points lie on a plane: it is
+scaled by σ₀²/(σ₀² + s₀²), s₀ their rms residual about it [m] and σ₀ this scale [m]. Next
+to a tree crown or a cliff (s₀ of metres) the neighbourhood says nothing about the
+ground's slope; used anyway, it moved a cell's H̄ by up to 0.9 m."""
+
 _NEIGHBOURHOOD_PRIOR_FRACTION = 0.01
 """Likewise, the 3×3 neighbourhood's slope is pulled towards 0 with (0.01·cell size)²,
 so that a neighbourhood whose points do not span a plane gets a level one."""
@@ -273,7 +279,7 @@ def _shift_pass(m: np.ndarray, axis: int, resolution: float) -> np.ndarray:
     neighbours along ``axis`` (1: rows, y; 2: columns, x), each with the coordinate u along
     that axis taken from this cell's centre: a neighbour k = ±1 adds its sums with
     u → u + k·res, i.e. Σu += k·res·n, Σu² += 2k·res·Σu + res²·n, Σuv += k·res·Σv."""
-    u, v, uu = (2, 1, 6) if axis == 1 else (1, 2, 4)  # rows of n, x, y, z, xx, xy, yy, xz, yz
+    u, v, uu = (2, 1, 6) if axis == 1 else (1, 2, 4)  # rows: n, x, y, z, xx, xy, yy, xz, yz, zz
     pad = [(0, 0)] * 3
     pad[axis] = (1, 1)
     padded = np.pad(m, pad)
@@ -291,12 +297,19 @@ def _shift_pass(m: np.ndarray, axis: int, resolution: float) -> np.ndarray:
     return out
 
 
+def _mean_sq_residual(a, b, cxx, cxy, cyy, cxz, cyz, czz) -> np.ndarray:
+    """mean (z − h − a·x − b·y)² [m²] of points with central moments c.. about the plane of
+    slope (a, b) through their centroid (h = z̄ − a·x̄ − b·ȳ); ≥ 0."""
+    r = czz - 2 * (a * cxz + b * cyz) + a * a * cxx + 2 * a * b * cxy + b * b * cyy
+    return np.maximum(r, 0.0)
+
+
 def _neighbourhood_sums(count: np.ndarray, sums: np.ndarray, resolution: float) -> np.ndarray:
     """Per cell, the moments of all points in its 3×3 neighbourhood, with offsets taken
     from *its* centre: a neighbour (r+i, c+j) adds its sums with x → x + j·res, y → y + i·res.
 
-    count: (H, W); sums: (8, H, W) Σx, Σy, Σz, Σxx, Σxy, Σyy, Σxz, Σyz. Returns (9, H, W):
-    n, then the same eight sums (beyond the grid's border counts as empty). Separable: a
+    count: (H, W); sums: (9, H, W) Σx, Σy, Σz, Σxx, Σxy, Σyy, Σxz, Σyz, Σzz. Returns
+    (10, H, W): n, then the same nine sums (beyond the grid's border counts as empty). Separable: a
     pass along the columns, then one along the rows (:func:`_shift_pass`).
     """
     raw = np.concatenate([count[None].astype(np.float64), sums])
@@ -331,22 +344,29 @@ def fit_cell_planes(count: np.ndarray, sums: np.ndarray, resolution: float) -> C
 
     with λ = (0.1·res)² (:data:`SLOPE_PRIOR_FRACTION`; offsets spread evenly over a cell
     have variance res²/12 = 8.3·λ, so a well-sampled cell keeps its own slope) and
-    λ₀ = (0.01·res)². An isolated cell with one point gets its height, level.
+    λ₀ = (0.01·res)². The neighbourhood's slope is then scaled by σ₀²/(σ₀² + s₀²), s₀² the
+    mean squared residual of its points about their plane, σ₀ = :data:`PLANAR_SCALE_M`:
+    where the neighbourhood is no plane (a crown or cliff beside the cell) a sparsely
+    sampled cell falls back towards its points' mean. An isolated cell with one point gets
+    its height, level.
 
     Returns :class:`CellPlanes` (h, a, b and s², the points' mean squared residual about
     the plane), 0 where a cell is empty.
     """
     own = _centred_moments(count, sums)
-    near = _neighbourhood_sums(count, sums[:8], resolution)
-    _, _, _, *pooled = _centred_moments(near[0], near[1:])
-    a0, b0 = _ridge_slopes(*pooled, (_NEIGHBOURHOOD_PRIOR_FRACTION * resolution) ** 2)
+    near = _neighbourhood_sums(count, sums, resolution)
+    _, _, _, pxx, pxy, pyy, pxz, pyz, pzz = _centred_moments(near[0], near[1:])
+    a0, b0 = _ridge_slopes(pxx, pxy, pyy, pxz, pyz,
+                           (_NEIGHBOURHOOD_PRIOR_FRACTION * resolution) ** 2)
+    s0 = _mean_sq_residual(a0, b0, pxx, pxy, pyy, pxz, pyz, pzz)
+    trust = PLANAR_SCALE_M**2 / (PLANAR_SCALE_M**2 + s0)
     mx, my, mz, cxx, cxy, cyy, cxz, cyz, czz = own
     a, b = _ridge_slopes(cxx, cxy, cyy, cxz, cyz, (SLOPE_PRIOR_FRACTION * resolution) ** 2,
-                         (a0, b0))
+                         (trust * a0, trust * b0))
     height = mz - a * mx - b * my
-    resid = czz - 2 * (a * cxz + b * cyz) + a * a * cxx + 2 * a * b * cxy + b * b * cyy
+    resid = _mean_sq_residual(a, b, cxx, cxy, cyy, cxz, cyz, czz)
     seen = count > 0
-    return CellPlanes(*(np.where(seen, v, 0.0) for v in (height, a, b, np.maximum(resid, 0.0))))
+    return CellPlanes(*(np.where(seen, v, 0.0) for v in (height, a, b, resid)))
 
 
 class BEVAccumulator:
