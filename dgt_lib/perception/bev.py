@@ -238,15 +238,15 @@ SLOPE_PRIOR_FRACTION = 0.1
 """A cell's plane slope is pulled towards its 3×3 neighbourhood's with the weight of a
 spread of offsets of (0.1·cell size)² [m²] (see :func:`fit_cell_planes`)."""
 
+_NEIGHBOURHOOD_PRIOR_FRACTION = 0.01
+"""Likewise, the 3×3 neighbourhood's slope is pulled towards 0 with (0.01·cell size)²,
+so that a neighbourhood whose points do not span a plane gets a level one."""
+
 PLANAR_SCALE_M = 0.1
 """The 3×3 neighbourhood's slope is trusted as far as its points lie on a plane: it is
 scaled by σ₀²/(σ₀² + s₀²), s₀ their rms residual about it [m] and σ₀ this scale [m]. Next
 to a tree crown or a cliff (s₀ of metres) the neighbourhood says nothing about the
 ground's slope; used anyway, it moved a cell's H̄ by up to 0.9 m."""
-
-_NEIGHBOURHOOD_PRIOR_FRACTION = 0.01
-"""Likewise, the 3×3 neighbourhood's slope is pulled towards 0 with (0.01·cell size)²,
-so that a neighbourhood whose points do not span a plane gets a level one."""
 
 
 def _centred_moments(count: np.ndarray, sums: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -264,7 +264,9 @@ def _centred_moments(count: np.ndarray, sums: np.ndarray) -> tuple[np.ndarray, .
     return tuple(out)
 
 
-def _ridge_slopes(cxx, cxy, cyy, cxz, cyz, lam: float, prior=(0.0, 0.0)):
+def _ridge_slopes(cxx: np.ndarray, cxy: np.ndarray, cyy: np.ndarray, cxz: np.ndarray,
+                  cyz: np.ndarray, lam: float, prior: tuple = (0.0, 0.0)
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """The slope (a, b) [m/m] minimising mean (z − h − a·x − b·y)² + λ·|(a, b) − prior|²
     (h free) from the central moments: (C + λI)(a, b)ᵀ = (cxz, cyz)ᵀ + λ·prior, where C
     is the offsets' covariance. λ > 0 [m²] keeps it solvable where C is singular."""
@@ -297,9 +299,11 @@ def _shift_pass(m: np.ndarray, axis: int, resolution: float) -> np.ndarray:
     return out
 
 
-def _mean_sq_residual(a, b, cxx, cxy, cyy, cxz, cyz, czz) -> np.ndarray:
-    """mean (z − h − a·x − b·y)² [m²] of points with central moments c.. about the plane of
-    slope (a, b) through their centroid (h = z̄ − a·x̄ − b·ȳ); ≥ 0."""
+def _mean_sq_residual(a: np.ndarray, b: np.ndarray, *central: np.ndarray) -> np.ndarray:
+    """The mean (z − h − a·x − b·y)² [m²] of points about the plane of slope (a, b) through
+    their centroid (h = z̄ − a·x̄ − b·ȳ), from their central moments ``central`` = cxx, cxy,
+    cyy, cxz, cyz, czz; ≥ 0."""
+    cxx, cxy, cyy, cxz, cyz, czz = central
     r = czz - 2 * (a * cxz + b * cyz) + a * a * cxx + 2 * a * b * cxy + b * b * cyy
     return np.maximum(r, 0.0)
 
@@ -309,8 +313,8 @@ def _neighbourhood_sums(count: np.ndarray, sums: np.ndarray, resolution: float) 
     from *its* centre: a neighbour (r+i, c+j) adds its sums with x → x + j·res, y → y + i·res.
 
     count: (H, W); sums: (9, H, W) Σx, Σy, Σz, Σxx, Σxy, Σyy, Σxz, Σyz, Σzz. Returns
-    (10, H, W): n, then the same nine sums (beyond the grid's border counts as empty). Separable: a
-    pass along the columns, then one along the rows (:func:`_shift_pass`).
+    (10, H, W): n, then the same nine sums (beyond the grid's border counts as empty).
+    Separable: a pass along the columns, then one along the rows (:func:`_shift_pass`).
     """
     raw = np.concatenate([count[None].astype(np.float64), sums])
     return _shift_pass(_shift_pass(raw, 2, resolution), 1, resolution)
