@@ -492,6 +492,13 @@ def _across(profile, n: int = 100, azimuth_deg: float = 30.0):
     return profile(-gx * np.sin(az) + gy * np.cos(az))
 
 
+def _bump(height_m: float, sigma_m: float, n: int = 100):
+    """A Gaussian bump 2 m south of the map's centre."""
+    x = (np.arange(n) + 0.5) * 0.4 - 0.2 * n
+    gx, gy = np.meshgrid(x, x)
+    return height_m * np.exp(-0.5 * (gx**2 + (gy + 2.0) ** 2) / sigma_m**2)
+
+
 def _narrow_ramp(n: int = 100):
     """A 9 m wide 24° ramp up a 6.2 m plateau, between cliffs."""
     x = (np.arange(n) + 0.5) * 0.4
@@ -508,9 +515,7 @@ SLOPE_WORLDS = {
     "9 m ramp 24°": (_narrow_ramp, True),
     "smooth ridge": (lambda: _across(lambda u: 1.5 * np.exp(-0.5 * (u / 1.5) ** 2)), False),
     "sharp ridge": (lambda: _across(lambda u: np.maximum(0.0, 0.7 - 0.25 * np.abs(u))), True),
-    "bump": (lambda: _across(lambda u: np.zeros_like(u)) + 2.0 * np.exp(-0.5 * (
-        ((np.arange(100)[None, :] - 50) ** 2 + (np.arange(100)[:, None] - 45) ** 2)
-        * 0.16 / 9.0)), False),
+    "bump": (lambda: _bump(2.0, 3.0), False),
 }
 """Synthetic terrain: heights (100 × 100 cells of 0.4 m) and whether it is piecewise planar
 (whose kinks — a ramp's foot and top, cliffs, a sharp crest — the checks leave out)."""
