@@ -1,5 +1,7 @@
 """The global BEV map: back-projection, binning, streaming statistics, gradient."""
 
+import functools
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -7,6 +9,7 @@ from scipy import ndimage
 from dgt_lib.core import artifacts
 from dgt_lib.core.camera import CameraIntrinsics, RGBDFrame
 from dgt_lib.core.geometry import GridSpec
+from dgt_lib.mapping.occupancy import OCCUPIED, occupancy_map
 from dgt_lib.perception.bev import (
     GRADIENT,
     HEIGHT,
@@ -113,8 +116,9 @@ def test_points_outside_grid_and_nonfinite_are_dropped():
 def test_statistics_match_numpy_and_streaming_equals_one_shot():
     rng = np.random.default_rng(3)
     grid = GridSpec((0.0, 0.0), 0.4, (5, 6))
-    pts = np.column_stack([rng.uniform(0, 2.4, 5000), rng.uniform(0, 2.0, 5000),
-                           rng.normal(100.0, 0.3, 5000)])  # far from 0: tests precision too
+    x, y = rng.uniform(0, 2.4, 5000), rng.uniform(0, 2.0, 5000)
+    # A rough tilted plane, far from 0 (tests precision too).
+    pts = np.column_stack([x, y, 100.0 + 0.3 * x - 0.2 * y + rng.normal(0, 0.05, 5000)])
     cols = rng.uniform(0, 1, (5000, 3))
     one = BEVAccumulator(grid)
     one.add_points(pts, cols)
@@ -131,9 +135,21 @@ def test_statistics_match_numpy_and_streaming_equals_one_shot():
 
     r, c = grid.xy_to_cell(pts[:, 0], pts[:, 1])
     sel = (r == 2) & (c == 3)
-    assert one_shot.mean_height[2, 3] == pytest.approx(pts[sel, 2].mean(), abs=1e-4)
-    assert one_shot.height_std[2, 3] == pytest.approx(pts[sel, 2].std(), abs=1e-4)
+    # H̄, σ_H: the least-squares plane through the cell's points, at the cell centre.
+    cx, cy = grid.cell_to_xy(2, 3)
+    design = np.column_stack([np.ones(sel.sum()), pts[sel, 0] - cx, pts[sel, 1] - cy])
+    (h, a, b), *_ = np.linalg.lstsq(design, pts[sel, 2], rcond=None)
+    resid = pts[sel, 2] - design @ (h, a, b)
+    assert one_shot.mean_height[2, 3] == pytest.approx(h, abs=1e-3)
+    assert one_shot.height_std[2, 3] == pytest.approx(
+        np.sqrt(np.mean(resid**2) + (a * a + b * b) * 0.4**2 / 12), abs=1e-3)
     assert np.allclose(one_shot.channels[:3, 2, 3], cols[sel].mean(axis=0), atol=1e-6)
+    # The paper read literally: the mean and std of the points.
+    literal = one.result("points")
+    assert literal.mean_height[2, 3] == pytest.approx(pts[sel, 2].mean(), abs=1e-4)
+    assert literal.height_std[2, 3] == pytest.approx(pts[sel, 2].std(), abs=1e-4)
+    with pytest.raises(ValueError, match="estimator"):
+        one.result("median")
 
 
 def test_gradient_on_a_plane_with_holes_and_borders():
@@ -317,19 +333,36 @@ def test_crop_keeps_cells_and_world_coordinates():
 def test_sparse_statistics_restore_the_accumulator():
     rng = np.random.default_rng(0)
     grid = GridSpec((0.0, 0.0), 0.4, (50, 60))
+
+    def slope_points(n):
+        x, y = rng.uniform(5, 15, n), rng.uniform(5, 15, n)
+        return np.column_stack([x, y, 30.0 + 0.4 * x - 0.3 * y + rng.normal(0, 0.02, n)])
+
     acc = BEVAccumulator(grid)
-    points = np.column_stack([rng.uniform(5, 15, 2000), rng.uniform(5, 15, 2000),
-                              rng.normal(12.0, 0.3, 2000)])
-    acc.add_points(points, rng.uniform(0, 1, (2000, 3)))
+    points, colours = slope_points(2000), rng.uniform(0, 1, (2000, 3))
+    acc.add_points(points, colours)
     sparse = acc.to_sparse()
     assert len(sparse["cells"]) < grid.height * grid.width / 2  # only the touched cells
     restored = BEVAccumulator(grid).add_sparse(sparse).result()
     ref = acc.result()
     np.testing.assert_array_equal(restored.observed, ref.observed)
-    np.testing.assert_allclose(restored.channels[3:5], ref.channels[3:5], atol=1e-4)
+    np.testing.assert_allclose(restored.channels[3:], ref.channels[3:], atol=1e-4)
     np.testing.assert_allclose(restored.channels[:3], ref.channels[:3], atol=0.5 / 255 + 1e-6)
+    # Survey + episode, the episode stored sparsely: the same map as one accumulator.
+    survey, survey_colours = slope_points(3000), rng.uniform(0, 1, (3000, 3))
+    merged = BEVAccumulator(grid)
+    merged.add_points(survey, survey_colours)
+    merged.add_sparse(sparse)
+    both = BEVAccumulator(grid)
+    both.add_points(np.concatenate([survey, points]), np.concatenate([survey_colours, colours]))
+    np.testing.assert_allclose(merged.result().channels[3:], both.result().channels[3:],
+                               atol=1e-4)
     with pytest.raises(ValueError, match="grid"):
         BEVAccumulator(GridSpec((0.0, 0.0), 0.4, (10, 10))).add_sparse(sparse)
+    old_format = {k: sparse[k] for k in ("cells", "count", "rgb", "z", "shape")}
+    old_format["m2"] = sparse["m2"][5]
+    with pytest.raises(ValueError, match="older format"):
+        BEVAccumulator(grid).add_sparse(old_format)
 
 
 def test_a_cells_colour_does_not_depend_on_who_looked_at_it():
@@ -360,3 +393,193 @@ def test_a_cells_colour_does_not_depend_on_who_looked_at_it():
         flat_colour[name] = bev.channels[:3, cells].mean(axis=1)
     for name, colour in flat_colour.items():
         np.testing.assert_allclose(colour, grass, atol=0.01, err_msg=name)
+
+
+# ----------------------------------------------------------------------------- slopes
+# A cell's H̄ must be the terrain's height at the cell centre, not the mean of wherever its
+# few points fell: on a slope g a point d off the centre is g·d higher (±9 cm at 24°).
+
+
+def test_height_is_the_plane_at_the_cell_centre_wherever_the_points_fall():
+    rng = np.random.default_rng(11)
+    grid = GridSpec((0.0, 0.0), 0.4, (20, 24))
+    a, b = 0.45, -0.2  # a 26° slope [m/m]
+    rows, cols = np.mgrid[0:20, 0:24]
+    cx, cy = grid.cell_to_xy(rows, cols)
+    parts = []
+    for x, y in zip(cx.ravel(), cy.ravel(), strict=True):
+        n = rng.integers(1, 4)  # 1–3 points a cell, all in one random quarter of it
+        qx, qy = rng.choice([-0.1, 0.1], 2)
+        parts.append(np.column_stack([x + qx + rng.uniform(-0.1, 0.1, n),
+                                      y + qy + rng.uniform(-0.1, 0.1, n)]))
+    xy = np.concatenate(parts)
+    pts = np.column_stack([xy, 5.0 + a * xy[:, 0] + b * xy[:, 1]])
+    acc = BEVAccumulator(grid)
+    acc.add_points(pts, np.full_like(pts, 0.5))
+    bev = acc.result()
+    assert bev.observed.all()
+    np.testing.assert_allclose(bev.mean_height, 5.0 + a * cx + b * cy, atol=1e-4)
+    # σ_H: the std of a plane's heights over a square cell, whatever the sampling.
+    np.testing.assert_allclose(bev.height_std, np.hypot(a, b) * 0.4 / np.sqrt(12), atol=1e-4)
+    np.testing.assert_allclose(bev.gradient, np.hypot(a, b), atol=1e-3)
+    planes = acc.planes()
+    np.testing.assert_allclose(planes.slope_x, a, atol=1e-3)
+    np.testing.assert_allclose(planes.slope_y, b, atol=1e-3)
+    # The points' mean is off by up to g·0.2 m, ‖∇H̄‖ by up to twice that / 0.4 m.
+    literal = acc.result("points")
+    assert np.abs(literal.mean_height - (5.0 + a * cx + b * cy)).max() > 0.04
+    assert np.abs(literal.gradient - np.hypot(a, b)).max() > 0.1
+
+
+def test_a_lone_point_or_a_line_of_points_falls_back_to_the_neighbours_slope():
+    grid = GridSpec((0.0, 0.0), 0.4, (3, 3))
+    acc = BEVAccumulator(grid)
+    # One point, off centre, in an otherwise empty map: its height, level.
+    acc.add_points(np.array([[0.55, 0.45, 2.0]]), np.full((1, 3), 0.5))
+    bev = acc.result()
+    assert bev.mean_height[1, 1] == pytest.approx(2.0)
+    assert bev.height_std[1, 1] == pytest.approx(0.0, abs=1e-6)
+    # Points along a line across x (which fixes no slope along y) in a slope along y.
+    acc = BEVAccumulator(grid)
+    x = np.linspace(0.02, 1.18, 30)
+    for y in (0.1, 0.3, 0.5, 0.7, 0.9, 1.1):  # every cell, on lines at ±0.1 m
+        acc.add_points(np.column_stack([x, np.full(30, y), 0.5 * np.full(30, y)]),
+                       np.full((30, 3), 0.5))
+    planes = acc.planes()
+    np.testing.assert_allclose(planes.slope_y, 0.5, atol=1e-3)
+    np.testing.assert_allclose(acc.result().mean_height, 0.5 * grid.cell_centers()[1],
+                               atol=1e-3)
+
+
+def test_ground_beside_a_wall_keeps_its_height():
+    """A neighbourhood that is no plane (a trunk, crown or cliff beside the cell) must not
+    lend its slope to a sparsely sampled ground cell: one point 0.15 m off the centre of
+    flat ground next to a 3 m wall would otherwise move H̄ by ~slope·0.15 m."""
+    rng = np.random.default_rng(2)
+    grid = GridSpec((0.0, 0.0), 0.4, (8, 8))
+    cx, cy = grid.cell_centers()
+    ground = np.column_stack([cx.ravel() + rng.choice([-0.15, 0.15], cx.size),
+                              cy.ravel() + rng.choice([-0.15, 0.15], cx.size),
+                              np.zeros(cx.size)])
+    wall = np.column_stack([rng.uniform(1.6, 2.0, 400), rng.uniform(0.0, 3.2, 400),
+                            rng.uniform(0.0, 3.0, 400)])  # column 4, 3 m tall
+    acc = BEVAccumulator(grid)
+    acc.add_points(np.concatenate([ground, wall]), np.full((cx.size + 400, 3), 0.5))
+    bev = acc.result()
+    beside = np.zeros(grid.shape, bool)
+    beside[:, [3, 5]] = True
+    assert np.abs(bev.mean_height[beside]).max() < 0.01
+    assert bev.mean_height[:, 4].min() > 1.0  # the wall stands
+    assert bev.gradient[:, [3, 5]].min() > 1.5  # and is enclosed by high gradient
+
+
+def _ramp(angle_deg: float, azimuth_deg: float, n: int = 100, length_m: float = 16.0):
+    """Heights of a ramp of ``angle_deg`` rising towards ``azimuth_deg`` across the map's
+    centre over ``length_m``, level before and after (res 0.4 m, n × n cells)."""
+    x = (np.arange(n) + 0.5) * 0.4
+    gx, gy = np.meshgrid(x, x)
+    az = np.radians(azimuth_deg)
+    s = (gx - 0.2 * n) * np.cos(az) + (gy - 0.2 * n) * np.sin(az)
+    return np.tan(np.radians(angle_deg)) * (np.clip(s, -length_m / 2, length_m / 2)
+                                            + length_m / 2)
+
+
+def _across(profile, n: int = 100, azimuth_deg: float = 30.0):
+    """Heights ``profile(u)`` of the distance u [m] across a line through the centre."""
+    x = (np.arange(n) + 0.5) * 0.4 - 0.2 * n
+    gx, gy = np.meshgrid(x, x)
+    az = np.radians(azimuth_deg)
+    return profile(-gx * np.sin(az) + gy * np.cos(az))
+
+
+def _bump(height_m: float, sigma_m: float, n: int = 100):
+    """A Gaussian bump 2 m south of the map's centre."""
+    x = (np.arange(n) + 0.5) * 0.4 - 0.2 * n
+    gx, gy = np.meshgrid(x, x)
+    return height_m * np.exp(-0.5 * (gx**2 + (gy + 2.0) ** 2) / sigma_m**2)
+
+
+def _narrow_ramp(n: int = 100):
+    """A 9 m wide 24° ramp up a 6.2 m plateau, between cliffs."""
+    x = (np.arange(n) + 0.5) * 0.4
+    gx, gy = np.meshgrid(x, x)
+    t = np.tan(np.radians(24))
+    on = (np.abs(gy - 0.2 * n) <= 4.5) & (gx > 12.0) & (gx < 26.0)
+    return np.where(on, t * (gx - 12.0), np.where(gx >= 26.0, 14.0 * t, 0.0))
+
+
+SLOPE_WORLDS = {
+    **{f"ramp {a}° az {az}°": (lambda a=a, az=az: _ramp(a, az), True)
+       for a in (10, 20, 28) for az in (0, 35, 120)},
+    "ramp 24° az 73°": (lambda: _ramp(24, 73), True),
+    "9 m ramp 24°": (_narrow_ramp, True),
+    "smooth ridge": (lambda: _across(lambda u: 1.5 * np.exp(-0.5 * (u / 1.5) ** 2)), False),
+    "sharp ridge": (lambda: _across(lambda u: np.maximum(0.0, 0.7 - 0.25 * np.abs(u))), True),
+    "bump": (lambda: _bump(2.0, 3.0), False),
+}
+"""Synthetic terrain: heights (100 × 100 cells of 0.4 m) and whether it is piecewise planar
+(whose kinks — a ramp's foot and top, cliffs, a sharp crest — the checks leave out)."""
+
+
+@functools.cache
+def _surveyed(name: str):
+    """The world, its survey's accumulator (rendered frames, seams and all) and the
+    cells to check: observed, ≥ 2 cells from the map's border and from kinks."""
+    from dgt_lib.world.rendering import survey_frames
+    from dgt_lib.world.worlds import from_heightmap
+
+    make, piecewise_planar = SLOPE_WORLDS[name]
+    world = from_heightmap(make(), 0.4, name=name.replace(" ", "_"))
+    acc = BEVAccumulator(world.grid)
+    for frame in survey_frames(world):
+        acc.add_frame(frame)
+    h = world.heights.astype(np.float64)
+    check = np.zeros(h.shape, bool)
+    check[2:-2, 2:-2] = True
+    if piecewise_planar:
+        kink = np.zeros(h.shape, bool)
+        kink[1:-1, :] |= np.abs(h[2:, :] - 2 * h[1:-1, :] + h[:-2, :]) > 1e-3
+        kink[:, 1:-1] |= np.abs(h[:, 2:] - 2 * h[:, 1:-1] + h[:, :-2]) > 1e-3
+        check &= ~ndimage.binary_dilation(kink, iterations=2)
+    return world, acc, check
+
+
+def _true_gradient(world) -> np.ndarray:
+    """‖∇h‖ of the true heights at the cell centres, by the BEV's own rule."""
+    return height_gradient(world.heights, np.ones(world.grid.shape, bool), world.grid.resolution)
+
+
+@pytest.mark.parametrize("name", SLOPE_WORLDS)
+def test_bev_is_faithful_on_rendered_slopes(name):
+    """Surveyed like every world (nadir frames 20 m up, 1–5 points a cell, frame seams
+    across the slopes): H̄ within 3 cm of the terrain and ‖∇H̄‖ within 0.05 of its
+    gradient on every observed cell away from the edges and kinks; σ_H within 1 cm of
+    the std of the terrain's heights over the cell (‖∇h‖·Δ/√12 for ground planar over a
+    cell, as here)."""
+    world, acc, check = _surveyed(name)
+    bev = acc.result()
+    cells = check & bev.observed
+    assert cells.sum() > 0.5 * check.sum()
+    true_grad = _true_gradient(world)
+    assert np.abs(bev.mean_height - world.heights)[cells].max() < 0.03
+    assert np.abs(bev.gradient - true_grad)[cells].max() < 0.05
+    sigma = true_grad * world.grid.resolution / np.sqrt(12)
+    assert np.abs(bev.height_std - sigma)[cells].max() < 0.01
+
+
+@pytest.mark.parametrize("name", ["ramp 20° az 35°", "ramp 24° az 73°", "ramp 28° az 120°",
+                                  "9 m ramp 24°", "smooth ridge", "bump"])
+@pytest.mark.parametrize("tau_s", [0.3, 0.512, 0.606])
+def test_occupancy_from_the_bev_is_that_of_the_true_heights(name, tau_s):
+    """occ(‖∇H̄‖ > τ_s) equals the occupancy of the true heights on every observed cell
+    but those within one cell of a true boundary between free and occupied (τ_s = 0.512 and
+    0.606: the rule's value with this BEV and with the points' means; the 24° ramps,
+    gradient 0.445, must stay free)."""
+    world, acc, _ = _surveyed(name)
+    bev = acc.result()
+    truth = _true_gradient(world) > tau_s
+    boundary = (ndimage.binary_dilation(truth, np.ones((3, 3)))
+                & ~ndimage.binary_erosion(truth, np.ones((3, 3)), border_value=1))
+    occ = occupancy_map(bev, tau_s)
+    wrong = bev.observed & ~boundary & ((occ == OCCUPIED) != truth)
+    assert wrong.sum() == 0, f"{wrong.sum()} cells wrong at τ_s = {tau_s}"

@@ -9,8 +9,6 @@ from pathlib import Path
 
 import pytest
 
-import pytest
-
 from dgt_lib.cli import build_parser, main
 from dgt_lib.stages import registry as pipeline
 

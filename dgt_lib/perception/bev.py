@@ -6,14 +6,43 @@ of 0.4 m cells and aggregated over *all* frames into six channels, in this order
 
     R, G, B, H̄, σ_H, ‖∇H̄‖
 
-R, G, B are the mean colour (0..1) of the points in a cell, H̄ their mean height
-[m], σ_H the standard deviation of their heights [m] and ‖∇H̄‖ the gradient
-magnitude of H̄ [m/m] from central differences over the four neighbouring cells.
+Per cell of size Δ, with the least-squares plane z ≈ h + a·x + b·y through the cell's
+points (x, y their offsets from the cell centre; :func:`fit_cell_planes`):
+
+- R, G, B: the mean colour (0..1) of the points;
+- H̄ = h [m]: the plane's height at the cell centre, which is also its mean over the cell;
+- σ_H = √(s² + (a² + b²)·Δ²/12) [m]: the standard deviation of the terrain's height over
+  the cell — the plane's spread over the square plus s², the points' mean squared
+  residual about it (roughness, and trunks and crowns);
+- ‖∇H̄‖ [m/m]: the gradient magnitude of H̄ from central differences over the four
+  neighbouring cells (:func:`height_gradient`), as in the paper.
+
 An ``observed`` mask marks the cells that received at least one point.
 
-Aggregation is streaming: a :class:`BEVAccumulator` keeps per-cell sums, sums
-of squares and counts, so memory depends on the grid, never on the number of
-frames, and two accumulators (e.g. from parallel episodes) merge exactly.
+Where this deviates from the paper. The paper defines H̄ as "the average height per
+cell" and σ_H as "the standard deviation of the height values within each cell". Taken
+as the mean and std of the *points* that fell in a cell, both depend on where in the
+cell the points landed: on a slope of gradient g a point at offset d from the centre
+lies g·d higher, and a survey pixel covers ~0.23 m of ground, so a cell gets 1–5
+points whose centroid wanders by up to ±0.2 m from cell to cell and frame to frame. On
+rendered surveys of a smooth 24° ramp (g = 0.445) that put H̄ up to 10 cm off and,
+doubled by the central difference, made ‖∇H̄‖ range from 0.25 to 0.61 cell to cell, with
+lines of outliers where survey frames meet — above τ_s on terrain that is traversable.
+Here H̄ and σ_H are the mean and std of the *terrain's* height over the cell's area,
+which the points' mean and std equal when the points cover the cell evenly; for ground
+that is planar at the scale of a cell they no longer depend on the sampling (on the same
+surveys: H̄ within 0.14 cm, ‖∇H̄‖ within 0.014 of the truth on 10–28° ramps; 2.1 cm and
+0.023 on a 1.5 m high, 30° steep Gaussian ridge, whose curvature a plane misses).
+``result("points")`` gives the literal reading. ‖∇H̄‖ keeps the paper's central
+differences of H̄: they are closer to the terrain's central differences than the planes'
+own slopes ‖(a, b)‖ (p99 error 0.018 vs 0.072 on that ridge, 0.005 vs 0.013 on a bump,
+equal on ramps; ``benchmarks/bev_slopes.py``), and a tree's trunk and crown still stand
+out with a high gradient around them.
+
+Aggregation is streaming: a :class:`BEVAccumulator` keeps per-cell sums of the point
+count, colours, offsets, heights and their products (:data:`MOMENTS`), so memory
+depends on the grid, never on the number of frames, and two accumulators (e.g. from
+parallel episodes) merge exactly.
 
 Every point that lands in a cell counts, whatever it hit: tree trunks and crowns
 raise H̄ and σ_H there, which is intended — a tree must come out with a high
@@ -32,6 +61,7 @@ from __future__ import annotations
 import math  # noqa: E402
 from collections.abc import Iterable  # noqa: E402
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -46,6 +76,11 @@ CHANNEL_NAMES: tuple[str, ...] = ("R", "G", "B", "H_mean", "H_std", "H_grad")
 """The six BEV channels, in array order (DESIGN.md → Conventions)."""
 R, G, B, HEIGHT, HEIGHT_STD, GRADIENT = range(6)
 N_CHANNELS = len(CHANNEL_NAMES)
+
+BEV_FORMAT = 2
+"""Version of the BEV statistics (:meth:`BEVAccumulator.to_sparse`) and of the channels'
+definition: 1 = mean and std of the points, 2 = per-cell planes. Part of the cache keys
+of the episodes and BEV maps, so that maps built by another version are rebuilt."""
 
 
 def bev_grid(extent: tuple[float, float, float, float],
@@ -193,22 +228,166 @@ def height_gradient(mean_height: np.ndarray, observed: np.ndarray,
     return grad.astype(np.float32)
 
 
+MOMENTS: tuple[str, ...] = ("r", "g", "b", "x", "y", "z", "xx", "xy", "yy", "xz", "yz", "zz")
+"""The per-cell sums a :class:`BEVAccumulator` keeps besides the point count: Σ colour, then
+Σ of x, y (a point's offset from its cell's centre [m]), z (its height [m]) and their
+products — the moments a least-squares plane and the height spread need."""
+_X, _Y, _Z, _XX, _XY, _YY, _XZ, _YZ, _ZZ = range(3, 12)
+
+SLOPE_PRIOR_FRACTION = 0.1
+"""A cell's plane slope is pulled towards its 3×3 neighbourhood's with the weight of a
+spread of offsets of (0.1·cell size)² [m²] (see :func:`fit_cell_planes`)."""
+
+_NEIGHBOURHOOD_PRIOR_FRACTION = 0.01
+"""Likewise, the 3×3 neighbourhood's slope is pulled towards 0 with (0.01·cell size)²,
+so that a neighbourhood whose points do not span a plane gets a level one."""
+
+PLANAR_SCALE_M = 0.1
+"""The 3×3 neighbourhood's slope is trusted as far as its points lie on a plane: it is
+scaled by σ₀²/(σ₀² + s₀²), s₀ their rms residual about it [m] and σ₀ this scale [m]. Next
+to a tree crown or a cliff (s₀ of metres) the neighbourhood says nothing about the
+ground's slope; used anyway, it moved a cell's H̄ by up to 0.9 m."""
+
+
+def _centred_moments(count: np.ndarray, sums: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per-point means and central moments of the points in each cell (0 where empty).
+
+    count: (...) points; sums: (8 or 9, ...) Σx, Σy, Σz, Σxx, Σxy, Σyy, Σxz, Σyz[, Σzz].
+    Returns mx, my, mz [m], cxx, cxy, cyy, cxz, cyz[, czz] [m²], each shaped like count.
+    """
+    n = np.maximum(count, 1).astype(np.float64)
+    mx, my, mz = sums[0] / n, sums[1] / n, sums[2] / n
+    out = [mx, my, mz, sums[3] / n - mx * mx, sums[4] / n - mx * my, sums[5] / n - my * my,
+           sums[6] / n - mx * mz, sums[7] / n - my * mz]
+    if len(sums) > 8:
+        out.append(sums[8] / n - mz * mz)
+    return tuple(out)
+
+
+def _ridge_slopes(cxx: np.ndarray, cxy: np.ndarray, cyy: np.ndarray, cxz: np.ndarray,
+                  cyz: np.ndarray, lam: float, prior: tuple = (0.0, 0.0)
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The slope (a, b) [m/m] minimising mean (z − h − a·x − b·y)² + λ·|(a, b) − prior|²
+    (h free) from the central moments: (C + λI)(a, b)ᵀ = (cxz, cyz)ᵀ + λ·prior, where C
+    is the offsets' covariance. λ > 0 [m²] keeps it solvable where C is singular."""
+    a11, a22 = cxx + lam, cyy + lam
+    det = a11 * a22 - cxy * cxy  # ≥ λ² > 0: C is positive semi-definite
+    rx, ry = cxz + lam * prior[0], cyz + lam * prior[1]
+    return (a22 * rx - cxy * ry) / det, (a11 * ry - cxy * rx) / det
+
+
+def _shift_pass(m: np.ndarray, axis: int, resolution: float) -> np.ndarray:
+    """One axis of :func:`_neighbourhood_sums`: per cell, the sums of it and its two
+    neighbours along ``axis`` (1: rows, y; 2: columns, x), each with the coordinate u along
+    that axis taken from this cell's centre: a neighbour k = ±1 adds its sums with
+    u → u + k·res, i.e. Σu += k·res·n, Σu² += 2k·res·Σu + res²·n, Σuv += k·res·Σv."""
+    u, v, uu = (2, 1, 6) if axis == 1 else (1, 2, 4)  # rows: n, x, y, z, xx, xy, yy, xz, yz, zz
+    pad = [(0, 0)] * 3
+    pad[axis] = (1, 1)
+    padded = np.pad(m, pad)
+    take = [slice(None)] * 3
+    take[axis] = slice(0, -2)
+    lo = padded[tuple(take)]  # the neighbour at k = −1
+    take[axis] = slice(2, None)
+    hi = padded[tuple(take)]  # k = +1
+    out = lo + hi
+    out += m
+    out[u] += resolution * (hi[0] - lo[0])
+    out[uu] += 2 * resolution * (hi[u] - lo[u]) + resolution**2 * (hi[0] + lo[0])
+    out[5] += resolution * (hi[v] - lo[v])  # Σxy
+    out[7 if u == 1 else 8] += resolution * (hi[3] - lo[3])  # Σxz or Σyz
+    return out
+
+
+def _mean_sq_residual(a: np.ndarray, b: np.ndarray, *central: np.ndarray) -> np.ndarray:
+    """The mean (z − h − a·x − b·y)² [m²] of points about the plane of slope (a, b) through
+    their centroid (h = z̄ − a·x̄ − b·ȳ), from their central moments ``central`` = cxx, cxy,
+    cyy, cxz, cyz, czz; ≥ 0."""
+    cxx, cxy, cyy, cxz, cyz, czz = central
+    r = czz - 2 * (a * cxz + b * cyz) + a * a * cxx + 2 * a * b * cxy + b * b * cyy
+    return np.maximum(r, 0.0)
+
+
+def _neighbourhood_sums(count: np.ndarray, sums: np.ndarray, resolution: float) -> np.ndarray:
+    """Per cell, the moments of all points in its 3×3 neighbourhood, with offsets taken
+    from *its* centre: a neighbour (r+i, c+j) adds its sums with x → x + j·res, y → y + i·res.
+
+    count: (H, W); sums: (9, H, W) Σx, Σy, Σz, Σxx, Σxy, Σyy, Σxz, Σyz, Σzz. Returns
+    (10, H, W): n, then the same nine sums (beyond the grid's border counts as empty).
+    Separable: a pass along the columns, then one along the rows (:func:`_shift_pass`).
+    """
+    raw = np.concatenate([count[None].astype(np.float64), sums])
+    return _shift_pass(_shift_pass(raw, 2, resolution), 1, resolution)
+
+
+class CellPlanes(NamedTuple):
+    """Per cell, the plane z ≈ height + slope_x·x + slope_y·y through its points, x, y
+    their offsets from the cell centre: (H, W) float64 arrays, 0 where unobserved."""
+
+    height: np.ndarray
+    """[m] the plane at the cell centre (= its mean over the cell)."""
+    slope_x: np.ndarray
+    """∂z/∂x [m/m]."""
+    slope_y: np.ndarray
+    """∂z/∂y [m/m]."""
+    residual_var: np.ndarray
+    """[m²] the points' mean squared residual about the plane."""
+
+
+def fit_cell_planes(count: np.ndarray, sums: np.ndarray, resolution: float) -> CellPlanes:
+    """A least-squares plane z ≈ h + a·x + b·y per cell, x, y offsets from its centre [m].
+
+    count: (H, W) points per cell; sums: (9, H, W) Σx, Σy, Σz, Σxx, Σxy, Σyy, Σxz, Σyz,
+    Σzz of the points (:data:`MOMENTS` from ``x`` on). A cell's own points fix the plane
+    where they span it; where they do not (1–2 points, or all on one line — common, as a
+    survey pixel covers ~0.2 m of ground) its slope comes from the 3×3 neighbourhood:
+
+        (a₀, b₀) = argmin Σ_{3×3} (z − h − a·x − b·y)² / n + λ₀·(a² + b²),
+        (a, b)   = argmin Σ_cell  (z − h − a·x − b·y)² / n + λ·|(a, b) − (a₀, b₀)|²,
+        h = z̄ − a·x̄ − b·ȳ,
+
+    with λ = (0.1·res)² (:data:`SLOPE_PRIOR_FRACTION`; offsets spread evenly over a cell
+    have variance res²/12 = 8.3·λ, so a well-sampled cell keeps its own slope) and
+    λ₀ = (0.01·res)². The neighbourhood's slope is then scaled by σ₀²/(σ₀² + s₀²), s₀² the
+    mean squared residual of its points about their plane, σ₀ = :data:`PLANAR_SCALE_M`:
+    where the neighbourhood is no plane (a crown or cliff beside the cell) a sparsely
+    sampled cell falls back towards its points' mean. An isolated cell with one point gets
+    its height, level.
+
+    Returns :class:`CellPlanes` (h, a, b and s², the points' mean squared residual about
+    the plane), 0 where a cell is empty.
+    """
+    own = _centred_moments(count, sums)
+    near = _neighbourhood_sums(count, sums, resolution)
+    _, _, _, pxx, pxy, pyy, pxz, pyz, pzz = _centred_moments(near[0], near[1:])
+    a0, b0 = _ridge_slopes(pxx, pxy, pyy, pxz, pyz,
+                           (_NEIGHBOURHOOD_PRIOR_FRACTION * resolution) ** 2)
+    s0 = _mean_sq_residual(a0, b0, pxx, pxy, pyy, pxz, pyz, pzz)
+    trust = PLANAR_SCALE_M**2 / (PLANAR_SCALE_M**2 + s0)
+    mx, my, mz, cxx, cxy, cyy, cxz, cyz, czz = own
+    a, b = _ridge_slopes(cxx, cxy, cyy, cxz, cyz, (SLOPE_PRIOR_FRACTION * resolution) ** 2,
+                         (trust * a0, trust * b0))
+    height = mz - a * mx - b * my
+    resid = _mean_sq_residual(a, b, cxx, cxy, cyy, cxz, cyz, czz)
+    seen = count > 0
+    return CellPlanes(*(np.where(seen, v, 0.0) for v in (height, a, b, resid)))
+
+
 class BEVAccumulator:
     """Streaming per-cell statistics of coloured 3D points over a grid.
 
-    Keeps, per cell, the count n, Σ colour, Σ z and Σ z² (float64), so memory is
-    O(H·W) regardless of how many frames are added. Points outside the grid are
-    dropped. ``result()`` turns the sums into a :class:`BEVMap`; the accumulator
-    can keep growing afterwards.
+    Keeps, per cell, the count n and the sums of :data:`MOMENTS` (float64): colour, the
+    points' offsets (x, y) from the cell centre and height z, and their products, so
+    memory is O(H·W) (104 bytes a cell) regardless of how many frames are added, and
+    accumulators merge exactly. Points outside the grid are dropped. ``result()`` turns
+    the sums into a :class:`BEVMap`; the accumulator can keep growing afterwards.
     """
 
     def __init__(self, grid: GridSpec):
         self.grid = grid
         n = grid.height * grid.width
         self._count = np.zeros(n, dtype=np.int64)
-        self._sum_rgb = np.zeros((3, n), dtype=np.float64)
-        self._sum_z = np.zeros(n, dtype=np.float64)
-        self._sum_z2 = np.zeros(n, dtype=np.float64)
+        self._sums = np.zeros((len(MOMENTS), n), dtype=np.float64)
 
     @property
     def n_points(self) -> int:
@@ -222,7 +401,7 @@ class BEVAccumulator:
         number of points that landed in the grid.
         """
         points = np.asarray(points, dtype=np.float64)
-        colors = np.asarray(colors, dtype=np.float64)
+        colors = np.asarray(colors)
         if points.ndim != 2 or points.shape[1] != 3:
             raise ValueError(f"points must have shape (N, 3), got {points.shape}")
         if colors.shape != points.shape:
@@ -230,22 +409,37 @@ class BEVAccumulator:
                              f"got {colors.shape}")
         if len(points) == 0:
             return 0
-        finite = np.isfinite(points).all(axis=1) & np.isfinite(colors).all(axis=1)
-        points, colors = points[finite], colors[finite]
-        row, col = self.grid.xy_to_cell(points[:, 0], points[:, 1])
-        keep = (row >= 0) & (row < self.grid.height) & (col >= 0) & (col < self.grid.width)
-        if not keep.any():
-            return 0
-        flat = row[keep] * self.grid.width + col[keep]
-        z = points[keep, 2]
-        rgb = colors[keep]
+        # x + y + z is NaN or ±inf iff one of them is (or all are huge, hence off the grid).
+        ok = np.isfinite(points[:, 0] + points[:, 1] + points[:, 2])
+        if np.issubdtype(colors.dtype, np.floating):
+            ok &= np.isfinite(colors[:, 0] + colors[:, 1] + colors[:, 2])
+        if not ok.all():  # (indexing copies: skipped when every point is finite)
+            points, colors = points[ok], colors[ok]
+        g = self.grid
+        row, col = g.xy_to_cell(points[:, 0], points[:, 1])
+        keep = (row >= 0) & (row < g.height) & (col >= 0) & (col < g.width)
+        if not keep.all():  # (indexing copies: skipped when every point is kept)
+            if not keep.any():
+                return 0
+            points, colors, row, col = points[keep], colors[keep], row[keep], col[keep]
+        flat = row * g.width + col
+        vals = np.empty((len(MOMENTS), len(flat)))  # one contiguous float64 row per sum
+        vals[:3] = colors.T
+        vals[_X] = points[:, 0] - (g.origin_xy[0] + (col + 0.5) * g.resolution)
+        vals[_Y] = points[:, 1] - (g.origin_xy[1] + (row + 0.5) * g.resolution)
+        vals[_Z] = points[:, 2]
+        x, y, z = vals[_X], vals[_Y], vals[_Z]
+        np.multiply(x, x, out=vals[_XX])
+        np.multiply(x, y, out=vals[_XY])
+        np.multiply(y, y, out=vals[_YY])
+        np.multiply(x, z, out=vals[_XZ])
+        np.multiply(y, z, out=vals[_YZ])
+        np.multiply(z, z, out=vals[_ZZ])
         # Unbuffered scatter-add: cost O(N), independent of the grid size.
         np.add.at(self._count, flat, 1)
-        np.add.at(self._sum_z, flat, z)
-        np.add.at(self._sum_z2, flat, z * z)
-        for ch in range(3):
-            np.add.at(self._sum_rgb[ch], flat, rgb[:, ch])
-        return int(keep.sum())
+        for k in range(len(MOMENTS)):
+            np.add.at(self._sums[k], flat, vals[k])
+        return len(flat)
 
     def add_frame(self, frame: RGBDFrame, max_depth_m: float | None = None) -> int:
         """Back-project one RGB-D frame with its pose and add its points.
@@ -276,66 +470,94 @@ class BEVAccumulator:
             raise ValueError(f"cannot merge accumulators over different grids: "
                              f"{self.grid} vs {other.grid}")
         self._count += other._count
-        self._sum_rgb += other._sum_rgb
-        self._sum_z += other._sum_z
-        self._sum_z2 += other._sum_z2
+        self._sums += other._sums
         return self
 
     def to_sparse(self) -> dict[str, np.ndarray]:
-        """The statistics of the cells seen so far, compactly (~19 bytes a cell; an
-        episode touches ~10⁴–10⁵ cells of a map of up to ~10⁶), for storing per run:
+        """The statistics of the cells seen so far, compactly (47 bytes a cell; an episode
+        touches ~10⁴–10⁵ cells of a map of up to ~10⁶), for storing per run:
 
         ``cells`` (n,) int32 flat indices, ``count`` (n,) int32 points, ``rgb`` (3, n)
-        uint8 mean colour, ``z`` (n,) float32 mean height [m], ``m2`` (n,) float32
-        Σ(z − z̄)² [m²], ``shape`` (2,) the grid's. :meth:`add_sparse` restores the
-        sums (exactly but for the colour's 1/255 rounding).
+        uint8 mean colour, ``offset`` (2, n) float32 mean x, y offset from the cell centre
+        [m], ``z`` (n,) float32 mean height [m], ``m2`` (6, n) float32 the sums of products
+        of deviations from those means, Σ(x−x̄)², Σ(x−x̄)(y−ȳ), Σ(y−ȳ)², Σ(x−x̄)(z−z̄),
+        Σ(y−ȳ)(z−z̄), Σ(z−z̄)² [m²], ``shape`` (2,) the grid's. :meth:`add_sparse` restores
+        the sums (exactly but for the colour's 1/255 and float32 rounding).
         """
         cells = np.flatnonzero(self._count)
         n = self._count[cells].astype(np.float64)
-        mean_z = self._sum_z[cells] / n
-        m2 = np.maximum(self._sum_z2[cells] - n * mean_z**2, 0.0)
-        rgb = np.clip(np.rint(255.0 * self._sum_rgb[:, cells] / n), 0, 255)
+        s = self._sums[:, cells]
+        mx, my, mz = s[_X] / n, s[_Y] / n, s[_Z] / n
+        m2 = np.stack([s[_XX] - n * mx * mx, s[_XY] - n * mx * my, s[_YY] - n * my * my,
+                       s[_XZ] - n * mx * mz, s[_YZ] - n * my * mz, s[_ZZ] - n * mz * mz])
+        m2[[0, 2, 5]] = np.maximum(m2[[0, 2, 5]], 0.0)
+        rgb = np.clip(np.rint(255.0 * s[:3] / n), 0, 255)
         return {"cells": cells.astype(np.int32), "count": self._count[cells].astype(np.int32),
-                "rgb": rgb.astype(np.uint8), "z": mean_z.astype(np.float32),
-                "m2": m2.astype(np.float32), "shape": np.asarray(self.grid.shape, np.int64)}
+                "rgb": rgb.astype(np.uint8), "offset": np.stack([mx, my]).astype(np.float32),
+                "z": mz.astype(np.float32), "m2": m2.astype(np.float32),
+                "shape": np.asarray(self.grid.shape, np.int64)}
 
     def add_sparse(self, sparse: dict[str, np.ndarray]) -> BEVAccumulator:
         """Add statistics from :meth:`to_sparse` (same grid): Σ1 += n, Σc += n·c̄,
-        Σz += n·z̄, Σz² += m2 + n·z̄². Returns self."""
+        Σx += n·x̄, …, Σxz += m2_xz + n·x̄·z̄, … Returns self."""
         if tuple(int(v) for v in sparse["shape"]) != self.grid.shape:
             raise ValueError(f"sparse BEV statistics of a {tuple(sparse['shape'])} grid "
                              f"cannot be added to a {self.grid.shape} grid")
+        if "offset" not in sparse:
+            raise ValueError("sparse BEV statistics of an older format (no per-cell offsets "
+                             "and plane moments): rebuild them")
         cells = sparse["cells"].astype(np.int64)
         n = sparse["count"].astype(np.float64)
-        z = sparse["z"].astype(np.float64)
+        mx, my = sparse["offset"].astype(np.float64)
+        mz = sparse["z"].astype(np.float64)
+        m2 = sparse["m2"].astype(np.float64)
         self._count[cells] += sparse["count"]
-        self._sum_rgb[:, cells] += n * sparse["rgb"] / 255.0
-        self._sum_z[cells] += n * z
-        self._sum_z2[cells] += sparse["m2"] + n * z**2
+        self._sums[:3, cells] += n * sparse["rgb"] / 255.0
+        self._sums[_X:, cells] += np.stack([
+            n * mx, n * my, n * mz, m2[0] + n * mx * mx, m2[1] + n * mx * my,
+            m2[2] + n * my * my, m2[3] + n * mx * mz, m2[4] + n * my * mz, m2[5] + n * mz * mz])
         return self
 
-    def result(self) -> BEVMap:
+    def planes(self) -> CellPlanes:
+        """The plane through each cell's points (:func:`fit_cell_planes`), (H, W) arrays."""
+        h, w = self.grid.shape
+        return fit_cell_planes(self._count.reshape(h, w),
+                               self._sums[_X:].reshape(len(MOMENTS) - _X, h, w),
+                               self.grid.resolution)
+
+    def result(self, estimator: str = "plane") -> BEVMap:
         """The six-channel :class:`BEVMap` of everything added so far.
 
-        Per observed cell with n points of heights z_i and colours c_i:
-        colour = Σc_i/n, H̄ = Σz_i/n, σ_H = √max(0, Σz_i²/n − H̄²) (population
-        std, 0 for a single point), ‖∇H̄‖ from :func:`height_gradient`.
+        Per observed cell with n points of colours c_i: colour = Σc_i/n and ‖∇H̄‖ from
+        :func:`height_gradient`; H̄ and σ_H by ``estimator``:
+
+        - ``"plane"`` (default): from the cell's plane z ≈ h + a·x + b·y of
+          :meth:`planes` (residual mean square s²): H̄ = h, σ_H = √(s² + (a² + b²)·res²/12),
+          the mean and std of the plane's (plus residual) heights over the cell;
+        - ``"points"``: the paper read literally, the mean and (population) std of the
+          points' heights, H̄ = Σz_i/n, σ_H = √max(0, Σz_i²/n − H̄²) — biased by where in
+          the cell the points landed wherever the ground slopes (see the module's notes).
         """
         h, w = self.grid.shape
-        n = self._count
-        seen = n > 0
-        safe_n = np.maximum(n, 1)
-        mean_z = np.where(seen, self._sum_z / safe_n, 0.0)
-        var_z = np.where(seen, self._sum_z2 / safe_n - mean_z**2, 0.0)
-        std_z = np.sqrt(np.maximum(var_z, 0.0))
-        rgb = np.where(seen, self._sum_rgb / safe_n, 0.0)
-        observed = seen.reshape(h, w)
+        res = self.grid.resolution
+        count = self._count.reshape(h, w)
+        sums = self._sums.reshape(len(MOMENTS), h, w)
+        if estimator == "plane":
+            height, a, b, resid = self.planes()
+            spread = resid + (a * a + b * b) * res * res / 12.0
+        elif estimator == "points":
+            n = np.maximum(count, 1)
+            height = sums[_Z] / n
+            spread = np.maximum(sums[_ZZ] / n - height * height, 0.0)
+        else:
+            raise ValueError(f"estimator must be 'plane' or 'points', got {estimator!r}")
+        observed = count > 0
         channels = np.zeros((N_CHANNELS, h, w), dtype=np.float32)
-        channels[R : B + 1] = rgb.reshape(3, h, w)
-        channels[HEIGHT] = mean_z.reshape(h, w)
-        channels[HEIGHT_STD] = std_z.reshape(h, w)
-        channels[GRADIENT] = height_gradient(channels[HEIGHT], observed, self.grid.resolution)
-        return BEVMap(self.grid, channels, observed, n.reshape(h, w).copy())
+        channels[R : B + 1] = sums[:3] / np.maximum(count, 1)
+        channels[HEIGHT] = height
+        channels[HEIGHT_STD] = np.sqrt(spread)
+        channels[GRADIENT] = height_gradient(channels[HEIGHT], observed, res)
+        return BEVMap(self.grid, channels, observed, count.copy())
 
 
 def build_bev(grid: GridSpec, frames: Iterable[RGBDFrame], max_depth_m: float | None = None,

@@ -33,7 +33,7 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
 from dgt_lib.core.executors import SerialExecutor, limit_threads, run_jobs
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.perception.bev import BEVAccumulator, BEVMap, bev_grid, bev_quality
+from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
 from dgt_lib.perception.episodes import (
     Episode,
     episode_seed,
@@ -56,8 +56,10 @@ EPISODE_FIELDS: tuple[str, ...] = (
 )
 """The :class:`CollectConfig` fields an episode depends on (its cache key)."""
 
-EPISODE_FORMAT = 2  # 2: per-sample segment (turn-arounds after stalls)
-"""Version of the episode artifact's layout (part of its cache key)."""
+EPISODE_FORMAT = 3
+"""Version of the episode artifact's layout (part of its cache key). 2: per-sample segment
+(turn-arounds after stalls); 3: the sparse BEV statistics hold per-cell plane moments
+(:data:`~dgt_lib.perception.bev.BEV_FORMAT`)."""
 
 SURVEY_FIELDS: tuple[str, ...] = ("survey_altitude_m", "survey_overlap")
 """The :class:`CollectConfig` fields the mapping survey depends on."""
@@ -77,7 +79,8 @@ def episode_relpath(vehicle: str, index: int) -> str:
 
 def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, object]:
     """What one episode depends on (its artifact's cache key)."""
-    return {"format": EPISODE_FORMAT, "episode": _fields(profile.collect, EPISODE_FIELDS),
+    return {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
+            "episode": _fields(profile.collect, EPISODE_FIELDS),
             "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
             "index": int(index), "camera": CAMERA, "lighting": LIGHTING}
 
@@ -154,10 +157,12 @@ def collect_episodes(
 
 
 def bev_config(world_name: str, profile: Profile) -> dict[str, object]:
-    """What the BEV of ``world_name`` depends on: the world, the survey and, for the
-    training world, the episodes."""
-    cfg: dict[str, object] = {"world": world_name, "worlds": profile.worlds,
-                              "seed": profile.seed, "camera": CAMERA, "lighting": LIGHTING,
+    """What the BEV of ``world_name`` depends on: the world, the survey, the BEV's
+    definition (:data:`~dgt_lib.perception.bev.BEV_FORMAT`) and, for the training world,
+    the episodes."""
+    cfg: dict[str, object] = {"world": world_name, "bev_format": BEV_FORMAT,
+                              "worlds": profile.worlds, "seed": profile.seed, "camera": CAMERA,
+                              "lighting": LIGHTING,
                               "survey": _fields(profile.collect, SURVEY_FIELDS)}
     if world_name == "training":  # one digest, not 1,300 configurations in the metadata
         cfg["episodes"] = artifacts.config_hash(

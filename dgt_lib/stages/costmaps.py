@@ -38,7 +38,7 @@ from dgt_lib.mapping.occupancy import (
     traversed_gradients,
 )
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.perception.bev import BEVMap
+from dgt_lib.perception.bev import BEV_FORMAT, BEVMap
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.stages.collect import (
     bev_relpath,
@@ -73,8 +73,9 @@ def world_bev(world: World | str, profile: Profile | str | None = None, *,
                                   and world is get_world(world.name, prof)):
         name = world if isinstance(world, str) else world.name
         return ensure_bev(name, prof, progress=progress), bev_relpath(name)
-    config = {"stage": "bev", "heights": world.heights, "colors": world.colors,
-              "trees": world.trees, "grid": world.grid, "collect": prof.collect}
+    config = {"stage": "bev", "bev_format": BEV_FORMAT, "heights": world.heights,
+              "colors": world.colors, "trees": world.trees, "grid": world.grid,
+              "collect": prof.collect}
     relpath = f"bev/custom/{world.name}_{artifacts.config_hash(config)[:10]}.npz"
     arrays = artifacts.ensure(relpath, config,
                               lambda: build_world_bev(world, prof.collect, progress=progress)[0]
