@@ -57,9 +57,9 @@ class CollectConfig:
     immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
     # True (ours, an option): after a stall the vehicle turns around where it stopped and
     # drives on (a new segment); False = the paper's runs, which end at the first stall.
-    # Measured on the demo training world (20 carla_cola runs, benchmarks/diagnose_descent.py
-    # explains why it matters): 2× the driving time, but steep descents stay rare (samples
-    # steeper than 15° downhill: 0 → 2), because the truck stalls at the foot of steep slopes.
+    # Measured on the demo training world (benchmarks/descent_coverage.py, 20 carla_cola runs):
+    # 2× the driving time, but steep descents stay rare (samples more than 15° downhill:
+    # 0 → 2), because the truck stalls at the foot of steep slopes.
     turn_around_after_stall: bool = False
     turn_around_min_m: float = 5.0  # a segment stalling closer than this to its start ends the run
     steer_tau_s: float = 2.0  # OU steering correlation time [s]
