@@ -26,11 +26,12 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.navigation.drive import Trajectory, follow_path
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.perception.locomotion import locomotion_signal
-from dgt_lib.perception.patches import PATCH_RES
+from dgt_lib.perception.patches import forward_grade
 from dgt_lib.stages.collect import bev_relpath
 from dgt_lib.stages.dataset import DATASET_RELPATH
 from dgt_lib.stages.paths import data_dir
@@ -72,22 +73,10 @@ def measured_l(traj: Trajectory) -> np.ndarray:
 
 def predicted_l(cost: np.ndarray, grid, traj: Trajectory) -> np.ndarray:
     """(N,) L̂ = 1 − C along a run: C at each sample's cell, heading layer nearest its yaw."""
-    k = cost.shape[0]
     r, c = grid.xy_to_cell(traj.position[:, 0], traj.position[:, 1])
     r = np.clip(r, 0, cost.shape[1] - 1)
     c = np.clip(c, 0, cost.shape[2] - 1)
-    layer = np.round(np.mod(traj.yaw, 2 * math.pi) / (2 * math.pi / k)).astype(int) % k
-    return 1.0 - cost[layer, r, c]
-
-
-def forward_grade(patches: np.ndarray) -> np.ndarray:
-    """(n,) dH̄/d(forward) of each patch: least-squares slope of the centre columns' mean
-    height against the forward offset (row 0 is 4.2 m ahead). Negative = downhill."""
-    h = patches[:, 3].astype(np.float64)[:, :, 2:5].mean(axis=2)  # (n, 22)
-    forward = (10.5 - np.arange(h.shape[1])) * PATCH_RES
-    f = forward - forward.mean()
-    hc = h - np.nanmean(h, axis=1, keepdims=True)
-    return np.nansum(hc * f, axis=1) / np.sum(f * f)
+    return 1.0 - cost[nearest_heading_bin(traj.yaw, cost.shape[0]), r, c]
 
 
 def main() -> None:

@@ -114,3 +114,23 @@ def test_tau_s_keeps_every_traversed_cell_free():
 
 def test_windows_fit_the_patch_definition():
     assert (PATCH_ROWS, PATCH_COLS) == (22, 7)
+
+
+def test_world_maps_cost_at_reads_the_nearest_heading_layer_of_the_cell():
+    """Paper (Directional Cost Lookup): C at (x, y) travelled at θ is layer
+    k* = argmin_k |θ_k − θ| of the cell's costs; points off the map clamp to its edge."""
+    from dgt_lib.mapping.world_maps import WorldMaps
+    from dgt_lib.perception.bev import N_CHANNELS
+
+    grid = GridSpec((0.0, 0.0), 0.4, (10, 20))
+    bev = BEVMap(grid, np.zeros((N_CHANNELS, 10, 20), np.float32), np.ones((10, 20), bool),
+                 np.ones((10, 20), np.int64))
+    cost = np.zeros((8, 10, 20), np.float32)
+    cost += (np.arange(8) / 10.0)[:, None, None]  # layer k costs k / 10
+    cost[:, 3, 7] += 0.05  # one cell stands out
+    maps = WorldMaps("toy", bev, np.zeros((10, 20), np.int8), 0.5, {("dgt", "jeep"): cost})
+    x, y = 7 * 0.4 + 0.2, 3 * 0.4 + 0.2  # the centre of cell (3, 7)
+    got = maps.cost_at("dgt", "jeep", [x, x, x, x], [y] * 4,
+                       [0.0, np.pi / 2, np.pi + 0.3, -0.1])
+    np.testing.assert_allclose(got, [0.05, 0.25, 0.45, 0.05], atol=1e-6)
+    np.testing.assert_allclose(maps.cost_at("dgt", "jeep", -50.0, 100.0, np.pi), 0.4)

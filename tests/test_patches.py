@@ -11,6 +11,7 @@ from dgt_lib.perception.patches import (
     PATCH_RES,
     PATCH_ROWS,
     extract_patches,
+    forward_grade,
     patch_offsets,
     rotate_map,
     sliding_windows,
@@ -187,3 +188,14 @@ def test_many_poses_match_one_by_one():
     for k in (0, 4095, 4096, 8999):
         p, o = extract_patches(bev, poses[k])
         assert np.array_equal(p, patches[k]) and np.array_equal(o, observed[k])
+
+
+def test_forward_grade_reads_the_slope_ahead_with_its_sign():
+    """A vehicle on a 0.2 ramp facing up it sees grade +0.2, facing down −0.2, across 0."""
+    bev = ramp_bev(slope_x=0.2)
+    x, y = 0.0, 0.0
+    poses = np.array([[x, y, 0.0], [x, y, np.pi], [x, y, np.pi / 2], [x, y, np.pi / 4]])
+    patches, observed = extract_patches(bev, poses)
+    assert observed.all()
+    np.testing.assert_allclose(forward_grade(patches), [0.2, -0.2, 0.0, 0.2 / np.sqrt(2)],
+                               atol=1e-3)

@@ -64,6 +64,17 @@ def patch_offsets(resolution: float = PATCH_RES) -> np.ndarray:
     return np.stack([(_ROW_CENTER - i) * resolution, (_COL_CENTER - j) * resolution], axis=-1)
 
 
+def forward_grade(patches: np.ndarray) -> np.ndarray:
+    """(n,) dH̄/d(forward) of each (n, 6, 22, 7) patch [m/m]: the least-squares slope of
+    the centre columns' mean height against the forward offset. Negative = downhill in
+    the patch's heading; arctan gives the grade angle."""
+    h = np.asarray(patches[:, 3], np.float64)[:, :, 2:5].mean(axis=2)  # (n, 22)
+    forward = (_ROW_CENTER - np.arange(PATCH_ROWS)) * PATCH_RES
+    f = forward - forward.mean()
+    hc = h - np.nanmean(h, axis=1, keepdims=True)
+    return np.nansum(hc * f, axis=1) / np.sum(f * f)
+
+
 def body_to_world(poses: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World (x, y) [m] of body-frame offsets for each pose.
 
