@@ -1,4 +1,4 @@
-"""Profiles: one switch sizes everything (DESIGN.md → Profiles).
+"""Profiles: one switch sizes everything (docs/ARCHITECTURE.md → Profiles).
 
 ``smoke`` runs every code path in CI in minutes, ``demo`` is the default for a
 person stepping through the notebooks, ``paper`` uses the paper's sizes.
@@ -25,7 +25,7 @@ ENV_VAR = "DGT_PROFILE"
 
 
 VEHICLES: tuple[str, ...] = ("jeep", "vw_van", "mercedes_van", "carla_cola")
-"""The four vehicles, in head order (DESIGN.md → Conventions)."""
+"""The four vehicles, in head order (docs/ARCHITECTURE.md → Conventions)."""
 
 
 @dataclass(frozen=True)
