@@ -199,3 +199,17 @@ def test_dgt_plan_takes_set_too(capsys, monkeypatch):
                  "--set", "planner.heuristic=euclidean"]) == 0
     assert seen["profile"].planner.beta == 0.0
     assert seen["profile"].planner.heuristic == "euclidean"
+
+
+def test_the_pipeline_bar_counts_stages_and_promises_no_time_left(capsys, tmp_path,
+                                                                  monkeypatch):
+    """The bar averaged over stages of very different cost ("3 s left" after collection):
+    it shows how many stages ran and the time spent, no ETA and no rate."""
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
+        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+    assert main(["reproduce", "--profile", "smoke"]) == 0
+    bar = capsys.readouterr().err.replace("\r", "\n")
+    assert "2/2 stages [" in bar
+    assert "<" not in bar and "stage/s" not in bar and "s/stage" not in bar
