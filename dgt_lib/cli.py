@@ -1,10 +1,13 @@
 """Command line: ``dgt`` (or ``python -m dgt_lib``).
 
-    dgt reproduce [--profile P] [--stages a b …] [--seeds N]
+    dgt reproduce [--profile P] [--stages a b …] [--seeds N] [--set NAME=VALUE …]
                                                    run the cached pipeline stages
     dgt stages                                     list the stages
     dgt plan --world W --vehicle V --start x,y,yaw --goal x,y [--method M] [--drive]
-                                                   plan (and drive) one query
+             [--set NAME=VALUE …]                  plan (and drive) one query
+
+``--set planner.beta=50`` changes one setting of the profile (repeatable; names and types
+as in ``dgt_lib/core/config.py``, checked before anything runs).
 """
 
 from __future__ import annotations
@@ -16,12 +19,26 @@ import shlex
 import sys
 import time
 
-from dgt_lib.core.config import PROFILE_NAMES, UnknownProfileError, get_profile, profile_name
+from dgt_lib.core.config import (
+    PROFILE_NAMES,
+    InvalidOverrideError,
+    Profile,
+    UnknownProfileError,
+    get_profile,
+    parse_overrides,
+    profile_name,
+)
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import profile_root
 
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT, as a shell reports it)."""
+
+
+PIPELINE_BAR_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} stages [{elapsed}]"
+"""The pipeline bar counts stages and shows the time spent, with no ETA and no rate: the
+stages differ in cost by 100× (the dataset takes a second, collection minutes), so an
+average over the stages done so far promised "3 s left" after collection."""
 
 
 def _interrupted_message(seed: int, stage: registry.Stage, command: str) -> str:
@@ -30,8 +47,13 @@ def _interrupted_message(seed: int, stage: registry.Stage, command: str) -> str:
             f"outputs; {stage.kept}. Rerun `{command}` to resume.")
 
 
+def _profile(args: argparse.Namespace) -> Profile:
+    """The profile of ``--profile`` with the settings of every ``--set NAME=VALUE``."""
+    return get_profile(args.profile).with_overrides(parse_overrides(args.set or []))
+
+
 def _reproduce(args: argparse.Namespace) -> int:
-    profile = get_profile(args.profile)
+    profile = _profile(args)
     if args.seeds is not None:
         if args.seeds < 1:
             print(f"dgt: error: --seeds must be ≥ 1, got {args.seeds}", file=sys.stderr)
@@ -39,7 +61,7 @@ def _reproduce(args: argparse.Namespace) -> int:
         profile = profile.with_(seeds=args.seeds)
     stages = registry.select(args.stages)
     runs = profile.seed_profiles()
-    print(f"dgt reproduce — profile {profile.name!r}, seed(s) "
+    print(f"dgt reproduce — profile {profile.describe()}, seed(s) "
           f"{', '.join(str(p.seed) for p in runs)}, outputs under {profile_root(profile)}")
     if not stages:
         print("The pipeline has no stages yet: nothing to run.")
@@ -50,7 +72,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     jobs = [(run, stage) for run in runs for stage in stages]
     run, stage = jobs[0]
     try:
-        with tqdm(jobs, desc="pipeline", unit="stage") as bar:
+        with tqdm(jobs, desc="pipeline", bar_format=PIPELINE_BAR_FORMAT) as bar:
             for run, stage in bar:
                 tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
                 t0 = time.perf_counter()
@@ -89,6 +111,13 @@ def _profile_arg(text: str) -> str:
 
 PROFILE_METAVAR = "{" + ",".join(PROFILE_NAMES) + "}"
 PROFILE_HELP = "profile (default: $DGT_PROFILE or demo; case-insensitive)"
+SET_HELP = ("change one setting of the profile, e.g. planner.beta=50 or "
+            "experiments.n_hill=10 (repeatable; SECTION.FIELD of dgt_lib/core/config.py)")
+
+
+def _add_set_option(parser: argparse.ArgumentParser) -> None:
+    """``--set NAME=VALUE``, repeatable: :meth:`Profile.with_overrides` on the command line."""
+    parser.add_argument("--set", action="append", metavar="NAME=VALUE", help=SET_HELP)
 
 
 def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
@@ -143,7 +172,7 @@ def _plan(args: argparse.Namespace) -> int:
     from dgt_lib.navigation.planner import InvalidQueryError
     from dgt_lib.query import plan_query
 
-    profile = get_profile(args.profile)
+    profile = _profile(args)
     if args.vehicle not in VEHICLES:
         print(f"dgt: error: unknown vehicle {args.vehicle!r}; valid vehicles: "
               f"{', '.join(VEHICLES)}", file=sys.stderr)
@@ -170,6 +199,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--seeds", type=int, default=None, metavar="N",
                      help="run every stage for N seeds (default: the profile's; demo 3) and "
                           "report each seed and the pooled results")
+    _add_set_option(rep)
     rep.set_defaults(func=_reproduce)
     st = sub.add_parser("stages", help="list the pipeline stages")
     st.set_defaults(func=_stages)
@@ -190,6 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="heightmap file: metres per pixel (default 0.4)")
     pl.add_argument("--vertical-scale", type=float, default=None,
                     help="PNG heightmap: metres at the brightest pixel")
+    _add_set_option(pl)
     pl.set_defaults(func=_plan)
     return parser
 
@@ -205,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
     args.command_line = shlex.join(["dgt", *argv])
     try:
         return args.func(args)
-    except (UnknownProfileError, registry.UnknownStageError) as exc:
+    except (UnknownProfileError, InvalidOverrideError, registry.UnknownStageError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -29,6 +29,7 @@ from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar, PlanResult, check_query_on_world
 from dgt_lib.stages.costmaps import ensure_world_costmaps, world_occupancy
+from dgt_lib.stages.dataset import DATASET_RELPATH
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.stages.train import model_relpath
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
@@ -112,22 +113,36 @@ def _high_cost_cells(path: np.ndarray, cost: np.ndarray, grid) -> list:
              float(c[a : b + 1].max())) for a, b in zip(starts, ends, strict=True)]
 
 
-TRAINING_TIME = {"smoke": "about a minute", "demo": "about 40 minutes",
-                 "paper": "a few hours"}
-"""What ``dgt plan`` says when it must build the data and models first (measured, README)."""
+SLOPE_FIT_RELPATH = "baselines/slope_models.json"
+"""The slope-based baseline's fit (``dgt_lib.stages.costmaps.ensure_slope_models``)."""
+
+
+def _steps_before(what: str, profile: Profile) -> str:
+    """The stages that run before ``what`` (e.g. "training the multitask model"): only
+    ``what`` when the profile's dataset is cached, else collection and the dataset first."""
+    if (data_dir(profile) / DATASET_RELPATH).exists():
+        return f"{what} on the cached dataset"
+    return (f"collecting the training world's {sum(profile.collect.episodes)} driving episodes "
+            f"(those not cached yet), building the dataset, then {what}")
 
 
 def training_notice(method: str, vehicle: str, profile: Profile) -> str | None:
-    """The line announcing that ``method`` needs a model the profile has not trained yet
-    (collection and training come first), or None when it has one or needs none."""
-    if method not in ("dgt", "isotropic", "single-task"):
+    """The line announcing which stages run before ``method``'s costmap can be built — a
+    model (``dgt``, ``isotropic``, ``single-task``) or the slope fit (``slope``) that the
+    profile has not made yet, and the collection and dataset they need when those are not
+    cached either — or None when nothing needs to be built first. No time is promised:
+    how long the stages take depends on the machine (``dgt reproduce`` prints each one's)."""
+    if method in ("dgt", "isotropic", "single-task"):
+        kind = "multitask" if method in ("dgt", "isotropic") else f"single:{vehicle}"
+        relpath, missing, what = model_relpath(kind), f"trained {kind} model", "training it"
+    elif method == "slope":
+        relpath, missing, what = SLOPE_FIT_RELPATH, "slope-based fit", "fitting it"
+    else:
         return None
-    kind = "multitask" if method in ("dgt", "isotropic") else f"single:{vehicle}"
-    if (data_dir(profile) / model_relpath(kind)).exists():
+    if (data_dir(profile) / relpath).exists():
         return None
-    return (f"No trained {kind} model for profile {profile.name!r} yet: collecting data and "
-            f"training it first ({TRAINING_TIME.get(profile.name, 'a while')} on a 2-core "
-            "laptop; later queries reuse it).")
+    return (f"No {missing} for profile {profile.name!r} yet: {_steps_before(what, profile)}. "
+            "Later queries reuse it.")
 
 
 def check_query(world: World, vehicle: str, start, goal, profile: Profile | str | None = None,

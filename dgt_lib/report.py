@@ -19,7 +19,7 @@ import json
 import matplotlib.pyplot as plt  # noqa: E402
 
 from dgt_lib import rr, viz
-from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.core.config import Profile, as_profile, format_setting
 from dgt_lib.evaluation import seeds
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.paper import PAPER
@@ -35,6 +35,13 @@ from dgt_lib.world.terrain import get_world
 TITLES = {"experiment1": "Experiment 1 — hill, carla_cola (paper Table I, left)",
           "experiment2": "Experiment 2 — ridge, mercedes_van (paper Table I, right)",
           "experiment3": "Experiment 3 — random queries, jeep and vw_van (paper Table II)"}
+
+
+def _title(prof: Profile) -> str:
+    """The profile in a report's title: `` `demo` `` or `` `demo` with planner.beta=50.0``
+    (the settings changed by ``--set``, so that a report never passes for the profile's)."""
+    name = f"`{prof.name}`"
+    return prof.describe().replace(repr(prof.name), name, 1)
 
 
 def _figures(result: ExperimentResult, prof: Profile, out: Path) -> list[Path]:
@@ -62,7 +69,7 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
     """Write ``results/README.md`` and its figures; returns the markdown's path."""
     out = data_dir(prof) / "results"
     out.mkdir(parents=True, exist_ok=True)
-    parts = [f"# Results — profile `{prof.name}`", "",
+    parts = [f"# Results — profile {_title(prof)}", "",
              "Every number below was measured by `dgt reproduce` on this machine; the paper's "
              "numbers stand beside ours. Intervals are Wilson 95 %.", ""]
     for result in results:
@@ -111,6 +118,7 @@ def write_seed_summary(results: list[ExperimentResult], prof: Profile) -> Path:
     models' test metrics and their collapsed heads (:mod:`dgt_lib.evaluation.seeds`)."""
     models = cached_model_metrics(prof)
     summary = {"seed": prof.seed,
+               "overrides": {k: format_setting(v) for k, v in prof.overrides},
                "experiments": {r.name: seeds.experiment_summary(r) for r in results},
                "models": models,
                "collapsed": {kind: collapsed_heads(m) for kind, m in models.items()}}
@@ -141,7 +149,7 @@ def write_seeds_report(profile: Profile) -> Path:
     prof = as_profile(profile)
     summaries = seed_summaries(prof, require_all=True)
     ids = [s["seed"] for s in summaries]
-    parts = [f"# Results — profile `{prof.name}`, {len(ids)} seed(s): "
+    parts = [f"# Results — profile {_title(prof)}, {len(ids)} seed(s): "
              + ", ".join(map(str, ids)), "",
              "Every number below was measured by `dgt reproduce` on this machine. Per method: "
              "k/n in each seed, the pooled k/n with its Wilson 95 % interval, and the spread "

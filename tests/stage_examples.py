@@ -34,3 +34,9 @@ def pool(profile):
     run_jobs(_job, [(0, 0.0), (1, 60.0), (2, 60.0)], workers=2, start_method="fork",
              on_result=save, progress=False)
     return StageOutput([], "ran 3 jobs")
+
+
+def settings(profile):
+    """Says two of the settings it was given (test_cli checks `--set` reaches the stages)."""
+    return StageOutput([], f"n_hill={profile.experiments.n_hill!r} "
+                           f"beta={profile.planner.beta!r}")

@@ -1,5 +1,5 @@
 """The library's layout is the paper's pipeline: each sub-package imports only those before
-it (DESIGN → Layout), so the data flow can be read from the imports."""
+it (docs/ARCHITECTURE.md → Sub-packages), so the data flow can be read from the imports."""
 
 import ast
 from pathlib import Path

@@ -148,3 +148,68 @@ def test_profile_names_follow_one_rule_on_the_command_line_and_in_the_environmen
     with pytest.raises(SystemExit):
         main(["reproduce", "--profile", "huge"])
     assert "valid profiles: smoke, demo, paper" in capsys.readouterr().err
+
+
+def test_set_changes_settings_for_every_stage_and_seed(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("settings", "tests.stage_examples:settings", "says its settings")])
+    assert main(["reproduce", "--profile", "smoke", "--seeds", "2", "--set", "planner.beta=50",
+                 "--set", "experiments.n_hill=10"]) == 0
+    out = capsys.readouterr().out
+    assert "profile 'smoke' with planner.beta=50.0, experiments.n_hill=10, seed(s) 0, 1" in out
+    assert out.count("n_hill=10 beta=50.0") == 2  # typed: an int and a float, both seeds
+
+
+@pytest.mark.parametrize("setting, message", [
+    ("planner.bta=50", "unknown setting 'planner.bta'; valid planner settings: planner.step_m, "
+                       "planner.beta"),
+    ("planner.beta=fifty", "planner.beta expects a number (e.g. planner.beta=150.0), "
+                           "got 'fifty'"),
+    ("planner.beta", "a setting is NAME=VALUE"),
+])
+def test_a_bad_set_is_a_clear_error_before_anything_runs(capsys, tmp_path, monkeypatch,
+                                                         setting, message):
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("first", "tests.stage_examples:first", "writes a file")])
+    assert main(["reproduce", "--profile", "smoke", "--set", setting]) == 2
+    assert f"dgt: error: {message}" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []  # nothing ran
+    assert main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2,0",
+                 "--goal", "3,4", "--profile", "smoke", "--set", setting]) == 2
+    assert f"dgt: error: {message}" in capsys.readouterr().err
+
+
+def test_dgt_plan_takes_set_too(capsys, monkeypatch):
+    import types
+
+    import dgt_lib.query
+
+    seen = {}
+
+    def fake_plan_query(world, vehicle, start, goal, *, profile, **kwargs):
+        seen["profile"] = profile
+        return types.SimpleNamespace(summary=lambda: "planned",
+                                     plan=types.SimpleNamespace(success=True))
+
+    monkeypatch.setattr(dgt_lib.query, "plan_query", fake_plan_query)
+    assert main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2,0", "--goal",
+                 "3,4", "--profile", "smoke", "--set", "planner.beta=0",
+                 "--set", "planner.heuristic=euclidean"]) == 0
+    assert seen["profile"].planner.beta == 0.0
+    assert seen["profile"].planner.heuristic == "euclidean"
+
+
+def test_the_pipeline_bar_counts_stages_and_promises_no_time_left(capsys, tmp_path,
+                                                                  monkeypatch):
+    """The bar averaged over stages of very different cost ("3 s left" after collection):
+    it shows how many stages ran and the time spent, no ETA and no rate."""
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
+        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+    assert main(["reproduce", "--profile", "smoke"]) == 0
+    bar = capsys.readouterr().err.replace("\r", "\n")
+    assert "2/2 stages [" in bar
+    assert "<" not in bar and "stage/s" not in bar and "s/stage" not in bar

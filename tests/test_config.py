@@ -1,10 +1,14 @@
+import re
+
 import pytest
 
 from dgt_lib.core.config import (
     PROFILE_NAMES,
     VEHICLES,
+    InvalidOverrideError,
     UnknownProfileError,
     get_profile,
+    parse_overrides,
     profile_name,
 )
 
@@ -68,3 +72,86 @@ def test_seeds_are_consecutive_run_seeds_on_the_same_worlds():
                 ).all()
     with pytest.raises(ValueError, match="seeds"):
         demo.with_(seeds=0)
+
+
+# ----------------------------------------------------------------------------- overrides
+
+
+def test_overrides_change_settings_typed_by_their_field():
+    demo = get_profile("demo")
+    p = demo.with_overrides({"planner.beta": 50, "experiments.n_hill": "10",
+                             "collect.episodes": "4,4,3,2", "costmap.stride": (8, 4),
+                             "train.patience": "none", "train.mirror_augment": "false",
+                             "planner.heuristic": "euclidean", "seeds": "2"})
+    assert p.planner.beta == 50.0 and isinstance(p.planner.beta, float)
+    assert p.experiments.n_hill == 10 and isinstance(p.experiments.n_hill, int)
+    assert p.collect.episodes == (4, 4, 3, 2) and p.costmap.stride == (8, 4)
+    assert p.train.patience is None and p.train.mirror_augment is False
+    assert p.planner.heuristic == "euclidean" and p.seeds == 2
+    # everything else is the profile's, and the profile itself is unchanged
+    assert p.planner.step_m == demo.planner.step_m and p.train.width == demo.train.width
+    assert demo.planner.beta == 150.0 and demo.overrides == ()
+    assert p.describe().startswith("'demo' with planner.beta=50.0, experiments.n_hill=10")
+
+
+def test_overrides_from_the_command_line_syntax():
+    items = ["planner.beta=50", "experiments.n_hill=10", "planner.beta=60"]
+    assert parse_overrides(items) == {"planner.beta": "60", "experiments.n_hill": "10"}
+    p = get_profile("smoke").with_overrides(parse_overrides(items))
+    assert (p.planner.beta, p.experiments.n_hill) == (60.0, 10)
+    with pytest.raises(InvalidOverrideError, match="NAME=VALUE"):
+        parse_overrides(["planner.beta"])
+
+
+def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
+    with pytest.raises(InvalidOverrideError, match="unknown setting 'planner.bta'") as err:
+        get_profile("demo").with_overrides({"planner.bta": 50})
+    assert "planner.beta" in str(err.value) and "planner.step_m" in str(err.value)
+    with pytest.raises(InvalidOverrideError, match="worlds, collect, train, costmap, planner, "
+                                                   "experiments, or one of seed, seeds, workers"):
+        get_profile("demo").with_overrides({"plan.beta": 50})
+    with pytest.raises(InvalidOverrideError, match="unknown setting 'name'"):
+        parse_overrides(["name=paper"])
+
+
+@pytest.mark.parametrize("key, value, expected", [
+    ("planner.beta", "fifty", "planner.beta expects a number (e.g. planner.beta=150.0)"),
+    ("experiments.n_hill", "2.5", "experiments.n_hill expects an integer"),
+    ("experiments.n_hill", 2.5, "experiments.n_hill expects an integer"),
+    ("experiments.n_hill", True, "experiments.n_hill expects an integer"),
+    ("train.mirror_augment", "maybe", "train.mirror_augment expects true or false"),
+    ("collect.episodes", "1,2", "collect.episodes expects 4 integers separated by commas"),
+    ("train.patience", "soon", "train.patience expects an integer or none"),
+    ("planner.heuristic", 3, "planner.heuristic expects a string"),
+    ("seeds", "0", "seeds=0: Profile.seeds must be ≥ 1"),
+])
+def test_a_value_of_the_wrong_type_is_a_clear_error(key, value, expected):
+    with pytest.raises(InvalidOverrideError, match=re.escape(expected)):
+        get_profile("demo").with_overrides({key: value})
+
+
+def test_a_changed_setting_changes_the_cache_key_of_what_depends_on_it_only(
+        tmp_path, monkeypatch):
+    """The artifact cache keys each artifact on the settings it uses: a planner or
+    experiment setting gives the experiments new keys and keeps the episodes' and BEV
+    maps' (so the collection is reused); a collection setting changes the episodes'."""
+    from dgt_lib.core.artifacts import config_hash
+    from dgt_lib.stages.collect import bev_config, episode_config
+    from dgt_lib.stages.experiments import experiment_config
+
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    demo = get_profile("demo")
+
+    def keys(p):
+        return {"episode": config_hash(episode_config(p, "jeep", 0)),
+                "bev": config_hash(bev_config("hill", p)),
+                "experiment1": config_hash(experiment_config("experiment1", p))}
+
+    base = keys(demo)
+    for setting in ({"planner.beta": 50}, {"experiments.n_hill": 10}):
+        changed = keys(demo.with_overrides(setting))
+        assert changed["experiment1"] != base["experiment1"], setting
+        assert (changed["episode"], changed["bev"]) == (base["episode"], base["bev"]), setting
+    changed = keys(demo.with_overrides({"collect.steer_sigma": 0.5}))
+    assert changed["episode"] != base["episode"]
+    assert keys(demo.with_overrides({"planner.beta": 150})) == base  # the same value

@@ -190,3 +190,32 @@ def test_distinct_queries_write_distinct_files(data_dir):
     same = plan_query(world, "jeep", starts[0], (40.0, 16.0), method="binary",
                       profile="smoke", progress=False)
     assert same.figure in figures  # the same query replaces its own files
+
+
+def test_the_training_notice_says_which_stages_run_and_promises_no_time(tmp_path,
+                                                                         monkeypatch):
+    """`dgt plan` said demo training takes "about 40 minutes", whatever the machine: it
+    now says what will run before the costmap, and no duration."""
+    import re
+
+    from dgt_lib.query import training_notice
+    from dgt_lib.stages.paths import data_dir
+    from dgt_lib.stages.train import model_relpath
+
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    demo = get_profile("demo")
+    notice = training_notice("dgt", "carla_cola", demo)
+    assert notice.startswith("No trained multitask model for profile 'demo' yet: collecting "
+                             "the training world's 130 driving episodes (those not cached "
+                             "yet), building the dataset, then training it.")
+    assert not re.search(r"minute|hour|second|about|a few|a while", notice)
+    assert "No slope-based fit" in training_notice("slope", "jeep", demo)
+    assert "trained single:jeep model" in training_notice("single-task", "jeep", demo)
+    assert training_notice("binary", "jeep", demo) is None
+    data_dir(demo).mkdir(parents=True)
+    (data_dir(demo) / "dataset.npz").write_bytes(b"")
+    assert training_notice("isotropic", "jeep", demo).endswith(
+        "yet: training it on the cached dataset. Later queries reuse it.")
+    (data_dir(demo) / model_relpath("multitask")).parent.mkdir(parents=True)
+    (data_dir(demo) / model_relpath("multitask")).write_bytes(b"")
+    assert training_notice("dgt", "jeep", demo) is None

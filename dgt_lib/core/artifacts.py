@@ -1,4 +1,4 @@
-"""The artifact cache (DESIGN.md → Artifacts).
+"""The artifact cache (docs/ARCHITECTURE.md → Artifacts).
 
 Every pipeline stage stores its output under ``data/<profile>/…`` through
 :func:`ensure`: the artifact is loaded when it exists and was built from the same

@@ -1,5 +1,5 @@
 """Running independent jobs in parallel: one harness for collection episodes, ground-truth
-samples and closed-loop trials (DESIGN → Scale).
+samples and closed-loop trials (docs/ARCHITECTURE.md → Scale).
 
 Any :class:`concurrent.futures.Executor` works — a process pool of spawned workers by
 default (:func:`default_executor`), a :class:`SerialExecutor` for one worker, or a

@@ -1,4 +1,4 @@
-"""Frames, grids and heading bins: the conventions of DESIGN.md in one place.
+"""Frames, grids and heading bins: the conventions of docs/ARCHITECTURE.md in one place.
 
 World frame: x east, y north, z up, metres. Heading θ is counter-clockwise
 from +x, radians, wrapped to [0, 2π).

@@ -1,6 +1,6 @@
 """The four vehicles of the paper (Data Collection): specs with units in the names.
 
-``jeep``, ``vw_van``, ``mercedes_van``, ``carla_cola`` (head order, DESIGN.md).
+``jeep``, ``vw_van``, ``mercedes_van``, ``carla_cola`` (head order, docs/ARCHITECTURE.md).
 Geometry is close to the real vehicles CARLA models — a Jeep Wrangler, a VW T2
 van, a long Mercedes Sprinter and CARLA's "Carla Cola" delivery truck — and every
 footprint fits the paper's 8.8 m × 2.8 m patch. Capabilities are ordered as in the

@@ -38,7 +38,7 @@ from torch import nn
 from dgt_lib.core.config import VEHICLES
 
 N_CHANNELS = 6
-"""Patch channels R, G, B, H̄, σ_H, ‖∇H̄‖ (DESIGN.md → Conventions)."""
+"""Patch channels R, G, B, H̄, σ_H, ‖∇H̄‖ (docs/ARCHITECTURE.md → Conventions)."""
 RGB_CHANNELS = slice(0, 3)
 HEIGHT_CHANNELS = slice(3, 6)
 PATCH_SHAPE = (N_CHANNELS, 22, 7)

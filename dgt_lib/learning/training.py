@@ -1,7 +1,7 @@
 """Multi-task training of :class:`~dgt_lib.learning.model.DGTNet`, its single-task
 variant, and metrics.
 
-Paper: Multi-Task Learning and Baselines (DGT-Map(Single-Task)). The multi-task
+Paper: Multi-Task Learning and Baselines (DGT-Map(ST)). The multi-task
 model is trained on every vehicle's patches at once with the masked loss
 (:func:`masked_loss`): a patch of vehicle v trains the shared backbone and head v
 only. The single-task variant is the same architecture with one head, trained on

@@ -27,7 +27,7 @@ rates a random walk (smooth, turn-holding samples), and the car's speed loop
 lags the command (first order, τ_v). The optimal ω sequence is smoothed with a
 Savitzky–Golay filter as in Nav2.
 
-Frames follow DESIGN.md: world x east, y north, yaw counter-clockwise from +x.
+Frames follow docs/ARCHITECTURE.md: world x east, y north, yaw counter-clockwise from +x.
 A path is an ``(N, 3)`` array of (x [m], y [m], yaw [rad]). The pose handed to
 the controller is the rear-axle centre, where the bicycle relation is exact
 (:func:`rear_axle_pose` converts from a body origin).
@@ -182,7 +182,7 @@ class MPPIController:
         occupancy = np.asarray(occupancy)
         if occupancy.shape != grid.shape:
             raise ValueError(f"occupancy shape {occupancy.shape} ≠ grid shape {grid.shape}")
-        # DESIGN.md: 0 free, 1 occupied, 2 unobserved (occupied). A ring of occupied
+        # docs/ARCHITECTURE.md: 0 free, 1 occupied, 2 unobserved (occupied). A ring of occupied
         # cells around the grid stands for everything off the map.
         free = np.zeros((grid.height + 2, grid.width + 2), bool)
         free[1:-1, 1:-1] = occupancy == 0

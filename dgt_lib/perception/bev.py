@@ -73,7 +73,7 @@ BEV_RESOLUTION_M = 0.4
 """BEV cell size [m] (paper: Global Map, "a single spatial grid at 0.4 m resolution")."""
 
 CHANNEL_NAMES: tuple[str, ...] = ("R", "G", "B", "H_mean", "H_std", "H_grad")
-"""The six BEV channels, in array order (DESIGN.md → Conventions)."""
+"""The six BEV channels, in array order (docs/ARCHITECTURE.md → Conventions)."""
 R, G, B, HEIGHT, HEIGHT_STD, GRADIENT = range(6)
 N_CHANNELS = len(CHANNEL_NAMES)
 

@@ -3,7 +3,7 @@
 A stage is a named, cached entry point ``run(profile) -> StageOutput``: it goes
 through the artifact cache (``dgt_lib.core.artifacts.ensure``), so a second run
 reuses what the first wrote. Issues that build a stage add it to :data:`STAGES`
-(keep DESIGN.md's data-flow order), saying what stays cached when Ctrl-C stops it.
+(keep the data-flow order of docs/ARCHITECTURE.md), saying what stays cached when Ctrl-C stops it.
 Entry points are named as ``"module:function"`` strings and imported only when run,
 so ``dgt --help`` stays fast and a stage's heavy imports are paid only when it runs.
 """

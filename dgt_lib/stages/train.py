@@ -1,5 +1,5 @@
 """Stage ``train``: the multi-task model and one single-task model per vehicle, cached
-(paper: Multi-Task Learning, Baselines → DGT-Map(Single-Task)).
+(paper: Multi-Task Learning, Baselines → DGT-Map(ST)).
 
 The training itself is :func:`dgt_lib.learning.training.train_model`; this module keys
 each model by what determines it (dataset, settings, seed) and stores it under

@@ -5,7 +5,8 @@ Paper: Experiments → Experiment 1 (hill), Experiment 2 (ridge), Experiment 3
 
 Queries on a world figure, every method's planned and driven path for one query,
 speed against time per method, and success rates with Wilson 95 % intervals beside the
-paper's.
+paper's. Methods are shown by their labels (:data:`~dgt_lib.mapping.methods.METHOD_LABELS`:
+DGT-Map, DGT-Map(Iso), DGT-Map(ST), Slope-Based, Binary), never by their code keys.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from collections.abc import Mapping
 import matplotlib.pyplot as plt
 import numpy as np
 
+from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.viz.common import METHOD_COLORS
 from dgt_lib.world.worlds import World
 
@@ -41,7 +43,7 @@ def plot_planned_paths(ax, world: World, maps, result, label: str, index: int | 
         picked = [r for r in picked if r.task.index == first]
     for r in picked:
         mark = "✓" if r.outcome.success else f"✗ {r.outcome.reason}"
-        name = f"{r.task.method} ({r.route or 'no path'}) {mark}"
+        name = f"{METHOD_LABELS[r.task.method]} ({r.route or 'no path'}) {mark}"
         if len(r.path):
             ax.plot(r.path[:, 0], r.path[:, 1], color=METHOD_COLORS[r.task.method], lw=2,
                     label=name)
@@ -69,7 +71,7 @@ def plot_trial_speeds(result, label: str | None = None):
                 ax.plot(r.trajectory[:, 0], r.speed, color=METHOD_COLORS[m],
                         alpha=0.9 if r.outcome.success else 0.5,
                         ls="-" if r.outcome.success else "--")
-        ax.set_title(m)
+        ax.set_title(METHOD_LABELS[m])
         ax.set_xlabel("time [s]")
     axes[0, 0].set_ylabel("speed [m/s] (dashed: failed)")
     fig.tight_layout()
@@ -94,7 +96,7 @@ def plot_success_rates(result, paper: Mapping | None = None):
             p = paper[v]
             ps = [100 * p.k[m] / p.n if m in p.k else np.nan for m in names]
             ax.plot(x, ps, "ko", label=f"paper (n = {p.n})")
-        ax.set_xticks(x, names, rotation=20)
+        ax.set_xticks(x, [METHOD_LABELS[m] for m in names], rotation=20)
         ax.set_ylim(0, 105)
         ax.set_ylabel("success rate [%]")
         ax.set_title(f"{result.name}: {v}, n = {next(iter(counts.values()))[1]}")

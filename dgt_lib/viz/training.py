@@ -1,6 +1,6 @@
 """Figures and tables of notebook 03 (multi-task training).
 
-Paper: Network Architecture, Multi-Task Learning and Baselines (DGT-Map(Single-Task)).
+Paper: Network Architecture, Multi-Task Learning and Baselines (DGT-Map(ST)).
 
 The network's parts and shapes (:func:`parameter_table`, :func:`shape_trace`), the masked
 loss's gradients per head (:func:`head_gradient_norms`), learning curves, multi-task

@@ -1,7 +1,7 @@
 """Worlds: terrain heights, colour texture, trees and named landmarks.
 
 A :class:`World` is the ground truth the simulator is built from and the figures
-are drawn from. Heights live on a :class:`~dgt_lib.core.geometry.GridSpec` (DESIGN.md:
+are drawn from. Heights live on a :class:`~dgt_lib.core.geometry.GridSpec` (docs/ARCHITECTURE.md:
 x along columns, y along rows, cell centres at ``x0 + (c + ½)·res``); the MuJoCo
 heightfield puts one vertex at every cell centre. Colours (float32 RGB in 0..1) carry
 information: grass on gentle ground, brown dirt on paths and routes, grey rock on steep

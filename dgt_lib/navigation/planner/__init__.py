@@ -12,7 +12,7 @@ Two decoupled map layers drive it:
   θ_k = 2πk/K) prices each primitive at its successor cell, in the layer
   nearest to the travel direction, amplified by β (paper: β = 150).
 
-Conventions (DESIGN.md): rows grow with y, θ is counter-clockwise from +x. The
+Conventions (docs/ARCHITECTURE.md): rows grow with y, θ is counter-clockwise from +x. The
 paper writes the travel direction as atan2(j' − j, i' − i) on grid indices; in
 our grid the row index follows y and the column index follows x, so the same
 direction in world terms is θ' = atan2(Δrow, Δcol) — travel toward +x reads

@@ -6,7 +6,7 @@ from cell (i, j) to cell (i', j') is priced in the costmap layer k* nearest to
 its travel direction (Directional Cost Lookup), the cost C ∈ [0, 1] there is
 amplified to C' = C(1 + βC), and the edge costs g_edge = s(1 + C').
 
-Grid convention (DESIGN.md): rows grow with y and columns with x, so the
+Grid convention (docs/ARCHITECTURE.md): rows grow with y and columns with x, so the
 paper's θ' = atan2(j' − j, i' − i) reads θ' = atan2(Δrow, Δcol) here.
 """
 
@@ -27,7 +27,7 @@ def travel_heading_bin(d_row, d_col, n_headings: int):
     """Directional cost layer for a move of (Δrow, Δcol) grid cells.
 
     Paper (Directional Cost Lookup): θ' = atan2(j' − j, i' − i) and
-    k* = argmin_k |θ_k − θ'|. With rows along y and columns along x (DESIGN.md)
+    k* = argmin_k |θ_k − θ'|. With rows along y and columns along x (docs/ARCHITECTURE.md)
     the world travel direction is θ' = atan2(Δrow, Δcol), so Δcol > 0 gives
     k* = 0 and Δrow > 0 gives k* = K/4. Integers or arrays; (0, 0) has no
     direction and gives k* = 0 (callers fall back to the motion's heading).
