@@ -171,10 +171,19 @@ def _corridor_blocked(world: World, a: np.ndarray, b: np.ndarray, half_width_m: 
     return bool(np.any(d < half_width_m))
 
 
-def _drive(world: World, vehicle: str, cell: np.ndarray, direction: np.ndarray, theta: float,
-           start_m: float, config: GroundTruthConfig, collect: CollectConfig):
-    """One straight run from ``start_m`` before the cell to ``past_m`` beyond it:
-    the episode and the along-track coordinate [m] (0 at the cell) of its samples."""
+def straight_run(world: World, vehicle: str, cell, theta: float, start_m: float,
+                 config: GroundTruthConfig | None = None, collect: CollectConfig | None = None):
+    """One straight run at heading ``theta`` [rad] from rest ``start_m`` [m] before the
+    cell at ``cell`` (x, y) [m] to ``past_m`` beyond it, as the data were collected
+    (:func:`~dgt_lib.perception.episodes.run_episode`: its PID speed control at
+    ``collect.speed_mps``; steering by pure pursuit along the line); it ends there, at a
+    stall (``immobilized_limit_s``), a simulator end, or after twice the nominal time plus
+    the stall limit. Returns the :class:`~dgt_lib.perception.episodes.Episode` and the
+    along-track coordinate [m] of its samples (0 at the cell, positive beyond it)."""
+    config = config or GroundTruthConfig()
+    collect = collect or CollectConfig()
+    cell = np.asarray(cell, np.float64)
+    direction = np.array([math.cos(theta), math.sin(theta)])
     start = cell - start_m * direction
     line = np.stack([start, cell + (config.past_m + 20.0) * direction])
     nominal_s = (start_m + config.past_m) / collect.speed_mps
@@ -212,14 +221,14 @@ def drive_through(world: World, vehicle: str, xy, theta: float,
     if _corridor_blocked(world, cell - gt.run_up_m * d, rear, half_width):
         blocked = "blocked_tree"
     else:
-        ep, along = _drive(world, spec.name, cell, d, theta, gt.run_up_m, gt, col)
+        ep, along = straight_run(world, spec.name, cell, theta, gt.run_up_m, gt, col)
         out["sim_s"] += float(ep.time_s[-1])
         if along.max() < 0 and along[-1] < -PATCH_REACH_M and ep.end_reason not in (
                 "off_map", "diverged"):
             blocked = "blocked_terrain"
             out["stop_along_m"] = float(along[-1])  # where the run-up stopped
     if blocked is not None:  # again from rest at the patch's rear edge
-        ep, along = _drive(world, spec.name, cell, d, theta, PATCH_REACH_M, gt, col)
+        ep, along = straight_run(world, spec.name, cell, theta, PATCH_REACH_M, gt, col)
         out["sim_s"] += float(ep.time_s[-1])
     t = np.asarray(ep.time_s, np.float64)
     xy_run = np.asarray(ep.pose[:, :2], np.float64)
