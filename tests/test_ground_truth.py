@@ -60,10 +60,23 @@ def test_on_a_slope_the_truck_cannot_climb_uphill_l_is_far_below_downhill(ramp):
     for y in (30.0, 45.0):
         up = drive_through(ramp, "carla_cola", (12.0, y), math.pi / 2)
         down = drive_through(ramp, "carla_cola", (12.0, y), 3 * math.pi / 2)
-        assert _status(up) == "stuck" and up["locomotion"] < 0.1, up
+        assert _status(up) == "stuck" and up["locomotion"] == L_STANDING, up
         assert _status(down) == "passed" and down["locomotion"] > 0.8, down
     jeep = drive_through(ramp, "jeep", (12.0, 30.0), math.pi / 2)  # the jeep climbs 26°
     assert _status(jeep) == "passed" and jeep["locomotion"] > 0.8
+
+
+def test_route_b_of_the_hill_is_costly_uphill_and_cheap_downhill_for_carla_cola():
+    """Experiment 1's premise measured: the middle of Route B's steep section. Uphill the
+    truck rolls back down and charges the slope again until its time is up — it never
+    crosses the cell, whatever its last second shows."""
+    hill = get_world("hill", "smoke")
+    bottom, top = (np.asarray(hill.landmarks[n]) for n in ("B_steep_bottom", "B_steep_top"))
+    cell = 0.5 * (bottom + top)
+    up = drive_through(hill, "carla_cola", cell, math.pi / 2)
+    down = drive_through(hill, "carla_cola", cell, 3 * math.pi / 2)
+    assert _status(up) == "stuck" and up["locomotion"] == L_STANDING, up
+    assert _status(down) == "passed" and down["locomotion"] > 0.9, down
 
 
 def test_an_obstacle_in_the_run_up_is_not_measured_one_in_the_patch_is(flat):
@@ -75,7 +88,7 @@ def test_an_obstacle_in_the_run_up_is_not_measured_one_in_the_patch_is(flat):
     assert _status(blocked) == "blocked_tree" and math.isnan(blocked["locomotion"])
     assert _status(drive_through(world, "jeep", (24.0, 24.0), math.pi)) == "passed"
     stuck = drive_through(world, "jeep", (24.0, 39.0), math.pi / 2)
-    assert _status(stuck) == "stuck" and stuck["locomotion"] < 0.1
+    assert _status(stuck) == "stuck" and stuck["locomotion"] == L_STANDING
     assert -4.4 <= stuck["stop_along_m"] < 0
 
 

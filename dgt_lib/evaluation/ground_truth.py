@@ -20,8 +20,11 @@ centre passes the cell:
 - ``passed``: the centre crossed the cell; L* as above.
 - ``stuck``: the run ended for good (immobilized, flipped, out of time) with the vehicle
   short of the cell but within the patch's rear reach (4.4 m), i.e. on terrain the cell's
-  patch shows: L* is the locomotion of its last window (≈ e^{−4.5} ≈ 0.011 standing
-  still; a flip counts as standing still).
+  patch shows. The vehicle never moves through the cell, so its displacement there is 0:
+  L* = e^{−1/(2σ²)} = e^{−4.5} ≈ 0.011, what a stalled vehicle's label reads. (Not the
+  locomotion of the run's last second: a truck that cannot climb may roll back down the
+  slope and charge it again until its time is up, and its last window then shows motion,
+  not progress through the cell.)
 - ``blocked_terrain`` / ``blocked_tree``: the run-up never reached the patch — terrain
   before it stopped the vehicle, or a trunk stands in the run-up corridor. The vehicle
   then starts again at rest at the patch's rear edge: if it does not get past the cell
@@ -250,9 +253,7 @@ def drive_through(world: World, vehicle: str, xy, theta: float,
                 "cross_track_m": float(abs((p_c - cell) @ np.array([-d[1], d[0]])))}
     if ep.end_reason in ("off_map", "diverged"):
         return {**out, "status": STATUSES.index("failed"), "stop_along_m": float(along[-1])}
-    ell = L_STANDING if ep.end_reason == "flipped" else float(
-        locomotion_signal(t, xy_run, u=col.speed_mps, at_s=np.array([t[-1]]))[0])
-    return {**out, "status": STATUSES.index("stuck"), "locomotion": ell,
+    return {**out, "status": STATUSES.index("stuck"), "locomotion": L_STANDING,
             "stop_along_m": float(along[-1])}
 
 
