@@ -14,8 +14,10 @@ from dgt_lib.evaluation.accuracy import (
     cost_at,
     costmap_accuracy,
     free_cells,
+    multitask_comparisons,
+    multitask_over_seeds,
     multitask_table,
-    pooled_by_vehicle,
+    paired_comparison,
 )
 
 K = 8
@@ -86,18 +88,42 @@ def _row(world, vehicle, method, n, mae, rho):
             "sign_agreement": math.nan}
 
 
-def test_multi_task_and_single_task_are_compared_per_vehicle_over_its_worlds():
-    rows = [_row("ridge", "jeep", "dgt", 10, 0.1, 0.5), _row("eval", "jeep", "dgt", 30, 0.2, 0.1),
-            _row("ridge", "jeep", "single-task", 10, 0.3, 0.2),
-            _row("eval", "jeep", "single-task", 30, 0.1, math.nan),
-            _row("hill", "carla_cola", "dgt", 5, 0.4, 0.3)]
-    pooled = pooled_by_vehicle(rows, ("dgt", "single-task"))
-    assert pooled["jeep"]["dgt"]["mae"] == pytest.approx((10 * 0.1 + 30 * 0.2) / 40)
-    assert pooled["jeep"]["dgt"]["spearman"] == pytest.approx((10 * 0.5 + 30 * 0.1) / 40)
-    assert pooled["jeep"]["single-task"]["spearman"] == pytest.approx(0.2)  # NaN left out
-    table = multitask_table(rows)
-    assert "| jeep | ridge, eval | 40 | 0.175 | 0.150 | 0.20 | 0.20 | single-task |" in table
-    assert "carla_cola" not in table  # no single-task map to compare with
-    assert "| ridge | jeep | DGT-Map | 10 | 0.100 | 0.50 | 0 | — | — | — |" in accuracy_table(rows)
+def test_multi_task_and_single_task_are_compared_on_the_same_samples_with_a_paired_test():
+    rng = np.random.default_rng(0)
+    truth = {w: rng.uniform(0, 1, 60) for w in ("ridge", "eval")}
+    noise = {w: rng.normal(0, 0.05, 60) for w in truth}
+    samples = {}
+    for w, t in truth.items():  # multi-task: small errors; single-task: larger, same samples
+        samples[(w, "jeep", "dgt")] = (t + noise[w], t)
+        samples[(w, "jeep", "single-task")] = (t + 4 * noise[w], t)
+    t = truth["eval"]
+    samples[("eval", "vw_van", "dgt")] = (t + noise["eval"], t)
+    samples[("eval", "vw_van", "single-task")] = (t - noise["eval"], t)  # as close
+    samples[("hill", "carla_cola", "dgt")] = (t, t)  # no single-task map: not compared
+    jeep, vw_van = multitask_comparisons(samples)
+    assert jeep["vehicle"] == "jeep" and jeep["worlds"] == ["ridge", "eval"]
+    assert jeep["n"] == 120 and jeep["closer"] == "multi-task" and jeep["p"] < 1e-6
+    assert jeep["mae_a"] == pytest.approx(np.mean(np.abs(np.concatenate(list(noise.values())))))
+    assert vw_van["closer"] == "neither" and vw_van["p"] > 0.05  # the same |errors|
+    table = multitask_table([jeep, vw_van])
+    assert "| jeep | ridge, eval | 120 |" in table and "| < 0.001 | multi-task |" in table
+    assert table.splitlines()[3].endswith("| neither |")
+    same = paired_comparison(np.zeros(5), np.zeros(5), np.ones(5))
+    assert same["p"] == 1.0 and same["mae_a"] == same["mae_b"] == 1.0
+    swapped = {(w, v, "single-task" if m == "dgt" else "dgt"): x
+               for (w, v, m), x in samples.items() if v == "jeep"}
+    assert multitask_comparisons(swapped)[0]["closer"] == "single-task"
+    over = multitask_over_seeds({0: [jeep, vw_van], 1: [{**jeep, "closer": "neither"}]})
+    assert "| jeep |" in over and over.splitlines()[2].endswith("| 1 of 2 seeds |")
+    assert over.splitlines()[3].endswith("| — | 0 of 1 seeds |")
+
+
+def test_tables_of_every_method_per_seed_and_over_seeds():
+    rows = [_row("ridge", "jeep", "dgt", 10, 0.1, 0.5), _row("eval", "jeep", "binary", 30, 0.2,
+                                                              math.nan)]
+    table = accuracy_table(rows)
+    assert "| ridge | jeep | DGT-Map | 10 | 0.100 | 0.50 | 0 | — | — | — |" in table
+    assert "| eval | jeep | Binary | 30 | 0.200 | — |" in table
     over = accuracy_over_seeds({0: rows, 1: [_row("ridge", "jeep", "dgt", 10, 0.3, 0.7)]})
     assert "| ridge | jeep | DGT-Map | 0.100 / 0.50 | 0.300 / 0.70 | 0.200 | 0.60 |" in over
+    assert "| eval | jeep | Binary | 0.200 / — | — | 0.200 | — |" in over

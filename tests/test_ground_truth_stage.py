@@ -90,9 +90,11 @@ def test_a_seeds_costmaps_are_scored_on_free_cells_for_every_method(monkeypatch)
     maps = WorldMaps("flat", bev, occupancy, 0.6, {("dgt", "jeep"): exact.astype(np.float32),
                                                     ("binary", "jeep"): np.zeros((1, *grid.shape))})
     monkeypatch.setattr(stage, "ensure_world_costmaps", lambda *a, **kw: maps)
-    rows = stage.score_world("flat", {("flat", "jeep"): gt}, PROFILE,
-                             methods=("dgt", "binary"), progress=False)
+    rows, samples = stage.score_world("flat", {("flat", "jeep"): gt}, PROFILE,
+                                      methods=("dgt", "binary"), progress=False)
     dgt, binary = rows
+    cost, true = samples[("flat", "jeep", "dgt")]
+    assert len(cost) == len(true) == k and np.allclose(cost, true)
     assert dgt["n"] == binary["n"] == k and dgt["excluded"] == k  # cell 0 only
     assert dgt["mae"] == pytest.approx(0.0, abs=1e-6) and dgt["spearman"] == pytest.approx(1.0)
     assert binary["mae"] == pytest.approx(truth[0].mean())

@@ -39,6 +39,13 @@ def _accuracy_rows(mt_mae, st_mae):
     return rows
 
 
+def _comparisons(closer):
+    return [{"vehicle": "carla_cola", "worlds": ["hill"], "n": 20, "mae_a": 0.1, "mae_b": 0.2,
+             "spearman_a": 0.5, "spearman_b": 0.4, "p": 0.01, "closer": closer},
+            {"vehicle": "mercedes_van", "worlds": ["ridge"], "n": 20, "mae_a": 0.1,
+             "mae_b": 0.2, "spearman_a": 0.5, "spearman_b": 0.4, "p": 0.01, "closer": closer}]
+
+
 def test_report_prints_the_accuracy_tables_and_draws_the_ground_truth(tmp_path, monkeypatch):
     import numpy as np
 
@@ -53,7 +60,8 @@ def test_report_prints_the_accuracy_tables_and_draws_the_ground_truth(tmp_path, 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
     prof = get_profile("smoke")
     artifacts.save(data_dir(prof) / ACCURACY_RELPATH,
-                   {"rows": _accuracy_rows(0.1, 0.2), "ground_truth": {"hill/carla_cola": "x"}})
+                   {"rows": _accuracy_rows(0.1, 0.2), "multitask": _comparisons("multi-task"),
+                    "ground_truth": {"hill/carla_cola": "x"}})
 
     def truth(world, vehicle, profile, progress=True):
         k, cells = 8, np.array([[30.0, 50.0], [60.0, 30.0]])
@@ -74,7 +82,7 @@ def test_report_prints_the_accuracy_tables_and_draws_the_ground_truth(tmp_path, 
     monkeypatch.setattr(report, "ensure_world_costmaps", maps)
     text = write_results([], prof).read_text()
     assert "## Costmap accuracy against the measured ground truth" in text
-    assert "| carla_cola | hill | 20 | 0.100 | 0.200 | 0.50 | 0.50 | multi-task |" in text
+    assert "| carla_cola | hill | 20 | 0.100 | 0.200 | 0.50 | 0.40 | 0.010 | multi-task |" in text
     assert "| hill | carla_cola | Binary | 20 | 0.500 |" in text
     for world in ("hill", "ridge"):
         assert f"![accuracy_{world}](accuracy_{world}.png)" in text
@@ -90,12 +98,15 @@ def test_the_seeds_report_pools_the_accuracy_and_checks_claim_4_per_seed(tmp_pat
 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
     prof = get_profile("smoke").with_(seeds=2)
-    for p, (mt, st) in zip(prof.seed_profiles(), ((0.1, 0.2), (0.3, 0.2)), strict=True):
+    for p, (mt, st, closer) in zip(prof.seed_profiles(), ((0.1, 0.2, "multi-task"),
+                                                          (0.3, 0.2, "neither")), strict=True):
         path = data_dir(p) / SUMMARY_RELPATH
         path.parent.mkdir(parents=True)
         path.write_text(json.dumps({"seed": p.seed, "experiments": {}, "models": {},
-                                    "collapsed": {}, "accuracy": _accuracy_rows(mt, st)}))
+                                    "collapsed": {}, "accuracy": _accuracy_rows(mt, st),
+                                    "multitask": _comparisons(closer)}))
     text = write_seeds_report(prof).read_text()
     assert "| 2/2 ✓ | 0/2 ✗ | 1 of 2 seeds |" in text  # multi-task closer, seed by seed
-    assert "| carla_cola | hill | 40 | 0.200 | 0.200 | 0.50 | 0.50 | tie |" in text
+    assert ("| carla_cola | 0.100 / 0.200 (multi-task) | 0.100 / 0.200 (neither) | "
+            "1 of 2 seeds |") in text
     assert "| hill | carla_cola | DGT-Map | 0.100 / 0.50 | 0.300 / 0.50 | 0.200 | 0.50 |" in text

@@ -14,7 +14,9 @@ measured C* = 1 − L* of :mod:`dgt_lib.evaluation.ground_truth` at the same cel
 
 Samples on cells the occupancy map marks occupied or unobserved are left out: there the
 planner never reads the cost. A one-layer map (isotropic, binary) gives every heading the
-same cost.
+same cost. Multi-task and single-task maps are compared per vehicle on the very same
+samples, with a paired test (:func:`multitask_comparisons`): Claim 4 without the closed
+loop's noise.
 """
 
 from __future__ import annotations
@@ -120,42 +122,95 @@ def accuracy_table(rows: Sequence[Mapping]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def pooled_by_vehicle(rows: Sequence[Mapping], methods: Sequence[str]
-                      ) -> dict[str, dict[str, dict[str, float]]]:
-    """{vehicle: {method: {n, mae, spearman}}} over every world of ``rows``: the MAE
-    weighted by samples, ρ the samples-weighted mean of the worlds' ρ."""
-    out: dict[str, dict[str, dict[str, float]]] = {}
-    for v in dict.fromkeys(r["vehicle"] for r in rows):
-        for m in methods:
-            rs = [r for r in rows if r["vehicle"] == v and r["method"] == m and r["n"]]
-            if not rs:
-                continue
-            n = sum(r["n"] for r in rs)
-            rho = [(r["spearman"], r["n"]) for r in rs if math.isfinite(r["spearman"])]
-            out.setdefault(v, {})[m] = {
-                "n": n, "mae": sum(r["mae"] * r["n"] for r in rs) / n,
-                "spearman": (sum(a * b for a, b in rho) / sum(b for _, b in rho)) if rho
-                else math.nan}
+def paired_comparison(cost_a: np.ndarray, cost_b: np.ndarray, true_cost: np.ndarray
+                      ) -> dict[str, float | int]:
+    """Two maps' costs (n,) at the same samples against their C* (n,): ``n``, ``mae_a``,
+    ``mae_b``, ``spearman_a``, ``spearman_b`` and ``p``, the two-sided Wilcoxon
+    signed-rank test of |C_a − C*| against |C_b − C*| sample by sample (1 when the two
+    never differ; NaN without samples). Paired, because both maps are scored on the very
+    same drives."""
+    a, b, t = (np.asarray(x, np.float64) for x in (cost_a, cost_b, true_cost))
+    out: dict[str, float | int] = {"n": int(len(t)), "mae_a": math.nan, "mae_b": math.nan,
+                                   "spearman_a": math.nan, "spearman_b": math.nan,
+                                   "p": math.nan}
+    if not len(t):
+        return out
+    ea, eb = np.abs(a - t), np.abs(b - t)
+    out.update(mae_a=float(ea.mean()), mae_b=float(eb.mean()))
+    for key, c in (("spearman_a", a), ("spearman_b", b)):
+        if len(t) >= 3 and np.ptp(c) > 0 and np.ptp(t) > 0:
+            out[key] = float(stats.spearmanr(c, t).statistic)
+    out["p"] = 1.0 if np.all(ea == eb) else float(stats.wilcoxon(ea, eb).pvalue)
     return out
 
 
-def multitask_table(rows: Sequence[Mapping]) -> str:
-    """Markdown: multi-task (DGT-Map) against single-task per vehicle over its worlds —
-    MAE and ρ of each, and which is closer to the ground truth (Claim 4 without the
-    closed loop)."""
-    pooled = pooled_by_vehicle(rows, ("dgt", "single-task"))
-    lines = ["| vehicle | worlds | n | MAE multi-task | MAE single-task | ρ multi-task | "
-             "ρ single-task | lower MAE |", "|" + "---|" * 8]
-    for v, d in pooled.items():
-        if "dgt" not in d or "single-task" not in d:
+SIGNIFICANCE = 0.05
+"""A comparison names a winner when its paired test's p is below this."""
+
+
+def multitask_comparisons(samples: Mapping[tuple[str, str, str], tuple[np.ndarray, np.ndarray]]
+                          ) -> list[dict]:
+    """Multi-task (``dgt``) against single-task per vehicle, over every world it was
+    scored on. ``samples``: {(world, vehicle, method): (cost (n,), C* (n,))} on the scored
+    samples. Returns per vehicle ``vehicle``, ``worlds``, the :func:`paired_comparison`
+    (``a`` = multi-task, ``b`` = single-task) and ``closer``: "multi-task" or
+    "single-task" when that one's MAE is lower with p < :data:`SIGNIFICANCE`, else
+    "neither"."""
+    out = []
+    for v in dict.fromkeys(key[1] for key in samples):
+        worlds = [w for (w, vv, m) in samples if vv == v and m == "dgt"
+                  and (w, v, "single-task") in samples]
+        if not worlds:
             continue
-        mt, st = d["dgt"], d["single-task"]
-        worlds = ", ".join(dict.fromkeys(r["world"] for r in rows if r["vehicle"] == v))
-        better = ("multi-task" if mt["mae"] < st["mae"] else
-                  "single-task" if st["mae"] < mt["mae"] else "tie")
-        lines.append(f"| {v} | {worlds} | {mt['n']} | {_f(mt['mae'], 3)} | "
-                     f"{_f(st['mae'], 3)} | {_f(mt['spearman'])} | {_f(st['spearman'])} | "
-                     f"{better} |")
+        mt = np.concatenate([samples[(w, v, "dgt")][0] for w in worlds])
+        st = np.concatenate([samples[(w, v, "single-task")][0] for w in worlds])
+        truth = np.concatenate([samples[(w, v, "dgt")][1] for w in worlds])
+        c = paired_comparison(mt, st, truth)
+        closer = "neither"
+        if c["p"] < SIGNIFICANCE:
+            closer = "multi-task" if c["mae_a"] < c["mae_b"] else "single-task"
+        out.append({"vehicle": v, "worlds": worlds, **c, "closer": closer})
+    return out
+
+
+def _p(p: float) -> str:
+    return "—" if not math.isfinite(p) else "< 0.001" if p < 0.001 else f"{p:.3f}"
+
+
+def multitask_table(comparisons: Sequence[Mapping]) -> str:
+    """Markdown: multi-task against single-task per vehicle (:func:`multitask_comparisons`)
+    — MAE and ρ of each on the same samples, the paired test's p, and which is closer to
+    the ground truth (Claim 4 without the closed loop)."""
+    lines = ["| vehicle | worlds | n | MAE multi-task | MAE single-task | ρ multi-task | "
+             "ρ single-task | p (paired) | closer |", "|" + "---|" * 9]
+    for c in comparisons:
+        lines.append(f"| {c['vehicle']} | {', '.join(c['worlds'])} | {c['n']} | "
+                     f"{_f(c['mae_a'], 3)} | {_f(c['mae_b'], 3)} | {_f(c['spearman_a'])} | "
+                     f"{_f(c['spearman_b'])} | {_p(c['p'])} | {c['closer']} |")
+    return "\n".join(lines) + "\n"
+
+
+def multitask_over_seeds(per_seed: Mapping[int, Sequence[Mapping]]) -> str:
+    """Markdown: the multi-task against single-task comparison of each vehicle in every
+    seed (MAE multi-task / single-task, and which is closer), and in how many seeds the
+    multi-task map is significantly closer."""
+    seeds = list(per_seed)
+    vehicles = list(dict.fromkeys(c["vehicle"] for cs in per_seed.values() for c in cs))
+    head = ["vehicle", *[f"seed {s}: MAE multi / single (closer)" for s in seeds],
+            "multi-task closer in"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for v in vehicles:
+        cells, wins, n = [v], 0, 0
+        for s in seeds:
+            c = next((c for c in per_seed[s] if c["vehicle"] == v), None)
+            if c is None:
+                cells.append("—")
+                continue
+            n += 1
+            wins += c["closer"] == "multi-task"
+            cells.append(f"{_f(c['mae_a'], 3)} / {_f(c['mae_b'], 3)} ({c['closer']})")
+        cells.append(f"{wins} of {n} seeds")
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 

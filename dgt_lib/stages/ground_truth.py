@@ -46,6 +46,9 @@ GROUND_TRUTH_WORLDS: tuple[str, ...] = ("hill", "ridge", "eval")
 COLLECT_FIELDS: tuple[str, ...] = ("speed_mps", "immobilized_limit_s", "max_angular_rate_dps")
 """The :class:`~dgt_lib.core.config.CollectConfig` fields a drive uses: the commanded
 speed, when a stall ends it, what counts as a glitch."""
+ACCURACY_FORMAT = 2
+"""Version of the scores' layout (part of their cache key). 2: multi-task against
+single-task by a paired test on the same samples."""
 ACCURACY_RELPATH = "accuracy/costmaps.json"
 """The seed's scores, under its data directory."""
 
@@ -148,17 +151,21 @@ def ensure_ground_truth(world: str, vehicle: str, profile: Profile | str | None 
 
 def score_world(world: str, truths: dict[tuple[str, str], GroundTruth],
                 profile: Profile | str | None = None, *,
-                methods: Sequence[str] = METHODS, progress: bool = True) -> list[dict]:
-    """One row per (vehicle, method) on ``world``: :func:`~dgt_lib.evaluation.accuracy.
-    costmap_accuracy` of the seed's costmap against the ground truth, on the measured
-    samples of cells the occupancy map marks free (``excluded``: measured samples on
-    occupied or unobserved cells)."""
+                methods: Sequence[str] = METHODS, progress: bool = True
+                ) -> tuple[list[dict], dict[tuple[str, str, str], tuple[np.ndarray, np.ndarray]]]:
+    """Every method's costmap on ``world`` against the ground truth of each of its vehicles
+    in ``truths``, on the measured samples of cells the occupancy map marks free.
+
+    Returns the rows — ``world``, ``vehicle``, ``method``, ``excluded`` (measured samples
+    on occupied or unobserved cells) and :func:`~dgt_lib.evaluation.accuracy.
+    costmap_accuracy` — and the scored samples {(world, vehicle, method): (C (n,), C*
+    (n,))}, the same samples in the same order for every method."""
     prof = as_profile(profile)
     vehicles = tuple(v for w, v in truths if w == world)
     maps = ensure_world_costmaps(world, vehicles, prof, methods=tuple(methods),
                                  progress=progress)
     k = prof.costmap.n_headings
-    rows = []
+    rows, samples = [], {}
     for v in vehicles:
         gt = truths[(world, v)]
         free = accuracy.free_cells(maps.occupancy, maps.grid, gt.cells)[:, None]
@@ -169,7 +176,8 @@ def score_world(world: str, truths: dict[tuple[str, str], GroundTruth],
                          "excluded": int((gt.measured & ~free).sum()),
                          **accuracy.costmap_accuracy(gt.cost, cost, valid,
                                                      prof.ground_truth.contrast_threshold)})
-    return rows
+            samples[(world, v, m)] = (cost[valid], gt.cost[valid])
+    return rows, samples
 
 
 def _costmap_digests(prof: Profile, worlds: Sequence[str]) -> dict[str, str]:
@@ -185,14 +193,17 @@ def ensure_costmap_accuracy(profile: Profile | str | None = None, *,
                             executor: Executor | None = None, progress: bool = True) -> dict:
     """Every method's accuracy against the ground truth on the hill, ridge and eval worlds
     for the profile's run seed (:func:`score_world`), cached as ``accuracy/costmaps.json``
-    and written as ``results/accuracy.md``. Returns ``{"rows": [...], "ground_truth":
-    {"world/vehicle": summary line}}``."""
+    and written as ``results/accuracy.md``. Returns ``{"rows": [...], "multitask": [...],
+    "ground_truth": {"world/vehicle": summary line}}``: a row per (world, vehicle,
+    method), multi-task against single-task per vehicle
+    (:func:`~dgt_lib.evaluation.accuracy.multitask_comparisons`), and how the drives
+    ended."""
     prof = as_profile(profile)
     truths = ensure_ground_truths(None, prof, executor=executor, progress=progress)
     for w in GROUND_TRUTH_WORLDS:  # build (or load) the maps first: their digests key the score
         ensure_world_costmaps(w, EXPERIMENT_VEHICLES[w], prof, progress=progress)
     ensure_tau_s(prof)
-    config = {"stage": "accuracy", "methods": METHODS,
+    config = {"stage": "accuracy", "format": ACCURACY_FORMAT, "methods": METHODS,
               "threshold": prof.ground_truth.contrast_threshold,
               "ground_truth": {f"{w}/{v}": artifacts.stored_digest(ground_truth_relpath(w, v),
                                                                    profile=prof.name)
@@ -200,9 +211,12 @@ def ensure_costmap_accuracy(profile: Profile | str | None = None, *,
               "costmaps": _costmap_digests(prof, GROUND_TRUTH_WORLDS)}
 
     def build() -> dict:
-        rows = [r for w in GROUND_TRUTH_WORLDS
-                for r in score_world(w, truths, prof, progress=progress)]
-        return {"rows": rows,
+        rows, samples = [], {}
+        for w in GROUND_TRUTH_WORLDS:
+            r, s = score_world(w, truths, prof, progress=progress)
+            rows += r
+            samples.update(s)
+        return {"rows": rows, "multitask": accuracy.multitask_comparisons(samples),
                 "ground_truth": {f"{w}/{v}": gt.summary() for (w, v), gt in truths.items()}}
 
     result = artifacts.ensure(ACCURACY_RELPATH, config, build, profile=cache_dir(prof))
@@ -223,8 +237,9 @@ def accuracy_markdown(result: dict) -> str:
     """The accuracy tables of one seed as markdown: the multi-task vs single-task summary,
     every (world, vehicle, method), and how each ground truth's drives ended."""
     return "\n".join([
-        "**Multi-task vs single-task per vehicle** (Claim 4 without the closed loop):", "",
-        accuracy.multitask_table(result["rows"]),
+        "**Multi-task vs single-task per vehicle** (Claim 4 without the closed loop; the same "
+        "samples for both, p of a Wilcoxon signed-rank test on their absolute errors):", "",
+        accuracy.multitask_table(result["multitask"]),
         "**Every method** (cost C = 1 − L̂ against the measured C* = 1 − L*; contrast over "
         "opposite headings whose C* differs by > 0.3):", "",
         accuracy.accuracy_table(result["rows"]),
@@ -237,10 +252,8 @@ def stage_ground_truth(profile: Profile) -> StageOutput:
     accuracy against it (per seed)."""
     prof = as_profile(profile)
     result = ensure_costmap_accuracy(prof)
-    pooled = accuracy.pooled_by_vehicle(result["rows"], ("dgt", "single-task"))
-    parts = [f"{v}: MAE multi-task {d['dgt']['mae']:.3f} / single-task "
-             f"{d['single-task']['mae']:.3f}" for v, d in pooled.items()
-             if "dgt" in d and "single-task" in d]
+    parts = [f"{c['vehicle']}: MAE multi-task {c['mae_a']:.3f} / single-task "
+             f"{c['mae_b']:.3f} (closer: {c['closer']})" for c in result["multitask"]]
     measured = "; ".join(result["ground_truth"].values())
     return StageOutput([profile_root(prof) / "ground_truth", data_dir(prof) / ACCURACY_RELPATH,
                         data_dir(prof) / "results" / "accuracy.md"],
