@@ -8,6 +8,7 @@ import pytest
 
 from dgt_lib.core.config import VEHICLES, GroundTruthConfig
 from dgt_lib.core.geometry import heading_bins
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.ground_truth import (
     L_STANDING,
     STATUSES,
@@ -55,8 +56,8 @@ def test_on_flat_ground_every_vehicle_keeps_its_speed_and_l_is_one(flat, vehicle
 
 def test_on_a_slope_the_truck_cannot_climb_uphill_l_is_far_below_downhill(ramp):
     """carla_cola stalls climbing 26° and descends it at speed: uphill L* ≪ downhill L*,
-    wherever on the slope the cell lies (a cell high up: the run-up stalls below the
-    patch, and from the patch's rear edge it does not get past the cell either)."""
+    wherever on the slope the cell lies (a cell high up: the run-up stalls below it, and
+    started at rest on the cell the truck does not get 1 m on)."""
     for y in (30.0, 45.0):
         up = drive_through(ramp, "carla_cola", (12.0, y), math.pi / 2)
         down = drive_through(ramp, "carla_cola", (12.0, y), 3 * math.pi / 2)
@@ -79,9 +80,9 @@ def test_route_b_of_the_hill_is_costly_uphill_and_cheap_downhill_for_carla_cola(
     assert _status(down) == "passed" and down["locomotion"] > 0.9, down
 
 
-def test_an_obstacle_in_the_run_up_is_not_measured_one_in_the_patch_is(flat):
+def test_an_obstacle_in_the_run_up_is_not_measured_one_at_the_cell_is(flat):
     """A trunk 10 m before the cell blocks the run-up (not measured); a trunk just past
-    the cell stops the vehicle on the cell's own patch (L* of a vehicle standing still)."""
+    the cell stops the vehicle with the cell under it (L* of a vehicle standing still)."""
     trees = np.array([[14.0, 24.0, 0.3, 6.0], [25.0, 40.0, 0.3, 6.0]], np.float32)
     world = from_heightmap(np.zeros((120, 120), np.float32), RES, trees=trees, name="trees")
     blocked = drive_through(world, "jeep", (24.0, 24.0), 0.0)
@@ -89,19 +90,41 @@ def test_an_obstacle_in_the_run_up_is_not_measured_one_in_the_patch_is(flat):
     assert _status(drive_through(world, "jeep", (24.0, 24.0), math.pi)) == "passed"
     stuck = drive_through(world, "jeep", (24.0, 39.0), math.pi / 2)
     assert _status(stuck) == "stuck" and stuck["locomotion"] == L_STANDING
-    assert -4.4 <= stuck["stop_along_m"] < 0
+    assert -get_vehicle("jeep").length_m / 2 <= stuck["stop_along_m"] < 0
 
 
 def test_a_cliff_in_the_run_up_blocks_it_and_the_sample_is_not_measured():
-    """A 3 m cliff 10 m before a cell on the plateau: the run-up stops far short of the
-    patch and the vehicle crosses the cell from the patch's edge, so L* at speed is
-    unknown; from the plateau side the same cell is measured."""
+    """A 3 m cliff 10 m before a cell on the plateau: the run-up stops far short of it and
+    the vehicle drives off from rest on the cell, so L* at speed is unknown; from the
+    plateau side the same cell is measured."""
     h = np.where((np.arange(120) + 0.5) * RES > 14.0, 3.0, 0.0).astype(np.float32)
     world = from_heightmap(np.repeat(h[None, :], 120, 0), RES, name="cliff")
     r = drive_through(world, "vw_van", (24.0, 24.0), 0.0)
     assert _status(r) == "blocked_terrain" and math.isnan(r["locomotion"])
-    assert r["stop_along_m"] < -4.4
+    assert r["stop_along_m"] < -10.0
     assert _status(drive_through(world, "vw_van", (24.0, 24.0), math.pi)) == "passed"
+
+
+def test_a_ridge_stops_the_van_on_it_and_charges_no_cell_it_lies_behind():
+    """Experiment 2's sharp crest, the mercedes_van northbound: a cell on the crest, or
+    under the stuck van, is stuck; a cell 5 m beyond it was never under the van (the
+    van standing there drives off) and is not measured; a cell 1.5 m before it is crossed
+    at speed, L* lowered only by the stall in the window's second half. The jeep crosses."""
+    ridge = get_world("ridge", "smoke")
+    x, y = ridge.landmarks["sharp_crossing"]
+    on, beyond, before = ((drive_through(ridge, "mercedes_van", (x, y + dy), math.pi / 2))
+                          for dy in (0.0, 5.0, -1.5))
+    assert _status(on) == "stuck" and on["locomotion"] == L_STANDING
+    assert _status(beyond) == "blocked_terrain" and math.isnan(beyond["locomotion"])
+    assert _status(before) == "passed" and 0.2 < before["locomotion"] < 0.95
+    jeep = drive_through(ridge, "jeep", (x, y), math.pi / 2)
+    assert _status(jeep) == "passed" and jeep["locomotion"] > 0.9
+    # A trunk 10 m before a cell 4 m short of the crest blocks the run-up; started on the
+    # cell the van drives off (the crest ahead holds it only later): not measured.
+    tree = np.array([[x, y - 14.0, 0.3, 6.0]], np.float32)
+    treed = from_heightmap(np.array(ridge.heights), RES, trees=tree, name="ridge_tree")
+    short = drive_through(treed, "mercedes_van", (x, y - 4.0), math.pi / 2)
+    assert _status(short) == "blocked_tree" and math.isnan(short["locomotion"])
 
 
 def test_standing_still_reads_exp_minus_one_over_two_sigma_squared():

@@ -18,20 +18,27 @@ centre passes the cell:
 (:data:`STATUSES`):
 
 - ``passed``: the centre crossed the cell; L* as above.
-- ``stuck``: the run ended for good (immobilized, flipped, out of time) with the vehicle
-  short of the cell but within the patch's rear reach (4.4 m), i.e. on terrain the cell's
-  patch shows. The vehicle never moves through the cell, so its displacement there is 0:
-  L* = e^{−1/(2σ²)} = e^{−4.5} ≈ 0.011, what a stalled vehicle's label reads. (Not the
-  locomotion of the run's last second: a truck that cannot climb may roll back down the
-  slope and charge it again until its time is up, and its last window then shows motion,
-  not progress through the cell.)
-- ``blocked_terrain`` / ``blocked_tree``: the run-up never reached the patch — terrain
-  before it stopped the vehicle, or a trunk stands in the run-up corridor. The vehicle
-  then starts again at rest at the patch's rear edge: if it does not get past the cell
-  from there, the cell's own terrain stops it and the sample is ``stuck``; if it does, L*
-  at speed is unknown (a start from rest is slower than u) and the sample stays
-  ``blocked_*``, unmeasured. So a slope the vehicle cannot climb is ``stuck`` uphill
-  however far up the cell lies, while a flat cell behind a cliff is ``blocked``.
+- ``stuck``: the run ended for good (immobilized, flipped, out of time) with the cell
+  under the vehicle — its centre got within half its length of the cell, its front at or
+  past it — but never across. The vehicle does not move through the cell, so its
+  displacement there is 0: L* = e^{−1/(2σ²)} = e^{−4.5} ≈ 0.011, what the label of a
+  stalled vehicle reads. (Not the locomotion of the run's last second: a truck that cannot
+  climb rolls back down the slope and charges it again until its time is up, and its last
+  window shows motion, not progress through the cell.)
+- ``blocked_terrain`` / ``blocked_tree``: the vehicle never got the cell under it —
+  terrain behind the cell stopped it, or a trunk stands in the run-up. Whether the cell's
+  own terrain would hold it is then tried directly: the vehicle starts at rest centred on
+  the cell. If it cannot get 1 m on from there, the terrain under it holds it and the
+  sample is ``stuck``; if it drives off, L* at speed is unknown (a start from rest is
+  slower than u) and the sample stays ``blocked_*``, unmeasured. So a slope the vehicle
+  cannot climb is ``stuck`` uphill however far up the cell lies, while a flat cell behind
+  a cliff is ``blocked``.
+
+  Why "under the vehicle" and not "within the patch" (4.4 m): a van high-centred on a
+  crest stands with the crest under its belly, and that is where its labels are cut; a
+  cell 3–4 m beyond the crest was never under it, and a van standing there drives off.
+  Counting such a cell as stuck would charge it for an obstacle it lies behind, which no
+  label does.
 - ``glitch``: the window touches a simulator glitch (angular rate > 100 °/s), which the
   dataset drops too; ``failed``: the simulator diverged or the vehicle left the map.
 
@@ -74,11 +81,12 @@ MEASURED: tuple[str, ...] = ("passed", "stuck")
 """The statuses whose L* is a measurement."""
 
 PATCH_REACH_M = 0.5 * PATCH_SIZE_M[0]
-"""How far the patch centred on a cell reaches forward and back along the heading [m]:
-a stop closer than this before the cell is on the cell's terrain."""
+"""How far the patch centred on a cell reaches forward and back along the heading [m]
+(``GroundTruthConfig.past_m``: the drive goes on this far past the cell)."""
 ROUGHNESS_BLUR_M = 1.0  # σ of the blur that roughness is measured about [m]
 ROUGHNESS_WINDOW_M = 2.8  # window of the RMS (the patch's width) [m]
 ROUTE_HALF_WIDTH_M = 4.0  # cells this close to a world's route are "on the route" [m]
+MOVE_OFF_M = 1.0  # started at rest on a cell, a vehicle that gets this far on is not held [m]
 CORRIDOR_CLEARANCE_M = 0.5  # trunks this close to the vehicle's side block a run-up [m]
 L_STANDING = float(locomotion(0.0, WINDOW_S))
 """L of a vehicle that does not move, e^{−1/(2σ²)} ≈ 0.011 for σ = 1/3."""
@@ -164,20 +172,25 @@ def sample_cells(world: World, config: GroundTruthConfig, n: int | None = None
 
 
 def _corridor_blocked(world: World, a: np.ndarray, b: np.ndarray, half_width_m: float) -> bool:
-    """Whether a trunk comes within ``half_width_m`` of the segment a → b [m]."""
+    """Whether a trunk stands in the rectangular corridor from a to b [m]: its centre
+    between the two ends along a → b, its surface within ``half_width_m`` of the line."""
     if len(world.trees) == 0:
         return False
     t = world.trees.astype(np.float64)
     ab = b - a
-    s = np.clip(((t[:, :2] - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
-    d = np.linalg.norm(t[:, :2] - (a + s[:, None] * ab), axis=1) - t[:, 2]
-    return bool(np.any(d < half_width_m))
+    length = max(float(np.linalg.norm(ab)), 1e-12)
+    u = ab / length
+    rel = t[:, :2] - a
+    along, across = rel @ u, np.abs(rel @ np.array([-u[1], u[0]]))
+    return bool(np.any((along >= 0) & (along <= length) & (across - t[:, 2] < half_width_m)))
 
 
 def straight_run(world: World, vehicle: str, cell, theta: float, start_m: float,
-                 config: GroundTruthConfig | None = None, collect: CollectConfig | None = None):
+                 config: GroundTruthConfig | None = None, collect: CollectConfig | None = None,
+                 until_m: float | None = None):
     """One straight run at heading ``theta`` [rad] from rest ``start_m`` [m] before the
-    cell at ``cell`` (x, y) [m] to ``past_m`` beyond it, as the data were collected
+    cell at ``cell`` (x, y) [m] to ``until_m`` (default ``past_m``) beyond it, as the
+    data were collected
     (:func:`~dgt_lib.perception.episodes.run_episode`: its PID speed control at
     ``collect.speed_mps``; steering by pure pursuit along the line); it ends there, at a
     stall (``immobilized_limit_s``), a simulator end, or after twice the nominal time plus
@@ -185,16 +198,16 @@ def straight_run(world: World, vehicle: str, cell, theta: float, start_m: float,
     along-track coordinate [m] of its samples (0 at the cell, positive beyond it)."""
     config = config or GroundTruthConfig()
     collect = collect or CollectConfig()
+    until_m = config.past_m if until_m is None else until_m
     cell = np.asarray(cell, np.float64)
     direction = np.array([math.cos(theta), math.sin(theta)])
     start = cell - start_m * direction
-    line = np.stack([start, cell + (config.past_m + 20.0) * direction])
-    nominal_s = (start_m + config.past_m) / collect.speed_mps
+    line = np.stack([start, cell + (until_m + 20.0) * direction])
+    nominal_s = (start_m + until_m) / collect.speed_mps
     cfg = replace(collect, episode_duration_s=2.0 * nominal_s + collect.immobilized_limit_s)
     ep = run_episode(world, vehicle, 0, cfg, start_pose=np.array([*start, theta]),
                      steer=PurePursuit(line, get_vehicle(vehicle)), render=False,
-                     stop=lambda st: float((st.position[:2] - cell) @ direction)
-                     >= config.past_m)
+                     stop=lambda st: float((st.position[:2] - cell) @ direction) >= until_m)
     along = (np.asarray(ep.pose[:, :2], np.float64) - cell) @ direction
     return ep, along
 
@@ -208,53 +221,64 @@ def drive_through(world: World, vehicle: str, xy, theta: float,
     Returns ``status`` (index into :data:`STATUSES`), ``locomotion`` (L*, NaN unless
     measured), ``speed_mps`` (speed when the centre crossed the cell, NaN if it did not),
     ``cross_track_m`` (the centre's distance from the line through the cell then),
-    ``stop_along_m`` (where a run that did not pass the cell stopped — for
-    ``blocked_terrain`` the run-up — relative to the cell along the heading; NaN if it
-    passed) and ``sim_s`` (simulated seconds, both drives)."""
+    ``stop_along_m`` (how far a run that did not cross the cell got — for ``blocked_*``
+    the run-up —, the centre's farthest point relative to the cell along the heading;
+    NaN if it crossed) and ``sim_s`` (simulated seconds, both drives)."""
     gt = config or GroundTruthConfig()
     col = collect or CollectConfig()
     spec = get_vehicle(vehicle)
     cell = np.asarray(xy, np.float64)
     d = np.array([math.cos(theta), math.sin(theta)])
     half_width = 0.5 * spec.width_m + CORRIDOR_CLEARANCE_M
+    half_length = 0.5 * spec.length_m  # from here on the cell is under the vehicle
     out = {"status": 0, "locomotion": math.nan, "speed_mps": math.nan,
            "cross_track_m": math.nan, "stop_along_m": math.nan, "sim_s": 0.0}
-    blocked = None
-    rear = cell - PATCH_REACH_M * d
-    if _corridor_blocked(world, cell - gt.run_up_m * d, rear, half_width):
+    ended = {"failed": STATUSES.index("failed"), "stuck": STATUSES.index("stuck")}
+    # A trunk the front meets before the cell is under the vehicle blocks the run-up.
+    if _corridor_blocked(world, cell - (gt.run_up_m + half_length) * d, cell, half_width):
         blocked = "blocked_tree"
     else:
         ep, along = straight_run(world, spec.name, cell, theta, gt.run_up_m, gt, col)
         out["sim_s"] += float(ep.time_s[-1])
-        if along.max() < 0 and along[-1] < -PATCH_REACH_M and ep.end_reason not in (
-                "off_map", "diverged"):
-            blocked = "blocked_terrain"
-            out["stop_along_m"] = float(along[-1])  # where the run-up stopped
-    if blocked is not None:  # again from rest at the patch's rear edge
-        ep, along = straight_run(world, spec.name, cell, theta, PATCH_REACH_M, gt, col)
-        out["sim_s"] += float(ep.time_s[-1])
+        if along.max() >= 0:
+            return {**out, **_crossing(ep, along, cell, d, col)}
+        out["stop_along_m"] = float(along.max())
+        if ep.end_reason in ("off_map", "diverged"):
+            return {**out, "status": ended["failed"]}
+        if along.max() >= -half_length:  # stopped for good with the cell under it
+            return {**out, "status": ended["stuck"], "locomotion": L_STANDING}
+        blocked = "blocked_terrain"
+    # Blocked: does the cell's own terrain hold the vehicle? Start at rest on the cell.
+    if _corridor_blocked(world, cell - half_length * d, cell + half_length * d, half_width):
+        return {**out, "status": STATUSES.index(blocked)}  # no room to start on it
+    ep, along = straight_run(world, spec.name, cell, theta, 0.0, gt, col, until_m=MOVE_OFF_M)
+    out["sim_s"] += float(ep.time_s[-1])
+    if ep.end_reason in ("off_map", "diverged"):
+        return {**out, "status": ended["failed"]}
+    if along.max() >= MOVE_OFF_M:  # it drives off: L* at speed is unknown
+        return {**out, "status": STATUSES.index(blocked)}
+    return {**out, "status": ended["stuck"], "locomotion": L_STANDING}
+
+
+def _crossing(ep, along: np.ndarray, cell: np.ndarray, d: np.ndarray,
+              collect: CollectConfig) -> dict[str, float | int]:
+    """A run that crossed the cell: L in the window centred on the crossing, the speed
+    and cross-track offset then (``glitch`` if the window touches one)."""
     t = np.asarray(ep.time_s, np.float64)
     xy_run = np.asarray(ep.pose[:, :2], np.float64)
-    if along.max() >= 0:  # passed: L in the window centred on the crossing
-        if blocked is not None:
-            return {**out, "status": STATUSES.index(blocked)}
-        i = int(np.argmax(along >= 0))
-        t_c = t[0] if i == 0 else float(np.interp(0.0, along[i - 1:i + 1], t[i - 1:i + 1]))
-        span = min(WINDOW_S, t[-1] - t[0])
-        lo = float(np.clip(t_c - 0.5 * span, t[0], t[-1] - span))
-        in_window = (t >= lo - 1e-9) & (t <= lo + span + 1e-9)
-        if not np.all(ep.valid[in_window]):
-            return {**out, "status": STATUSES.index("glitch")}
-        p_c = np.array([np.interp(t_c, t, xy_run[:, 0]), np.interp(t_c, t, xy_run[:, 1])])
-        return {**out, "status": STATUSES.index("passed"),
-                "locomotion": float(locomotion_signal(t, xy_run, u=col.speed_mps,
-                                                      at_s=np.array([t_c]))[0]),
-                "speed_mps": float(np.interp(t_c, t, ep.speed_mps)),
-                "cross_track_m": float(abs((p_c - cell) @ np.array([-d[1], d[0]])))}
-    if ep.end_reason in ("off_map", "diverged"):
-        return {**out, "status": STATUSES.index("failed"), "stop_along_m": float(along[-1])}
-    return {**out, "status": STATUSES.index("stuck"), "locomotion": L_STANDING,
-            "stop_along_m": float(along[-1])}
+    i = int(np.argmax(along >= 0))
+    t_c = t[0] if i == 0 else float(np.interp(0.0, along[i - 1:i + 1], t[i - 1:i + 1]))
+    span = min(WINDOW_S, t[-1] - t[0])
+    lo = float(np.clip(t_c - 0.5 * span, t[0], t[-1] - span))
+    in_window = (t >= lo - 1e-9) & (t <= lo + span + 1e-9)
+    if not np.all(ep.valid[in_window]):
+        return {"status": STATUSES.index("glitch")}
+    p_c = np.array([np.interp(t_c, t, xy_run[:, 0]), np.interp(t_c, t, xy_run[:, 1])])
+    return {"status": STATUSES.index("passed"),
+            "locomotion": float(locomotion_signal(t, xy_run, u=collect.speed_mps,
+                                                  at_s=np.array([t_c]))[0]),
+            "speed_mps": float(np.interp(t_c, t, ep.speed_mps)),
+            "cross_track_m": float(abs((p_c - cell) @ np.array([-d[1], d[0]])))}
 
 
 def drive_job(profile: Profile, world_name: str, vehicle: str, x: float, y: float,

@@ -39,9 +39,10 @@ from dgt_lib.stages.paths import cache_dir, data_dir, profile_root
 from dgt_lib.stages.registry import StageOutput
 from dgt_lib.world.terrain import get_world
 
-GROUND_TRUTH_FORMAT = 2
+GROUND_TRUTH_FORMAT = 3
 """Version of the ground truth's layout and drive rule (part of its cache key). 2: a stuck
-sample reads the L of a standing vehicle, not of its run's last second."""
+sample reads the L of a standing vehicle, not of its run's last second; 3: stuck means
+the cell under the vehicle (half its length), not within the patch (4.4 m)."""
 GROUND_TRUTH_WORLDS: tuple[str, ...] = ("hill", "ridge", "eval")
 COLLECT_FIELDS: tuple[str, ...] = ("speed_mps", "immobilized_limit_s", "max_angular_rate_dps")
 """The :class:`~dgt_lib.core.config.CollectConfig` fields a drive uses: the commanded
