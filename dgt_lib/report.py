@@ -203,8 +203,8 @@ def write_seeds_report(profile: Profile) -> Path:
     if scored:
         parts += [f"## {ACCURACY_TITLE}", "", ACCURACY_INTRO, "",
                   "**Multi-task vs single-task per vehicle, seed by seed** (Claim 4 without "
-                  "the closed loop: closer = lower MAE with p < 0.05 in a paired test on the "
-                  "same samples):", "",
+                  "the closed loop: closer = MAE lower by ≥ 0.005 with p < 0.05 in a paired "
+                  "test on the same samples):", "",
                   accuracy.multitask_over_seeds({s["seed"]: s["multitask"] for s in scored}),
                   "**Every method, per seed** (MAE / Spearman ρ; the seed's report has the "
                   "directional contrast):", "",

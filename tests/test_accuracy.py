@@ -108,6 +108,11 @@ def test_multi_task_and_single_task_are_compared_on_the_same_samples_with_a_pair
     table = multitask_table([jeep, vw_van])
     assert "| jeep | ridge, eval | 120 |" in table and "| < 0.001 | multi-task |" in table
     assert table.splitlines()[3].endswith("| neither |")
+    t = truth["eval"]  # two nearly constant maps a hair apart: significant, no difference
+    hair = {("eval", "jeep", "dgt"): (t * 0 + 0.9, t),
+            ("eval", "jeep", "single-task"): (t * 0 + 0.9001, t)}
+    (c,) = multitask_comparisons(hair)
+    assert c["p"] < 0.05 and c["closer"] == "neither"
     same = paired_comparison(np.zeros(5), np.zeros(5), np.ones(5))
     assert same["p"] == 1.0 and same["mae_a"] == same["mae_b"] == 1.0
     swapped = {(w, v, "single-task" if m == "dgt" else "dgt"): x

@@ -145,7 +145,10 @@ def paired_comparison(cost_a: np.ndarray, cost_b: np.ndarray, true_cost: np.ndar
 
 
 SIGNIFICANCE = 0.05
-"""A comparison names a winner when its paired test's p is below this."""
+"""A comparison names a winner when its paired test's p is below this …"""
+MIN_MAE_DIFFERENCE = 0.005
+"""… and the MAEs differ by at least this much: two nearly constant maps (collapsed heads)
+differ on every sample by the same hair, which a paired test finds significant."""
 
 
 def multitask_comparisons(samples: Mapping[tuple[str, str, str], tuple[np.ndarray, np.ndarray]]
@@ -154,8 +157,8 @@ def multitask_comparisons(samples: Mapping[tuple[str, str, str], tuple[np.ndarra
     scored on. ``samples``: {(world, vehicle, method): (cost (n,), C* (n,))} on the scored
     samples. Returns per vehicle ``vehicle``, ``worlds``, the :func:`paired_comparison`
     (``a`` = multi-task, ``b`` = single-task) and ``closer``: "multi-task" or
-    "single-task" when that one's MAE is lower with p < :data:`SIGNIFICANCE`, else
-    "neither"."""
+    "single-task" when that one's MAE is lower by at least :data:`MIN_MAE_DIFFERENCE`
+    with p < :data:`SIGNIFICANCE`, else "neither"."""
     out = []
     for v in dict.fromkeys(key[1] for key in samples):
         worlds = [w for (w, vv, m) in samples if vv == v and m == "dgt"
@@ -167,7 +170,7 @@ def multitask_comparisons(samples: Mapping[tuple[str, str, str], tuple[np.ndarra
         truth = np.concatenate([samples[(w, v, "dgt")][1] for w in worlds])
         c = paired_comparison(mt, st, truth)
         closer = "neither"
-        if c["p"] < SIGNIFICANCE:
+        if c["p"] < SIGNIFICANCE and abs(c["mae_a"] - c["mae_b"]) >= MIN_MAE_DIFFERENCE:
             closer = "multi-task" if c["mae_a"] < c["mae_b"] else "single-task"
         out.append({"vehicle": v, "worlds": worlds, **c, "closer": closer})
     return out

@@ -47,9 +47,9 @@ GROUND_TRUTH_WORLDS: tuple[str, ...] = ("hill", "ridge", "eval")
 COLLECT_FIELDS: tuple[str, ...] = ("speed_mps", "immobilized_limit_s", "max_angular_rate_dps")
 """The :class:`~dgt_lib.core.config.CollectConfig` fields a drive uses: the commanded
 speed, when a stall ends it, what counts as a glitch."""
-ACCURACY_FORMAT = 2
+ACCURACY_FORMAT = 3
 """Version of the scores' layout (part of their cache key). 2: multi-task against
-single-task by a paired test on the same samples."""
+single-task by a paired test on the same samples; 3: and by at least MIN_MAE_DIFFERENCE."""
 ACCURACY_RELPATH = "accuracy/costmaps.json"
 """The seed's scores, under its data directory."""
 
