@@ -56,27 +56,28 @@ def plot_ground_truth_beside_layers(world: World, maps: WorldMaps, truth: Ground
     headings = headings if headings is not None else (k_all // 4, 3 * k_all // 4)
     grid = maps.grid
     fig, axes = plt.subplots(len(headings), 1 + len(methods),
-                             figsize=(4.2 * (1 + len(methods)), 4.0 * len(headings)),
-                             squeeze=False)
+                             figsize=(3.6 * (1 + len(methods)) + 1.0, 3.5 * len(headings)),
+                             squeeze=False, constrained_layout=True)
     thetas = heading_bins(k_all)
+    h = world.heights
+    relief = max(float(np.ptp(h)), 1e-6)
     for row, k in zip(axes, headings, strict=True):
-        ax = row[0]
-        ax.imshow(world.heights, origin="lower", extent=world.extent, cmap="gray")
+        ax = row[0]  # the terrain in mid greys, so dark and light dots both show
+        ax.imshow(h, origin="lower", extent=world.extent, cmap="gray",
+                  vmin=float(h.min()) - 1.5 * relief, vmax=float(h.max()) + 1.5 * relief)
         dots = plot_truth_dots(ax, truth, k)
-        ax.set_title(f"ground truth C* = 1 − L*, heading {_heading_name(thetas[k])}",
-                     fontsize=9)
+        ax.set_title(f"measured C* = 1 − L*, {_heading_name(thetas[k])}", fontsize=9)
         for ax, m in zip(row[1:], methods, strict=True):
             layer = maps.costmap(m, truth.vehicle)
             ax.imshow(layer[min(k, len(layer) - 1)], origin="lower", extent=grid.extent,
                       cmap=COST_CMAP, vmin=0, vmax=1)
             plot_truth_dots(ax, truth, k)
-            ax.set_title(f"{METHOD_LABELS[m]}: C, heading {_heading_name(thetas[k])}",
-                         fontsize=9)
+            ax.set_title(f"{METHOD_LABELS[m]}, {_heading_name(thetas[k])}", fontsize=9)
         for ax in row:
             ax.set_xlim(crop[:2] if crop else world.extent[:2])
             ax.set_ylim(crop[2:] if crop else world.extent[2:])
             ax.set_aspect("equal")
-    fig.colorbar(dots, ax=axes, shrink=0.6, label="cost (0 free … 1 impassable)")
+    fig.colorbar(dots, ax=axes, shrink=0.7, label="cost (0 free … 1 impassable)")
     fig.suptitle(f"{truth.vehicle} on {truth.world}: measured ground truth (dots) on each "
                  "method's layer", fontsize=11)
     return fig
