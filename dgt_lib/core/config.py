@@ -252,8 +252,8 @@ def _demo() -> Profile:
         experiments=ExperimentsConfig(n_hill=6, n_ridge=6, n_eval_jeep=10, n_eval_vw_van=10),
         # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)
         planner=PlannerConfig(heuristic_weight=1.5),
-        # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives: measured 2 min 55 s
-        # on 2 cores shared with other work (~0.09 CPU s a drive); once for all seeds.
+        # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives: measured 94 s on 2
+        # otherwise idle cores (154 CPU s, ~0.08 a drive), once for all three seeds.
         ground_truth=GroundTruthConfig(cells=48),
     )
 
@@ -282,7 +282,7 @@ def _paper() -> Profile:
         # (the paper's Euclidean distance, here maxed with the 2D cost-to-go), unweighted.
         planner=PlannerConfig(step_m=1.6, beta=150.0, heuristic_weight=1.0, max_time_s=60.0,
                               max_expansions=500_000),
-        # 96 cells: 3,840 drives, ~6 min on 2 cores (once for both seeds).
+        # 96 cells: 3,840 drives, ~3–4 min on 2 cores (not measured), once for both seeds.
         ground_truth=GroundTruthConfig(cells=96),
     )
 
