@@ -9,7 +9,8 @@ The sub-packages read as the paper's pipeline; each imports only those before it
 ``learning``    DGTNet, training, checkpoints
 ``mapping``     directional costmaps, baselines, occupancy and τ_s, methods
 ``navigation``  Hybrid A*, MPPI, the drive loop and its outcome rule
-``evaluation``  queries, trials and their journal, experiments, statistics
+``evaluation``  queries, trials and their journal, experiments, statistics, the
+                ground truth and costmap accuracy
 ``stages``      every ``ensure_*``: the only code that touches the cache
 ==============  ===========================================================
 
@@ -43,6 +44,8 @@ _API = {
     "load_model": "dgt_lib.stages.costmaps",
     "ensure_world_costmaps": "dgt_lib.stages.costmaps",
     "ensure_experiment": "dgt_lib.stages.experiments", "data_dir": "dgt_lib.stages.paths",
+    "ensure_ground_truth": "dgt_lib.stages.ground_truth",
+    "ensure_costmap_accuracy": "dgt_lib.stages.ground_truth",
     # one query on any terrain
     "plan_query": "dgt_lib.query",
 }

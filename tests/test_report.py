@@ -31,6 +31,7 @@ def test_report_has_every_table_and_its_figures(tmp_path, monkeypatch):
     assert "| 70 | 70.0 |" in text  # the paper's jeep row beside ours
     assert (path.parent / "experiment3_success.png").stat().st_size > 1000
     assert "![experiment3_success](experiment3_success.png)" in text
+    assert "Not measured for this seed: run `dgt reproduce --stages ground_truth`" in text
 
 
 def test_a_report_made_with_changed_settings_says_which(tmp_path, monkeypatch):
@@ -50,3 +51,86 @@ def test_a_report_made_with_changed_settings_says_which(tmp_path, monkeypatch):
     write_seed_summary([_experiment3()], prof)
     summary = json.loads((data_dir(prof) / SUMMARY_RELPATH).read_text())
     assert summary["overrides"] == {"planner.beta": "50.0"}
+
+
+def _accuracy_rows(mt_mae, st_mae):
+    rows = []
+    for world, vehicle in (("hill", "carla_cola"), ("ridge", "mercedes_van")):
+        for method, mae in (("dgt", mt_mae), ("single-task", st_mae), ("binary", 0.5)):
+            rows.append({"world": world, "vehicle": vehicle, "method": method, "n": 20,
+                         "excluded": 0, "mae": mae, "spearman": 0.5, "pairs": 2,
+                         "contrast_true": 0.8, "contrast": 0.4, "sign_agreement": 1.0})
+    return rows
+
+
+def _comparisons(closer):
+    return [{"vehicle": "carla_cola", "worlds": ["hill"], "n": 20, "mae_a": 0.1, "mae_b": 0.2,
+             "spearman_a": 0.5, "spearman_b": 0.4, "p": 0.01, "closer": closer},
+            {"vehicle": "mercedes_van", "worlds": ["ridge"], "n": 20, "mae_a": 0.1,
+             "mae_b": 0.2, "spearman_a": 0.5, "spearman_b": 0.4, "p": 0.01, "closer": closer}]
+
+
+def test_report_prints_the_accuracy_tables_and_draws_the_ground_truth(tmp_path, monkeypatch):
+    import numpy as np
+
+    from dgt_lib import report
+    from dgt_lib.evaluation.ground_truth import GroundTruth
+    from dgt_lib.mapping.world_maps import WorldMaps
+    from dgt_lib.perception.bev import BEVMap
+    from dgt_lib.stages.ground_truth import ACCURACY_RELPATH
+    from dgt_lib.stages.paths import data_dir
+    from dgt_lib.world.terrain import get_world
+
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    prof = get_profile("smoke")
+    artifacts.save(data_dir(prof) / ACCURACY_RELPATH,
+                   {"rows": _accuracy_rows(0.1, 0.2), "multitask": _comparisons("multi-task"),
+                    "ground_truth": {"hill/carla_cola": "x"}})
+
+    def truth(world, vehicle, profile, progress=True):
+        k, cells = 8, np.array([[30.0, 50.0], [60.0, 30.0]])
+        return GroundTruth(world, vehicle, cells, np.zeros(2, np.int64), np.zeros(k),
+                           np.full((2, k), 0.5), np.zeros((2, k), np.int8),
+                           np.full((2, k), 5.0), np.zeros((2, k)))
+
+    def maps(world, vehicles, profile, progress=True):
+        grid = get_world(world, profile).grid
+        bev = BEVMap(grid, np.zeros((6, *grid.shape), np.float32), np.ones(grid.shape, bool),
+                     np.ones(grid.shape, np.int64))
+        layers = np.zeros((8, *grid.shape), np.float32)
+        return WorldMaps(world, bev, np.zeros(grid.shape, np.uint8), 0.6,
+                         {(m, v): layers for m in ("dgt", "single-task", "slope")
+                          for v in vehicles})
+
+    monkeypatch.setattr(report, "ensure_ground_truth", truth)
+    monkeypatch.setattr(report, "ensure_world_costmaps", maps)
+    text = write_results([], prof).read_text()
+    assert "## Costmap accuracy against the measured ground truth" in text
+    assert "| carla_cola | hill | 20 | 0.100 | 0.200 | 0.50 | 0.40 | 0.010 | multi-task |" in text
+    assert "| hill | carla_cola | Binary | 20 | 0.500 |" in text
+    for world in ("hill", "ridge"):
+        assert f"![accuracy_{world}](accuracy_{world}.png)" in text
+        assert (data_dir(prof) / "results" / f"accuracy_{world}.png").stat().st_size > 1000
+
+
+def test_the_seeds_report_pools_the_accuracy_and_checks_claim_4_per_seed(tmp_path,
+                                                                          monkeypatch):
+    import json
+
+    from dgt_lib.report import SUMMARY_RELPATH, write_seeds_report
+    from dgt_lib.stages.paths import data_dir
+
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    prof = get_profile("smoke").with_(seeds=2)
+    for p, (mt, st, closer) in zip(prof.seed_profiles(), ((0.1, 0.2, "multi-task"),
+                                                          (0.3, 0.2, "neither")), strict=True):
+        path = data_dir(p) / SUMMARY_RELPATH
+        path.parent.mkdir(parents=True)
+        path.write_text(json.dumps({"seed": p.seed, "experiments": {}, "models": {},
+                                    "collapsed": {}, "accuracy": _accuracy_rows(mt, st),
+                                    "multitask": _comparisons(closer)}))
+    text = write_seeds_report(prof).read_text()
+    assert "| 2/2 ✓ | 0/2 ✗ | 1 of 2 seeds |" in text  # multi-task closer, seed by seed
+    assert ("| carla_cola | 0.100 / 0.200 (multi-task) | 0.100 / 0.200 (neither) | "
+            "1 of 2 seeds |") in text
+    assert "| hill | carla_cola | DGT-Map | 0.100 / 0.50 | 0.300 / 0.50 | 0.200 | 0.50 |" in text

@@ -176,6 +176,27 @@ class ExperimentsConfig:
 
 
 @dataclass(frozen=True)
+class GroundTruthConfig:
+    """Ground-truth directional locomotion (``dgt_lib.evaluation.ground_truth``): cells of
+    the hill, ridge and eval worlds, stratified by slope and roughness, each driven at the
+    K headings by every vehicle an experiment uses; the costmaps are scored against it
+    (``dgt_lib.evaluation.accuracy``). The drive: ``run_up_m`` of straight run-up at the
+    collection's commanded speed, through the cell, ``past_m`` beyond it.
+    """
+
+    cells: int = 48  # cells per world (every vehicle of the world drives the same cells)
+    run_up_m: float = 15.0  # start this far before the cell; ≥ 12 m reaches 5 m/s on flat [m]
+    past_m: float = 4.4  # drive on this far past the cell: the patch's forward reach [m]
+    edge_margin_m: float = 20.0  # cells this far from the map edge: run-ups stay on the map [m]
+    tree_clearance_m: float = 2.0  # cells at least this far from a trunk [m]
+    max_slope_deg: float = 30.0  # steeper cells (the hill's cliffs) are not sampled [deg]
+    slope_edges_deg: tuple[float, ...] = (4.0, 10.0, 18.0)  # slope strata: 0–4–10–18–30° [deg]
+    roughness_edge_m: float = 0.04  # rough / smooth strata: RMS relief about a 1 m blur [m]
+    contrast_threshold: float = 0.3  # directional contrast on pairs with |C*(θ) − C*(θ+π)| > it
+    seed: int = 0  # the cells drawn (not the run seed: the physics does not depend on it)
+
+
+@dataclass(frozen=True)
 class Profile:
     """All sizes of one profile, one frozen section per pipeline stage."""
 
@@ -189,6 +210,7 @@ class Profile:
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     experiments: ExperimentsConfig = field(default_factory=ExperimentsConfig)
+    ground_truth: GroundTruthConfig = field(default_factory=GroundTruthConfig)
     overrides: tuple[tuple[str, object], ...] = ()
     """The settings changed by :meth:`with_overrides`, ``(dotted name, value)`` in the order
     given: what the reports print beside the profile's name. No cache key reads it (each
@@ -412,6 +434,8 @@ def _smoke() -> Profile:
         costmap=CostmapConfig(slope_trials=60),
         # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)
         planner=PlannerConfig(heuristic_weight=1.5, max_time_s=10.0),
+        # 4 cells × 8 headings × 5 world–vehicle pairs = 160 drives, ~15 s on 2 cores.
+        ground_truth=GroundTruthConfig(cells=4),
     )
 
 
@@ -430,6 +454,9 @@ def _demo() -> Profile:
         experiments=ExperimentsConfig(n_hill=6, n_ridge=6, n_eval_jeep=10, n_eval_vw_van=10),
         # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)
         planner=PlannerConfig(heuristic_weight=1.5),
+        # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives: measured 94 s on 2
+        # otherwise idle cores (154 CPU s, ~0.08 a drive), once for all three seeds.
+        ground_truth=GroundTruthConfig(cells=48),
     )
 
 
@@ -457,6 +484,8 @@ def _paper() -> Profile:
         # (the paper's Euclidean distance, here maxed with the 2D cost-to-go), unweighted.
         planner=PlannerConfig(step_m=1.6, beta=150.0, heuristic_weight=1.0, max_time_s=60.0,
                               max_expansions=500_000),
+        # 96 cells: 3,840 drives, ~3–4 min on 2 cores (not measured), once for both seeds.
+        ground_truth=GroundTruthConfig(cells=96),
     )
 
 

@@ -54,8 +54,10 @@ from dgt_lib.world.rendering import onboard_camera_pose, simulator, terrain_rend
 from dgt_lib.world.simulator import CONTROL_DT_S, VehicleState
 from dgt_lib.world.worlds import World
 
-END_REASONS: tuple[str, ...] = ("timeout", "immobilized", "flipped", "off_map", "diverged")
-"""Why an episode ended: its duration, stuck, or a simulator ``done_reason``."""
+END_REASONS: tuple[str, ...] = ("timeout", "immobilized", "flipped", "off_map", "diverged",
+                                "stopped")
+"""Why an episode ended: its duration, stuck, a simulator ``done_reason``, or the caller's
+``stop`` condition (:func:`run_episode`; the ground-truth drives, never collection)."""
 
 
 @dataclass
@@ -242,6 +244,7 @@ def run_episode(
     steer: Callable[[VehicleState], float] | None = None,
     index: int = 0,
     render: bool = True,
+    stop: Callable[[VehicleState], bool] | None = None,
 ) -> Episode:
     """Drive one episode and record it (see the module docstring).
 
@@ -250,6 +253,10 @@ def run_episode(
     steer: optional policy ``state -> steer ∈ [−1, 1]`` replacing the OU steering.
     render: render an onboard frame every ``frame_spacing_m`` driven (and at the start)
     into the episode's BEV; a stalled vehicle renders nothing new.
+    stop: optional condition ``state -> bool`` that ends the episode (reason
+    ``"stopped"``) once it holds, checked after the simulator's and the duration's ends
+    (the ground-truth drives of :mod:`dgt_lib.evaluation.ground_truth` stop a few metres
+    past their cell; collection never sets it).
     Deterministic in ``seed`` (the simulator is bitwise repeatable).
     """
     cfg = config or CollectConfig()
@@ -287,6 +294,9 @@ def run_episode(
             reason = st.done_reason
             break
         if n >= n_max or t0 + st.time_s >= cfg.episode_duration_s - 1e-9:
+            break
+        if stop is not None and stop(st):
+            reason = "stopped"
             break
         if st.immobilized_s > cfg.immobilized_limit_s:
             moved = float(np.hypot(*(st.position[:2] - segment_start)))

@@ -55,6 +55,10 @@ STAGES: list[Stage] = [
     Stage("costmaps", "dgt_lib.stages.costmaps:stage_costmaps",
           "directional costmaps of every method, occupancy maps (τ_s)",
           "every costmap finished so far"),
+    Stage("ground_truth", "dgt_lib.stages.ground_truth:stage_ground_truth",
+          "drive every experiment vehicle through sampled cells at the K headings (L*, once "
+          "per profile); score each method's costmap against it",
+          "every drive finished so far (journaled)"),
     Stage("experiments", "dgt_lib.report:stage_experiments",
           "Experiments 1–3 in closed loop: tables, figures, rerun recordings",
           "every finished experiment and every finished trial (journaled)"),

@@ -11,6 +11,8 @@ One module per notebook, each named after what it draws:
   amplification, planned paths, one planning query;
 - :mod:`~dgt_lib.viz.experiments` (06–08 and :mod:`dgt_lib.report`): queries, planned
   and driven paths, trial speeds, success rates;
+- :mod:`~dgt_lib.viz.accuracy` (09 and :mod:`dgt_lib.report`): the measured ground truth
+  beside the learned costmap layers, predicted against measured cost;
 - :mod:`~dgt_lib.viz.common`: colours and helpers several of them share, among them
   :func:`source_markdown` to show an implementation next to its paper equation.
 
@@ -34,6 +36,11 @@ and are re-exported here for notebook 03.
 """
 
 from dgt_lib.learning.tradeoff import inference_rate, width_tradeoff
+from dgt_lib.viz.accuracy import (
+    plot_ground_truth_beside_layers,
+    plot_predicted_vs_measured,
+    plot_truth_dots,
+)
 from dgt_lib.viz.common import METHOD_COLORS, ROUTE_COLORS, VEHICLE_COLORS, source_markdown
 from dgt_lib.viz.experiments import (
     plot_planned_paths,
@@ -123,4 +130,6 @@ __all__ = [
     "plot_motion_primitives", "plot_plans", "plot_query", "primitive_lookups",
     # experiments (notebooks 06–08, the report)
     "plot_planned_paths", "plot_queries", "plot_success_rates", "plot_trial_speeds",
+    # accuracy against the ground truth (notebook 09, the report)
+    "plot_ground_truth_beside_layers", "plot_predicted_vs_measured", "plot_truth_dots",
 ]
