@@ -36,6 +36,9 @@ BLOCKING_CELLS = {1: "occupied cells (steeper than τ_s: a slope, a step or a tr
                   2: "unobserved cells (terrain the BEV map did not see)"}
 """How a rejected query names the occupancy values that block it."""
 
+BACKENDS: tuple[str, ...] = ("python",)
+"""The ways :class:`HybridAStar` can run its search (all return the same plans)."""
+
 heappush, hypot = heapq.heappush, math.hypot
 _new_node = tuple.__new__  # _new_node(Node, fields): Node(*fields) at a plain tuple's cost
 
@@ -50,6 +53,9 @@ class HybridAStar:
     min_turn_radius_m: r_min [m] of the arc primitives.
     footprint: (length_m, width_m) of the vehicle rectangle centred on the pose.
     cfg: :class:`PlannerConfig` (step_m, beta, heuristic, tolerances, caps, ...).
+    backend: how the search runs, one of :data:`BACKENDS`; every backend returns the same
+        plans (``tests/test_planner_exact.py``). ``"python"``: the reference search, plain
+        Python.
     """
 
     def __init__(
@@ -61,9 +67,13 @@ class HybridAStar:
         min_turn_radius_m: float,
         footprint: tuple[float, float],
         cfg: PlannerConfig | None = None,
+        backend: str = "python",
     ):
         cfg = PlannerConfig() if cfg is None else cfg
         check_config(cfg)
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        self.backend = backend
         costmap, occupancy = np.asarray(costmap), np.asarray(occupancy)
         if costmap.ndim == 2:
             costmap = costmap[None]
