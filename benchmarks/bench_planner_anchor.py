@@ -217,7 +217,7 @@ def main() -> None:
     parser.add_argument("--scenarios", default="main,trees40,wall_gap,trees150")
     parser.add_argument("--repeats", type=int, default=1,
                         help="runs of each side per scenario, interleaved; medians are shown")
-    parser.add_argument("--backends", default="python",
+    parser.add_argument("--backends", default="compiled",
                         help="our search backends to time: compiled, python (comma-separated)")
     parser.add_argument("--seed", type=int, default=0, help="tree placement")
     args = parser.parse_args()
