@@ -30,10 +30,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import importlib.util
 import os
 import sys
 import time
+import types
 
 import numpy as np
 from scipy import ndimage
@@ -112,15 +114,21 @@ def world_hill_map(seed: int):
     from dgt_lib.world.terrain import make_hill
 
     world = make_hill(RES_M, seed)
+    return (*truth_maps(world, seed), world)
+
+
+def truth_maps(world, seed: int):
+    """(costmap, occupancy, grid) of a world from its true heights: the slope-based
+    directional cost, occupancy = gradient > 1 (45°) or within 0.2 m of a trunk."""
     grid = world.grid
     heights = world.heights.astype(np.float64)
-    cost = directional_slope_cost(heights, RES_M, np.random.default_rng(seed))
-    gy, gx = np.gradient(heights, RES_M)
+    cost = directional_slope_cost(heights, grid.resolution, np.random.default_rng(seed))
+    gy, gx = np.gradient(heights, grid.resolution)
     occupancy = (np.hypot(gx, gy) > 1.0).astype(np.uint8)
     X, Y = grid.cell_centers()
     for x, y, radius, _ in world.trees:
         occupancy[np.hypot(X - x, Y - y) < radius + 0.2] = 1
-    return cost, occupancy, grid, world
+    return cost, occupancy, grid
 
 
 def world_hill_queries(world, rng: np.random.Generator, n: int):
@@ -279,29 +287,46 @@ def run_experiments(profile_name: str, n_queries: int, cfg: PlannerConfig, backe
                     experiments=("experiment1", "experiment2", "experiment3")) -> dict:
     """The experiments' own queries on the profile's costmaps from the artifact cache
     (``$DGT_DATA_DIR``; built there when missing: run ``dgt reproduce --profile P
-    --stages costmaps`` first), every method and vehicle of each experiment, planned with
-    ``cfg`` (the profile's planner settings are not used: pass the exact ones). Prints a
-    line per (experiment, vehicle, method, backend), then per experiment; returns the
-    pooled wall times {experiment: {backend: array}}."""
+    --stages costmaps`` first), every method and vehicle of each experiment — or, for
+    ``"truth:P"``, on profile P's worlds with the slope-based cost of their true heights
+    (:func:`truth_maps`, no artifacts) — planned with ``cfg`` (the profile's planner
+    settings are not used: pass the exact ones). Prints a line per (experiment, vehicle,
+    method, backend), then per experiment; returns the pooled wall times
+    {experiment: {backend: array}}."""
     from dgt_lib.core.config import get_profile
     from dgt_lib.evaluation.experiments import EXPERIMENTS, experiment_queries
     from dgt_lib.mapping.baselines import binary_costmap
-    from dgt_lib.stages.experiments import trial_maps
+    from dgt_lib.world.terrain import get_world
 
-    prof = get_profile(profile_name)
+    truth = profile_name.startswith("truth:")
+    prof = get_profile(profile_name.removeprefix("truth:"))
     prof = prof.with_(experiments=dataclasses.replace(
         prof.experiments, n_hill=n_queries, n_ridge=n_queries, n_eval_jeep=n_queries,
         n_eval_vw_van=n_queries), planner=cfg)
+    if truth:  # the worlds' true heights, no artifacts
+        @functools.lru_cache(maxsize=4)
+        def world_truth(world):
+            cost, occupancy, grid = truth_maps(get_world(world, prof), prof.seed)
+            return types.SimpleNamespace(world=world, grid=grid, occupancy=occupancy,
+                                         costmaps={}, cost=cost)
+
+        def load_maps(world, method, vehicle, profile):
+            return world_truth(world)
+    else:
+        from dgt_lib.stages.experiments import trial_maps as load_maps
     pooled = {}
     for name in experiments:
         world, vehicles, methods = EXPERIMENTS[name]
-        queries = experiment_queries(name, prof, trial_maps)
+        methods = ("truth",) if truth else methods
+        queries = experiment_queries(name, prof, load_maps)
         walls = {b: [] for b in backends}
         all_identical = True
         for vehicle in vehicles:
             for method in methods:
-                maps = trial_maps(world, method, vehicle, prof)
-                if method == "binary" and ("binary", vehicle) not in maps.costmaps:
+                maps = load_maps(world, method, vehicle, prof)
+                if truth:
+                    cost = maps.cost
+                elif method == "binary" and ("binary", vehicle) not in maps.costmaps:
                     cost = binary_costmap(maps.grid.shape)
                 else:
                     cost = maps.costmap(method, vehicle)
@@ -322,7 +347,9 @@ def run_experiments(profile_name: str, n_queries: int, cfg: PlannerConfig, backe
         pooled[name] = {b: np.concatenate(w) for b, w in walls.items()}
         line = " | ".join(f"{b}: median {np.median(w):.3f} s, p90 {np.percentile(w, 90):.3f} s,"
                           f" max {w.max():.3f} s" for b, w in pooled[name].items())
-        print(f"== {name} ({world}, {len(pooled[name][backends[0]])} queries × methods): {line}"
+        n_plans = len(pooled[name][backends[0]])
+        print(f"== {name} ({world}, {n_plans} plans: {n_queries} queries × {len(methods)} "
+              f"method(s) × {len(vehicles)} vehicle(s)): {line}"
               + (f" | plans identical: {'yes' if all_identical else 'NO'}"
                  if len(backends) > 1 else ""), flush=True)
     return pooled
@@ -426,7 +453,8 @@ def main() -> None:
     parser.add_argument("--experiments", metavar="PROFILE", default=None,
                         help="instead of the synthetic maps: the hill, ridge and eval "
                         "experiments' own queries on PROFILE's costmaps from the artifact "
-                        "cache in $DGT_DATA_DIR (every method and vehicle), --queries each")
+                        "cache in $DGT_DATA_DIR (every method and vehicle), --queries each; "
+                        "truth:PROFILE: on PROFILE's worlds with the true heights' cost")
     args = parser.parse_args()
     cfg = PlannerConfig(max_time_s=args.max_time)
     if args.closed_cell is not None:

@@ -10,8 +10,9 @@ in the same order and return the same plan (``tests/test_planner_exact.py``):
   :class:`~.primitives.PrimitiveSet`, ``BlockedMap.primitive_hits`` / ``collides``
   (:mod:`.collision`), and the analytic shots ``dubins_path``, ``turn_then_straight``,
   ``sample_segments`` and ``shot_cost`` (:mod:`.shots`);
-- :func:`grid_dijkstra` — ``scipy.sparse.csgraph.dijkstra`` on the reversed 8-connected
-  graphs of :class:`~.heuristics.CostToGo`, without building them.
+- :func:`settle` / :func:`grid_dijkstra` — ``scipy.sparse.csgraph.dijkstra`` on the
+  reversed 8-connected graphs of :class:`~.heuristics.CostToGo`, without building them,
+  run only as far as the search needs (the same distances where it stops).
 
 The open list is a binary heap of (f, insertion count) — the order of Python's heap of
 (f, count, node) tuples; nodes, the closed set (a dense array over the closed-set cells)
@@ -36,10 +37,10 @@ FOUND, EXHAUSTED, CAPPED, PAUSED, OUT_OF_TABLES, NEED_ROOM = 0, 1, 2, 3, 4, 5
 
 # slots of the integer and float parameter arrays of search()
 (I_H, I_W, I_K, I_NX_CLOSED, I_BINS, I_REACH, I_HAS_GTH, I_USE_H, I_PAD_W, I_PAD, I_NSUB,
- I_NCIRC, I_MAX_EXP, I_TURN_OFFSET, I_N_I) = range(15)
+ I_NCIRC, I_MAX_EXP, I_TURN_OFFSET, I_ZERO_TERRAIN, I_N_I) = range(16)
 (F_X0, F_Y0, F_INV_RES, F_CELL, F_GX, F_GY, F_GTH, F_TOL2, F_HEADING_TOL, F_WEIGHT,
  F_SHOT_RANGE2, F_STEP, F_BETA, F_START_TH, F_DTHETA, F_RADIUS, F_SUBSTEP, F_RES,
- F_ORIGIN_R, F_ORIGIN_C, F_N_F) = range(21)
+ F_ORIGIN_R, F_ORIGIN_C, F_PHI, F_N_F) = range(22)
 # slots of the state arrays
 S_NODES, S_HEAP, S_COUNTER, S_EXPANDED, S_RESULT, S_N_S = range(6)
 SHOT = 3  # result.SHOT
@@ -362,7 +363,9 @@ def _shot_cost(x, y, th, poses, n, ip, fp, cost_flat):
 
 
 @njit(cache=True)
-def search(ip, fp, blocked, cost_flat, bin_table, h_grid, h_terrain, offsets, sub_t,
+def search(ip, fp, blocked, cost_flat, bin_table, h_passable, h_moves, h_weights_full,
+           h_weights_terrain, h_full, h_heap_full, h_where_full, h_size_full, h_terrain,
+           h_heap_terrain, h_where_terrain, h_size_terrain, offsets, sub_t,
            tab_have, tab_rows, tab_cols, tab_ends, tab_bins, tab_fallback,
            nx, ny, ng, nturn, nrow, ncol, nparent, nprim, nkey, ngoal,
            hf, hc, hnode, key_state, best_g, expanded, state, best_goal_box, stop_at):
@@ -375,6 +378,7 @@ def search(ip, fp, blocked, cost_flat, bin_table, h_grid, h_terrain, offsets, su
     nx_closed, reach = ip[I_NX_CLOSED], ip[I_REACH]
     bin_row = 2 * reach + 1
     use_h, has_gth = ip[I_USE_H] != 0, ip[I_HAS_GTH] != 0
+    zero_terrain, phi = ip[I_ZERO_TERRAIN] != 0, fp[F_PHI]
     pad_w, pad = ip[I_PAD_W], ip[I_PAD]
     m = ip[I_NSUB] * ip[I_NCIRC]
     turn_offset, n_tables = ip[I_TURN_OFFSET], tab_have.shape[0]
@@ -499,8 +503,12 @@ def search(ip, fp, blocked, cost_flat, bin_table, h_grid, h_terrain, offsets, su
             else:
                 hn = _distance(xn - gx, yn - gy)
                 if use_h:
-                    flat = rn * W + cn
-                    hn = max(h_grid[flat], hn + h_terrain[flat])
+                    h_grid, h_terr = _bounds_at(
+                        rn * W + cn, H, W, phi, zero_terrain, h_passable, h_moves,
+                        h_weights_full, h_weights_terrain, h_full, h_heap_full, h_where_full,
+                        h_size_full, h_terrain, h_heap_terrain, h_where_terrain,
+                        h_size_terrain)
+                    hn = max(h_grid, hn + h_terr)
                     if hn == np.inf:
                         continue
             key_state[key] = 1
@@ -520,40 +528,52 @@ def search(ip, fp, blocked, cost_flat, bin_table, h_grid, h_terrain, offsets, su
 
 
 # --- the 2D cost-to-go --------------------------------------------------------------------
+#
+# heuristics.CostToGo's two relaxations are Dijkstra runs from the goal's cells over the
+# reversed 8-connected graph: the move u → v = u + moves[m] (both cells passable) costs
+# weights[v, m] (∞: no such move). A run's state lives in four arrays (dist, heap, where,
+# size) so that it can stop and go on: the compiled search settles cells only as it needs
+# their bound (:func:`settle`), and a run taken to the end (:func:`grid_dijkstra`) gives
+# every cell's. The heap is an indexed binary heap ordered by dist; each distance is the
+# sum dist[v] + w that scipy's dijkstra forms on the same graph, so it is the same to the
+# bit, however far a run went.
 
 
 @njit(cache=True)
-def grid_dijkstra(height, width, passable, weights, moves, sources):
-    """Distances (H·W,) from the ``sources`` (flat cells) on the reversed 8-connected graph
-    of heuristics.CostToGo: the move u → v = u + moves[m] (both cells passable) costs
-    weights[v, m] (∞: no such move). Dijkstra on an indexed binary heap; each distance is
-    the sum dist[v] + w that scipy's dijkstra forms on the same graph, so the result is the
-    same to the bit."""
-    n = height * width
-    dist = np.full(n, np.inf)
-    heap = np.empty(n, np.int64)  # cells, ordered by dist
-    where = np.full(n, -1, np.int64)  # position in the heap; −1 never queued, −2 settled
-    size = 0
+def dijkstra_seed(sources, dist, heap, where, size):
+    """Start a run: dist = ∞ and where = −1 (never queued) everywhere, then the sources
+    at distance 0. where[c] = −2 marks a settled cell."""
+    dist[:] = np.inf
+    where[:] = -1
+    n = 0
     for src in sources:
         if where[src] != -1:
             continue
         dist[src] = 0.0
-        heap[size] = src
-        where[src] = size
-        size += 1
-    while size > 0:
+        heap[n] = src
+        where[src] = n
+        n += 1
+    size[0] = n
+
+
+@njit(cache=True)
+def settle(target, height, width, passable, weights, moves, dist, heap, where, size):
+    """Go on with a run until cell ``target`` is settled (−1: until every reachable cell
+    is) or nothing is left to settle; dist[target] is then final (∞: unreachable)."""
+    n = size[0]
+    while n > 0 and (target < 0 or where[target] != -2):
         v = heap[0]
         where[v] = -2
-        size -= 1
-        if size > 0:  # move the last cell to the root and sift it down
-            last = heap[size]
+        n -= 1
+        if n > 0:  # move the last cell to the root and sift it down
+            last = heap[n]
             d_last = dist[last]
             i = 0
             while True:
                 child = 2 * i + 1
-                if child >= size:
+                if child >= n:
                     break
-                if child + 1 < size and dist[heap[child + 1]] < dist[heap[child]]:
+                if child + 1 < n and dist[heap[child + 1]] < dist[heap[child]]:
                     child += 1
                 if dist[heap[child]] < d_last:
                     heap[i] = heap[child]
@@ -580,8 +600,8 @@ def grid_dijkstra(height, width, passable, weights, moves, sources):
                 dist[u] = alt
                 i = where[u]
                 if i == -1:
-                    i = size
-                    size += 1
+                    i = n
+                    n += 1
                 while i > 0:  # sift up
                     parent = (i - 1) >> 1
                     if dist[heap[parent]] > alt:
@@ -592,4 +612,33 @@ def grid_dijkstra(height, width, passable, weights, moves, sources):
                         break
                 heap[i] = u
                 where[u] = i
+    size[0] = n
+
+
+@njit(cache=True)
+def grid_dijkstra(height, width, passable, weights, moves, sources):
+    """Distances (H·W,) from the ``sources`` (flat cells): one run taken to the end."""
+    n = height * width
+    dist, heap, where = np.empty(n), np.empty(n, np.int64), np.empty(n, np.int64)
+    size = np.zeros(1, np.int64)
+    dijkstra_seed(sources, dist, heap, where, size)
+    settle(-1, height, width, passable, weights, moves, dist, heap, where, size)
     return dist
+
+
+@njit(cache=True)
+def _bounds_at(flat, height, width, phi, zero_terrain, passable, moves, w_full, w_terrain,
+               d_full, heap_full, where_full, size_full,
+               d_terrain, heap_terrain, where_terrain, size_terrain):
+    """(φ·D, φ·D_c) at cell ``flat``, settling both runs as far as needed; with
+    ``zero_terrain`` D_c is 0 wherever D is finite (CostToGo's shortcut)."""
+    if where_full[flat] != -2:
+        settle(flat, height, width, passable, w_full, moves, d_full, heap_full, where_full,
+               size_full)
+    h_full = phi * d_full[flat]
+    if zero_terrain:
+        return h_full, phi * (0.0 if d_full[flat] != np.inf else np.inf)
+    if where_terrain[flat] != -2:
+        settle(flat, height, width, passable, w_terrain, moves, d_terrain, heap_terrain,
+               where_terrain, size_terrain)
+    return h_full, phi * d_terrain[flat]

@@ -127,35 +127,50 @@ class CostToGo:
     def bounds(self, goal_xy, as_lists: bool = False) -> tuple:
         """(φ·D, φ·D_c), each (H, W), for one goal (cached); with ``as_lists`` flat
         Python lists (fast scalar lookups in the search loop)."""
+        entry = self._entry(goal_xy)
+        if entry[0] is None:  # compiled runs the search stopped early: take them to the end
+            entry[0] = entry[2].finish()
+        if as_lists and entry[1] is None:
+            entry[1] = tuple(b.ravel().tolist() for b in entry[0])
+        return entry[1 if as_lists else 0]
+
+    def runs(self, goal_xy) -> DijkstraRuns:
+        """The goal's two Dijkstra runs, settled as far as anyone asked (``compiled``
+        only): what the compiled search reads its bound from (cached like :meth:`bounds`)."""
+        entry = self._entry(goal_xy)
+        if entry[2] is None:
+            raise ValueError("CostToGo.runs needs compiled=True")
+        return entry[2]
+
+    def _entry(self, goal_xy) -> list:
+        """The cache entry of one goal: [bounds or None, lists or None, runs or None]."""
         gx, gy = float(goal_xy[0]), float(goal_xy[1])
         key = (gx, gy)
         if key in self.cache:
             self.cache.move_to_end(key)
-            entry = self.cache[key]
-            if as_lists and entry[1] is None:
-                entry[1] = tuple(b.ravel().tolist() for b in entry[0])
-            return entry[1 if as_lists else 0]
+            return self.cache[key]
         res = self.grid.resolution
         moves = self._relaxation_moves()
         X, Y = self.grid.cell_centers()
         source = np.hypot(X - gx, Y - gy) <= self.cfg.goal_tolerance_m + res * math.sqrt(2) / 2
         source = np.flatnonzero(source & ~self.impassable)
         phi = self.cfg.step_m / step_cell_bounds(self.cfg.step_m, res)[0]
-        if len(source) == 0:
-            dists = [np.full(self.grid.shape, np.inf)] * 2
-        elif self.compiled:
-            dists = self._compiled_dijkstra(moves, source)
+        if self.compiled:
+            entry = [None, None, DijkstraRuns(self._compiled_weights(moves), moves.steps,
+                                              self.grid.shape, source, phi)]
         else:
-            if self._graphs is None:
-                self._graphs = self._relaxation_graphs()
-            dists = [dijkstra(graph, directed=True, indices=source, min_only=True)
-                     for graph in self._graphs]
-        bounds = tuple(phi * dist.reshape(self.grid.shape) for dist in dists)
-        lists = tuple(b.ravel().tolist() for b in bounds) if as_lists else None
-        self.cache[key] = [bounds, lists]
+            if len(source) == 0:
+                dists = [np.full(self.grid.shape, np.inf)] * 2
+            else:
+                if self._graphs is None:
+                    self._graphs = self._relaxation_graphs()
+                dists = [dijkstra(graph, directed=True, indices=source, min_only=True)
+                         for graph in self._graphs]
+            entry = [tuple(phi * dist.reshape(self.grid.shape) for dist in dists), None, None]
+        self.cache[key] = entry
         while len(self.cache) > _CACHED_GOALS:
             self.cache.popitem(last=False)
-        return lists if as_lists else bounds
+        return entry
 
     def _relaxation_moves(self) -> _Moves:
         """The per-map part of both relaxations (built once): which cells are passable
@@ -219,30 +234,74 @@ class CostToGo:
         return (csr_matrix((edge_lengths + terrain, index_pairs), shape=shape),
                 csr_matrix((terrain, index_pairs), shape=shape))
 
-    def _compiled_dijkstra(self, moves: _Moves, source: np.ndarray) -> list[np.ndarray]:
-        """D and D_c by :func:`.compiled.grid_dijkstra` on the same graphs as
-        :meth:`_relaxation_graphs`. Where every reachable terrain price is 0 (a zero
-        costmap), D_c is 0 wherever D is finite — what its Dijkstra would return."""
-        from dgt_lib.navigation.planner.compiled import grid_dijkstra
-
-        H, W = self.grid.shape
+    def _compiled_weights(self, moves: _Moves) -> tuple:
+        """(passable (H·W,), full (H·W, 8), terrain (H·W, 8) or None): the edge weights of
+        the compiled runs, weights[v, m] = the cost of entering v by move m as in
+        :meth:`_relaxation_graphs` (∞: no edge). None where every terrain price is 0 (a
+        zero costmap): D_c is then 0 wherever D is finite — what its run would return."""
         if self._weights is None:
-            # weights[v, m]: the cost of entering v by move m, ∞ where there is no edge
-            # (v impassable or no unblocked cell within ρ), as in _relaxation_graphs
             least = moves.least.reshape(8, -1).T  # (H·W, 8)
             lengths = moves.lengths[None, :]
-            blocked = ~moves.passable.ravel()[:, None] | ~np.isfinite(least)
-            terrain = np.where(blocked, np.inf, lengths * np.where(blocked, 0.0, least))
-            full = np.where(blocked, np.inf, lengths + terrain)
-            zero = not np.any(terrain[~blocked])
+            no_edge = ~moves.passable.ravel()[:, None] | ~np.isfinite(least)
+            terrain = np.where(no_edge, np.inf, lengths * np.where(no_edge, 0.0, least))
+            full = np.where(no_edge, np.inf, lengths + terrain)
+            zero = not np.any(terrain[~no_edge])
             self._weights = (np.ascontiguousarray(moves.passable.ravel()),
                              np.ascontiguousarray(full),
                              None if zero else np.ascontiguousarray(terrain))
-        passable, full, terrain = self._weights
-        dist = grid_dijkstra(H, W, passable, full, moves.steps, source)
-        if terrain is None:
-            return [dist, np.where(np.isfinite(dist), 0.0, np.inf)]
-        return [dist, grid_dijkstra(H, W, passable, terrain, moves.steps, source)]
+        return self._weights
+
+
+class DijkstraRuns:
+    """One goal's two relaxations D and D_c as compiled Dijkstra runs that go only as far
+    as asked (:func:`.compiled.settle`): the compiled search settles the cells it prices,
+    :meth:`finish` every cell. Either way a settled cell holds the distance scipy's
+    dijkstra gives it.
+
+    weights: :meth:`CostToGo._compiled_weights`; steps: (8, 2) the grid moves; shape:
+    (H, W); source: the goal's flat cells; phi: φ (the bound is φ·D)."""
+
+    def __init__(self, weights: tuple, steps: np.ndarray, shape: tuple[int, int],
+                 source: np.ndarray, phi: float):
+        from dgt_lib.navigation.planner.compiled import dijkstra_seed
+
+        passable, full, terrain = weights
+        self.shape, self.phi = shape, phi
+        self.zero_terrain = terrain is None
+        n = shape[0] * shape[1]
+
+        def run(size):
+            return (np.empty(size), np.empty(size, np.int64), np.empty(size, np.int64),
+                    np.zeros(1, np.int64))
+
+        self.full = run(n)
+        self.terrain = run(1) if self.zero_terrain else run(n)
+        dijkstra_seed(source, *self.full)
+        if not self.zero_terrain:
+            dijkstra_seed(source, *self.terrain)
+        # the arguments of compiled.search / compiled._bounds_at, in their order
+        self.args = (passable, steps, full, full if terrain is None else terrain,
+                     *self.full, *self.terrain)
+
+    def at(self, flat: int) -> tuple[float, float]:
+        """(φ·D, φ·D_c) of flat cell ``flat``."""
+        from dgt_lib.navigation.planner.compiled import _bounds_at
+
+        return _bounds_at(flat, *self.shape, self.phi, self.zero_terrain, *self.args)
+
+    def finish(self) -> tuple[np.ndarray, np.ndarray]:
+        """(φ·D, φ·D_c), each (H, W): both runs taken to the end."""
+        from dgt_lib.navigation.planner.compiled import settle
+
+        passable, steps, w_full, w_terrain = self.args[:4]
+        settle(-1, *self.shape, passable, w_full, steps, *self.full)
+        full = self.full[0]
+        if self.zero_terrain:
+            terrain = np.where(np.isfinite(full), 0.0, np.inf)
+        else:
+            settle(-1, *self.shape, passable, w_terrain, steps, *self.terrain)
+            terrain = self.terrain[0]
+        return tuple(self.phi * d.reshape(self.shape) for d in (full, terrain))
 
 
 class _Moves(NamedTuple):

@@ -13,7 +13,12 @@ from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import TWO_PI, GridSpec, angle_diff, wrap_angle
 from dgt_lib.core.vehicles import VehicleSpec, footprint_circles, get_vehicle
 from dgt_lib.navigation.planner.collision import BlockedMap
-from dgt_lib.navigation.planner.heuristics import CostToGo, euclidean
+from dgt_lib.navigation.planner.heuristics import (
+    CostToGo,
+    DijkstraRuns,
+    euclidean,
+    step_cell_bounds,
+)
 from dgt_lib.navigation.planner.primitives import (
     TURN_STEPS,
     PrimitiveSet,
@@ -56,7 +61,8 @@ class HybridAStar:
     cfg: :class:`PlannerConfig` (step_m, beta, heuristic, tolerances, caps, ...).
     backend: how the search runs, one of :data:`BACKENDS`; both return the same plans
         (``tests/test_planner_exact.py``). ``"compiled"`` (default): the search loop and
-        the 2D cost-to-go's Dijkstra compiled by numba (:mod:`.compiled`), 10–50× faster;
+        the 2D cost-to-go's Dijkstra compiled by numba (:mod:`.compiled`), 5–20× faster per
+        query (``benchmarks/bench_planner.py --backends compiled,python``);
         ``"python"``: the reference search, plain Python (and scipy's Dijkstra).
     """
 
@@ -482,28 +488,34 @@ class _CompiledSearch:
         fp[c.F_START_TH], fp[c.F_DTHETA] = sth, self.primitives.dtheta
         fp[c.F_RADIUS], fp[c.F_SUBSTEP] = planner.min_turn_radius_m, planner._substep()
         fp[c.F_ORIGIN_R], fp[c.F_ORIGIN_C] = blocked._origin
+        fp[c.F_PHI] = cfg.step_m / step_cell_bounds(cfg.step_m, res)[0]
         self.ip, self.fp = ip, fp
         self.ny_closed = math.ceil(H * res / cfg.closed_cell_m) + 1
 
-    def _heuristic_arrays(self):
-        """(h_grid, h_terrain) flat arrays of the 2D bounds (1-element dummies without)."""
-        if self.cfg.heuristic != "cost_to_go":
-            return np.zeros(1), np.zeros(1)
-        h_full, h_terrain = self.planner._cost_to_go.bounds(self.goal)
-        return h_full.ravel(), h_terrain.ravel()
+    def _heuristic_runs(self):
+        """The goal's compiled Dijkstra runs (:class:`DijkstraRuns`), or 1-element dummies
+        of the same types without the cost-to-go heuristic."""
+        if self.cfg.heuristic == "cost_to_go":
+            return self.planner._cost_to_go.runs(self.goal)
+        return DijkstraRuns((np.zeros(1, np.bool_), np.zeros((1, 8)), None),
+                            np.zeros((8, 2), np.int64), (1, 1), np.zeros(0, np.int64), 1.0)
 
     def run(self, t0: float) -> PlanResult | None:
         """The query's result, or None when a turn count left the tables (then the
         reference search must answer)."""
         c, cfg, planner = self.kernel, self.cfg, self.planner
-        h_grid, h_terrain = self._heuristic_arrays()
+        runs = self._heuristic_runs()
+        self.ip[c.I_ZERO_TERRAIN] = runs.zero_terrain
         sx, sy, sth = self.start
         gx, gy = self.goal
         row, col = (int(v) for v in planner.grid.xy_to_cell(sx, sy))
         flat = row * planner.grid.shape[1] + col
         use_h = cfg.heuristic == "cost_to_go"
-        if use_h and not math.isfinite(h_grid[flat]):
-            return failure("no path: the goal is unreachable even in the 2D relaxation", [], t0)
+        if use_h:
+            h_grid, h_terrain = runs.at(flat)
+            if not math.isfinite(h_grid):
+                return failure("no path: the goal is unreachable even in the 2D relaxation",
+                               [], t0)
         # the start node, as _Search.push_start makes it
         n_bins = cfg.theta_bins
         theta_bin = int(math.floor(sth / (TWO_PI / n_bins) + 0.5)) % n_bins
@@ -512,7 +524,7 @@ class _CompiledSearch:
                 + int((sx - x0) / cfg.closed_cell_m)) * n_bins + theta_bin)
         h = distance(sx - gx, sy - gy)
         if use_h:
-            h = max(h_grid[flat], h + h_terrain[flat])
+            h = max(h_grid, h + h_terrain)
         heading_tol = cfg.goal_heading_tolerance_rad
         start_is_goal = (sx - gx) ** 2 + (sy - gy) ** 2 <= self.fp[c.F_TOL2] and (
             self.gth is None or abs(float(angle_diff(sth, self.gth))) <= heading_tol)
@@ -542,7 +554,7 @@ class _CompiledSearch:
         maps = planner._compiled_maps()
         stop_at = 0  # max_time_s is checked first before the first expansion, as _Search does
         while True:
-            status = c.search(self.ip, self.fp, *maps, h_grid, h_terrain,
+            status = c.search(self.ip, self.fp, *maps, *runs.args,
                               planner.circle_offsets, self.primitives.sub_t, *tables, *nodes,
                               hf, hc, hnode, key_state, best_g, expanded, state, best_goal,
                               stop_at)
