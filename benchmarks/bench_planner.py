@@ -22,6 +22,13 @@ rate and path cost; for the hills, the route each direction took. Run::
 
     .venv/bin/python benchmarks/bench_planner.py            # 20 queries per map kind
     .venv/bin/python benchmarks/bench_planner.py --queries 5
+    # the compiled search and its plain-Python reference on the same queries (the plans
+    # must be identical; the line after each pair says whether they were):
+    .venv/bin/python benchmarks/bench_planner.py --backends compiled,python
+    # the hill/ridge/eval experiments' own queries, every method, on the smoke profile's
+    # cached costmaps ($DGT_DATA_DIR), or on the paper worlds' true-height costs:
+    .venv/bin/python benchmarks/bench_planner.py --experiments smoke --queries 10
+    .venv/bin/python benchmarks/bench_planner.py --experiments truth:paper --queries 10
     # time an older planner module against this one, same queries, interleaved:
     .venv/bin/python benchmarks/bench_planner.py --compare /tmp/planner_old.py --queries 6
 """
