@@ -22,6 +22,13 @@ rate and path cost; for the hills, the route each direction took. Run::
 
     .venv/bin/python benchmarks/bench_planner.py            # 20 queries per map kind
     .venv/bin/python benchmarks/bench_planner.py --queries 5
+    # the compiled search and its plain-Python reference on the same queries (the plans
+    # must be identical; the line after each pair says whether they were):
+    .venv/bin/python benchmarks/bench_planner.py --backends compiled,python
+    # the hill/ridge/eval experiments' own queries, every method, on the smoke profile's
+    # cached costmaps ($DGT_DATA_DIR), or on the paper worlds' true-height costs:
+    .venv/bin/python benchmarks/bench_planner.py --experiments smoke --queries 10
+    .venv/bin/python benchmarks/bench_planner.py --experiments truth:paper --queries 10
     # time an older planner module against this one, same queries, interleaved:
     .venv/bin/python benchmarks/bench_planner.py --compare /tmp/planner_old.py --queries 6
 """
@@ -30,9 +37,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import importlib.util
+import os
 import sys
 import time
+import types
 
 import numpy as np
 from scipy import ndimage
@@ -111,15 +121,21 @@ def world_hill_map(seed: int):
     from dgt_lib.world.terrain import make_hill
 
     world = make_hill(RES_M, seed)
+    return (*truth_maps(world, seed), world)
+
+
+def truth_maps(world, seed: int):
+    """(costmap, occupancy, grid) of a world from its true heights: the slope-based
+    directional cost, occupancy = gradient > 1 (45°) or within 0.2 m of a trunk."""
     grid = world.grid
     heights = world.heights.astype(np.float64)
-    cost = directional_slope_cost(heights, RES_M, np.random.default_rng(seed))
-    gy, gx = np.gradient(heights, RES_M)
+    cost = directional_slope_cost(heights, grid.resolution, np.random.default_rng(seed))
+    gy, gx = np.gradient(heights, grid.resolution)
     occupancy = (np.hypot(gx, gy) > 1.0).astype(np.uint8)
     X, Y = grid.cell_centers()
     for x, y, radius, _ in world.trees:
         occupancy[np.hypot(X - x, Y - y) < radius + 0.2] = 1
-    return cost, occupancy, grid, world
+    return cost, occupancy, grid
 
 
 def world_hill_queries(world, rng: np.random.Generator, n: int):
@@ -158,16 +174,22 @@ def make_map(kind: str, seed: int):
     return (*(hill_map if kind == "hill" else random_map)(seed), None)
 
 
-def make_planner(planner_cls, maps, cfg: PlannerConfig):
+def make_planner(planner_cls, maps, cfg: PlannerConfig, **kwargs):
     """A planner of class ``planner_cls`` on ``maps`` with the per-map 2D cost field built
     (for ``cost_to_go``) and no goal cached; returns (planner, set-up time [s])."""
     cost, occupancy, grid, _ = maps
     t = time.perf_counter()
-    planner = planner_cls(cost, occupancy, grid, cfg=cfg, **CARLA_COLA)
-    if cfg.heuristic == "cost_to_go":
-        planner.cost_to_go((80.0, 80.0))  # builds the per-map 2D cost field
+    planner = planner_cls(cost, occupancy, grid, cfg=cfg, **CARLA_COLA, **kwargs)
+    return planner, _build_cost_field(planner, (80.0, 80.0), t)
+
+
+def _build_cost_field(planner, goal_xy, t: float) -> float:
+    """Build the per-map part of the 2D cost field (one goal's field, then forgotten);
+    returns the time since ``t`` [s]."""
+    if planner.cfg.heuristic == "cost_to_go":
+        planner.cost_to_go(goal_xy)
         planner._cost_to_go_cache.clear()
-    return planner, time.perf_counter() - t
+    return time.perf_counter() - t
 
 
 def make_queries(kind: str, planner: HybridAStar, world, n_queries: int, seed: int):
@@ -182,49 +204,162 @@ def make_queries(kind: str, planner: HybridAStar, world, n_queries: int, seed: i
     return random_queries(planner, rng, n_queries)
 
 
-def run(kind: str, heuristic: str, n_queries: int, seed: int, cfg: PlannerConfig) -> None:
+def time_queries(planners: dict, queries) -> tuple[dict, bool]:
+    """Plan every query with every planner, back to back, alternating which goes first.
+
+    Returns ({name: {"wall", "cpu", "expansions" (arrays), "results" (list)}}, whether
+    every planner's results equal the first one's)."""
+    names = list(planners)
+    stats = {n: {"wall": [], "cpu": [], "expansions": [], "results": []} for n in names}
+    identical = True
+    for q, (start, goal) in enumerate(queries):
+        for name in (names if q % 2 == 0 else names[::-1]):
+            t_cpu = time.process_time()
+            result = planners[name].plan(start, goal)
+            stats[name]["cpu"].append(time.process_time() - t_cpu)
+            stats[name]["wall"].append(result.time_s)
+            stats[name]["expansions"].append(result.expansions)
+            stats[name]["results"].append(result)
+        first = stats[names[0]]["results"][-1]
+        identical &= all(same_result(first, stats[n]["results"][-1]) for n in names[1:])
+    for st in stats.values():
+        for key in ("wall", "cpu", "expansions"):
+            st[key] = np.asarray(st[key])
+    return stats, identical
+
+
+def print_stats(label: str, setup: float, st: dict) -> None:
+    """One line: set-up, then per query wall and CPU time, expansions, success, cost."""
+    wall, cpu, expansions = st["wall"], st["cpu"], st["expansions"]
+    costs = [r.cost for r in st["results"] if r.success]
+    median_cost = np.median(costs) if costs else np.nan
+    print(
+        f"{label:34s} map set-up {setup:5.2f} s | per query: wall median "
+        f"{np.median(wall):6.3f} s, p90 {np.percentile(wall, 90):6.3f} s | CPU median "
+        f"{np.median(cpu):6.3f} s, p90 {np.percentile(cpu, 90):6.3f} s, max {cpu.max():6.3f} s"
+        f" | {1e6 * cpu.sum() / max(expansions.sum(), 1):5.1f} µs CPU/expansion"
+        f" | expansions median {int(np.median(expansions)):6d}, max {expansions.max():6d}"
+        f" | success {len(costs)}/{len(wall)} | median cost {median_cost:8.1f}", flush=True)
+
+
+def print_ratio(stats: dict, identical: bool) -> None:
+    """With two or more backends: the first's median time over the others', and whether
+    their plans were identical."""
+    names = list(stats)
+    if len(names) < 2:
+        return
+    base = stats[names[0]]
+    for name in names[1:]:
+        ratio = np.median(stats[name]["wall"]) / np.median(base["wall"])
+        per_query = np.median(stats[name]["wall"] / base["wall"])
+        print(f"{'':34s} {name}/{names[0]}: median time ratio {ratio:.1f}× "
+              f"(per-query median {per_query:.1f}×); plans identical: "
+              f"{'yes' if identical else 'NO'}")
+
+
+def run(kind: str, heuristic: str, n_queries: int, seed: int, cfg: PlannerConfig,
+        backends=("compiled",)) -> None:
     maps = make_map(kind, seed)
     world = maps[3]
     cfg = dataclasses.replace(cfg, heuristic=heuristic)
     label = heuristic + ("" if cfg.heuristic_weight == 1 else f"×{cfg.heuristic_weight:g}")
-    planner, setup = make_planner(HybridAStar, maps, cfg)
-    queries = make_queries(kind, planner, world, n_queries, seed)
-    times, cpu, expansions, costs, ok = [], [], [], [], 0
+    built = {b: make_planner(HybridAStar, maps, cfg, backend=b) for b in backends}
+    queries = make_queries(kind, built[backends[0]][0], world, n_queries, seed)
+    stats, identical = time_queries({b: p for b, (p, _) in built.items()}, queries)
+    for b in backends:
+        print_stats(f"{kind} {label} {b}", built[b][1], stats[b])
+    print_ratio(stats, identical)
+    if kind not in ("hill", "world_hill"):
+        return
     routes = {"ascent": [], "descent": []}
-    for start, goal in queries:
-        t_cpu = time.process_time()
-        result = planner.plan(start, goal)
-        cpu.append(time.process_time() - t_cpu)
-        times.append(result.time_s)
-        expansions.append(result.expansions)
-        if result.success:
-            ok += 1
-            costs.append(result.cost)
-            direction = "ascent" if start[1] < goal[1] else "descent"
-            if world is not None:  # B: through its steep section; A: round its corner
-                xy = result.path[:, :2]
-                lo, hi = world.landmarks["B_steep_bottom"], world.landmarks["B_steep_top"]
-                on_b = np.any((np.abs(xy[:, 0] - lo[0]) < 6.0) & (xy[:, 1] > lo[1])
-                              & (xy[:, 1] < hi[1]))
-                on_a = np.any(np.hypot(*(xy - world.landmarks["A_corner"]).T) < 10.0)
-                routes[direction].append("B" if on_b else "A" if on_a else "?")
-            elif kind == "hill":
-                on_edge = result.path[np.abs(result.path[:, 1] - 102.0) < 1.0]
-                route = "B" if on_edge[:, 0].mean() > 50.0 else "A"
-                routes[direction].append(route)
-    times, cpu, expansions = np.array(times), np.array(cpu), np.array(expansions)
-    median_cost = np.median(costs) if costs else np.nan
-    print(
-        f"{kind:10s} {label:14s} map set-up {setup:5.2f} s | per query: wall median "
-        f"{np.median(times):6.3f} s, p90 {np.percentile(times, 90):6.3f} s | CPU median "
-        f"{np.median(cpu):6.3f} s, p90 {np.percentile(cpu, 90):6.3f} s, max {cpu.max():6.3f} s"
-        f" | {1e6 * cpu.sum() / max(expansions.sum(), 1):4.0f} µs CPU/expansion"
-        f" | expansions median {int(np.median(expansions)):6d}, max {expansions.max():6d}"
-        f" | success {ok}/{len(queries)} | median cost {median_cost:8.1f}"
-    )
-    if kind in ("hill", "world_hill"):
-        for direction, taken in routes.items():
-            print(f"        {direction}: routes {''.join(taken)}")
+    for (start, goal), result in zip(queries, stats[backends[0]]["results"], strict=True):
+        if not result.success:
+            continue
+        direction = "ascent" if start[1] < goal[1] else "descent"
+        if world is not None:  # B: through its steep section; A: round its corner
+            xy = result.path[:, :2]
+            lo, hi = world.landmarks["B_steep_bottom"], world.landmarks["B_steep_top"]
+            on_b = np.any((np.abs(xy[:, 0] - lo[0]) < 6.0) & (xy[:, 1] > lo[1])
+                          & (xy[:, 1] < hi[1]))
+            on_a = np.any(np.hypot(*(xy - world.landmarks["A_corner"]).T) < 10.0)
+            routes[direction].append("B" if on_b else "A" if on_a else "?")
+        else:
+            on_edge = result.path[np.abs(result.path[:, 1] - 102.0) < 1.0]
+            routes[direction].append("B" if on_edge[:, 0].mean() > 50.0 else "A")
+    for direction, taken in routes.items():
+        print(f"        {direction}: routes {''.join(taken)}")
+
+
+def run_experiments(profile_name: str, n_queries: int, cfg: PlannerConfig, backends,
+                    experiments=("experiment1", "experiment2", "experiment3")) -> dict:
+    """The experiments' own queries on the profile's costmaps from the artifact cache
+    (``$DGT_DATA_DIR``; built there when missing: run ``dgt reproduce --profile P
+    --stages costmaps`` first), every method and vehicle of each experiment — or, for
+    ``"truth:P"``, on profile P's worlds with the slope-based cost of their true heights
+    (:func:`truth_maps`, no artifacts) — planned with ``cfg`` (the profile's planner
+    settings are not used: pass the exact ones). Prints a line per (experiment, vehicle,
+    method, backend), then per experiment; returns the pooled wall times
+    {experiment: {backend: array}}."""
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.evaluation.experiments import EXPERIMENTS, experiment_queries
+    from dgt_lib.mapping.baselines import binary_costmap
+    from dgt_lib.world.terrain import get_world
+
+    truth = profile_name.startswith("truth:")
+    prof = get_profile(profile_name.removeprefix("truth:"))
+    prof = prof.with_(experiments=dataclasses.replace(
+        prof.experiments, n_hill=n_queries, n_ridge=n_queries, n_eval_jeep=n_queries,
+        n_eval_vw_van=n_queries), planner=cfg)
+    if truth:  # the worlds' true heights, no artifacts
+        @functools.lru_cache(maxsize=4)
+        def world_truth(world):
+            cost, occupancy, grid = truth_maps(get_world(world, prof), prof.seed)
+            return types.SimpleNamespace(world=world, grid=grid, occupancy=occupancy,
+                                         costmaps={}, cost=cost)
+
+        def load_maps(world, method, vehicle, profile):
+            return world_truth(world)
+    else:
+        from dgt_lib.stages.experiments import trial_maps as load_maps
+    pooled = {}
+    for name in experiments:
+        world, vehicles, methods = EXPERIMENTS[name]
+        methods = ("truth",) if truth else methods
+        queries = experiment_queries(name, prof, load_maps)
+        walls = {b: [] for b in backends}
+        all_identical = True
+        for vehicle in vehicles:
+            for method in methods:
+                maps = load_maps(world, method, vehicle, prof)
+                if truth:
+                    cost = maps.cost
+                elif method == "binary" and ("binary", vehicle) not in maps.costmaps:
+                    cost = binary_costmap(maps.grid.shape)
+                else:
+                    cost = maps.costmap(method, vehicle)
+                built = {}
+                for b in backends:
+                    t = time.perf_counter()
+                    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle,
+                                                      cfg, backend=b)
+                    built[b] = (planner, _build_cost_field(planner, queries[vehicle][0].goal, t))
+                stats, identical = time_queries(
+                    {b: p for b, (p, _) in built.items()},
+                    [(q.start, q.goal) for q in queries[vehicle]])
+                all_identical &= identical
+                for b in backends:
+                    print_stats(f"{name} {world} {vehicle} {method} {b}", built[b][1], stats[b])
+                    walls[b].append(stats[b]["wall"])
+                print_ratio(stats, identical)
+        pooled[name] = {b: np.concatenate(w) for b, w in walls.items()}
+        line = " | ".join(f"{b}: median {np.median(w):.3f} s, p90 {np.percentile(w, 90):.3f} s,"
+                          f" max {w.max():.3f} s" for b, w in pooled[name].items())
+        n_plans = len(pooled[name][backends[0]])
+        print(f"== {name} ({world}, {n_plans} plans: {n_queries} queries × {len(methods)} "
+              f"method(s) × {len(vehicles)} vehicle(s)): {line}"
+              + (f" | plans identical: {'yes' if all_identical else 'NO'}"
+                 if len(backends) > 1 else ""), flush=True)
+    return pooled
 
 
 def load_planner_module(path: str):
@@ -319,6 +454,14 @@ def main() -> None:
                         "this tree's on the same queries, interleaved, checking equal results")
     parser.add_argument("--repeats", type=int, default=1,
                         help="with --compare: runs of each query per planner (median taken)")
+    parser.add_argument("--backends", default="compiled",
+                        help="search backends to time on the same queries, comma-separated: "
+                        "compiled (the default), python (the reference)")
+    parser.add_argument("--experiments", metavar="PROFILE", default=None,
+                        help="instead of the synthetic maps: the hill, ridge and eval "
+                        "experiments' own queries on PROFILE's costmaps from the artifact "
+                        "cache in $DGT_DATA_DIR (every method and vehicle), --queries each; "
+                        "truth:PROFILE: on PROFILE's worlds with the true heights' cost")
     args = parser.parse_args()
     cfg = PlannerConfig(max_time_s=args.max_time)
     if args.closed_cell is not None:
@@ -326,6 +469,21 @@ def main() -> None:
     if args.theta_bins is not None:
         cfg = dataclasses.replace(cfg, theta_bins=args.theta_bins)
     print(f"PlannerConfig: {cfg}")
+    print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    backends = tuple(args.backends.split(","))
+    if "compiled" in backends:
+        t = time.perf_counter()
+        maps = make_map("random", 0)
+        planner = make_planner(HybridAStar, maps, cfg)[0]
+        planner.plan(*make_queries("random", planner, None, 1, 0)[0])
+        print(f"warm-up of the compiled search (JIT compile or cache load, one query): "
+              f"{time.perf_counter() - t:.2f} s")
+    if args.experiments is not None:
+        run_experiments(args.experiments, args.queries,
+                        dataclasses.replace(cfg, heuristic_weight=float(args.weights)),
+                        backends)
+        print(f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+        return
     if args.compare is not None:
         old_module = load_planner_module(args.compare)
         rows = []
@@ -342,7 +500,8 @@ def main() -> None:
         for heuristic in args.heuristics.split(","):
             for weight in args.weights.split(","):
                 run(kind, heuristic, args.queries, args.seed,
-                    dataclasses.replace(cfg, heuristic_weight=float(weight)))
+                    dataclasses.replace(cfg, heuristic_weight=float(weight)), backends)
+    print(f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
 
 
 if __name__ == "__main__":

@@ -51,11 +51,20 @@ which also refutes unreachable goals before the search starts).
 
 Deterministic: ties in the open list break by insertion order; no randomness.
 
+Two backends run the same search (``HybridAStar(..., backend=...)``): ``"compiled"``,
+the default, runs the search loop and the 2D cost-to-go's Dijkstra as machine code
+compiled by numba (:mod:`.compiled`; compiled once, then cached on disk), and
+``"python"`` is the plain-Python reference it was transcribed from. They expand the same
+nodes in the same order and return the same plan to the bit
+(``tests/test_planner_exact.py``); read ``_Search`` in :mod:`.search` to learn the
+algorithm, :mod:`.compiled` only to see how it was made fast.
+
 Modules: :mod:`.primitives` (arc primitives, the directional cost lookup and
 the paper's cost model), :mod:`.collision` (footprint checks), :mod:`.heuristics`
 (Euclidean and the 2D cost-to-go), :mod:`.shots` (Dubins / turn-then-straight
 analytic shots), :mod:`.search` (:class:`HybridAStar` and one query's search),
-:mod:`.result` (search nodes, :class:`PlanResult`), :mod:`.validation`.
+:mod:`.compiled` (the same search, compiled), :mod:`.result` (search nodes,
+:class:`PlanResult`), :mod:`.validation`.
 """
 
 from dgt_lib.core.vehicles import footprint_circles
@@ -67,11 +76,12 @@ from dgt_lib.navigation.planner.primitives import (
     travel_heading_bin,
 )
 from dgt_lib.navigation.planner.result import InvalidQueryError, PlanResult
-from dgt_lib.navigation.planner.search import HybridAStar, plan
+from dgt_lib.navigation.planner.search import BACKENDS, HybridAStar, plan
 from dgt_lib.navigation.planner.shots import dubins_path, sample_segments, turn_then_straight
 from dgt_lib.navigation.planner.validation import check_query_on_world
 
 __all__ = [
+    "BACKENDS",
     "HEURISTICS",
     "CostToGo",
     "HybridAStar",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from typing import NamedTuple
 
 import numpy as np
 from scipy import ndimage
@@ -17,7 +18,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import TWO_PI, GridSpec, angle_diff
-from dgt_lib.navigation.planner.primitives import amplified_cost
+from dgt_lib.navigation.planner.primitives import amplified_cost, distance
 
 HEURISTICS: tuple[str, ...] = ("euclidean", "cost_to_go")
 
@@ -26,7 +27,7 @@ _CACHED_GOALS = 4  # cost-to-go fields kept per map (most recently used goals)
 
 def euclidean(x: float, y: float, gx: float, gy: float) -> float:
     """h = ‖(x, y) − (gx, gy)‖ [m], the paper's heuristic (admissible: g_edge ≥ s)."""
-    return math.hypot(x - gx, y - gy)
+    return distance(x - gx, y - gy)
 
 
 def step_cell_bounds(step_m: float, resolution: float) -> tuple[float, float]:
@@ -52,7 +53,8 @@ class CostToGo:
     """The 2D cost-to-go lower bound of one map, per goal (the last few goals cached).
 
     Two direction-aware 2D relaxations on the 8-connected grid, solved once per
-    goal with ``scipy.sparse.csgraph.dijkstra``: D prices a grid move m
+    goal with ``scipy.sparse.csgraph.dijkstra`` (``compiled``: the same graphs by
+    :func:`.compiled.grid_dijkstra`, the same distances): D prices a grid move m
     (direction ψ_m = m·45°, length ℓ_m = res or √2·res) into cell c at
     ℓ_m·(1 + min_{k ∈ S_m} F_k(c)), and D_c at ℓ_m·min_{k ∈ S_m} F_k(c)
     (the terrain part alone), where F_k = min of C'_k = C_k(1 + βC_k) over the
@@ -98,7 +100,7 @@ class CostToGo:
 
     def __init__(self, costmap: np.ndarray, blocked: np.ndarray, occupied_distance: np.ndarray,
                  grid: GridSpec, cfg: PlannerConfig, *, clearance_m: float,
-                 min_turn_radius_m: float, substep_m: float):
+                 min_turn_radius_m: float, substep_m: float, compiled: bool = False):
         self.costmap = costmap
         self.blocked = blocked
         self.occupied_distance = occupied_distance
@@ -107,7 +109,10 @@ class CostToGo:
         self.clearance_m = clearance_m
         self.min_turn_radius_m = min_turn_radius_m
         self.substep_m = substep_m
+        self.compiled = compiled  # grid Dijkstra compiled by numba, else scipy's on CSR graphs
         self.impassable: np.ndarray | None = None
+        self._moves: _Moves | None = None
+        self._weights: tuple | None = None  # the compiled Dijkstra's edge weights
         self._graphs: tuple[csr_matrix, csr_matrix] | None = None
         self.cache: OrderedDict = OrderedDict()
 
@@ -122,72 +127,211 @@ class CostToGo:
     def bounds(self, goal_xy, as_lists: bool = False) -> tuple:
         """(φ·D, φ·D_c), each (H, W), for one goal (cached); with ``as_lists`` flat
         Python lists (fast scalar lookups in the search loop)."""
+        entry = self._entry(goal_xy)
+        if entry[0] is None:  # compiled runs the search stopped early: take them to the end
+            entry[0] = entry[2].finish()
+        if as_lists and entry[1] is None:
+            entry[1] = tuple(b.ravel().tolist() for b in entry[0])
+        return entry[1 if as_lists else 0]
+
+    def runs(self, goal_xy) -> DijkstraRuns:
+        """The goal's two Dijkstra runs, settled as far as anyone asked (``compiled``
+        only): what the compiled search reads its bound from (cached like :meth:`bounds`)."""
+        entry = self._entry(goal_xy)
+        if entry[2] is None:
+            raise ValueError("CostToGo.runs needs compiled=True")
+        return entry[2]
+
+    def _entry(self, goal_xy) -> list:
+        """The cache entry of one goal: [bounds or None, lists or None, runs or None]."""
         gx, gy = float(goal_xy[0]), float(goal_xy[1])
         key = (gx, gy)
         if key in self.cache:
             self.cache.move_to_end(key)
-            return self.cache[key][1 if as_lists else 0]
+            return self.cache[key]
         res = self.grid.resolution
-        if self._graphs is None:
-            self._graphs = self._relaxation_graphs()
+        moves = self._relaxation_moves()
         X, Y = self.grid.cell_centers()
         source = np.hypot(X - gx, Y - gy) <= self.cfg.goal_tolerance_m + res * math.sqrt(2) / 2
         source = np.flatnonzero(source & ~self.impassable)
         phi = self.cfg.step_m / step_cell_bounds(self.cfg.step_m, res)[0]
-        bounds = []
-        for graph in self._graphs:
+        if self.compiled:
+            entry = [None, None, DijkstraRuns(self._compiled_weights(moves), moves.steps,
+                                              self.grid.shape, source, phi)]
+        else:
             if len(source) == 0:
-                dist = np.full(self.grid.shape, np.inf)
+                dists = [np.full(self.grid.shape, np.inf)] * 2
             else:
-                dist = dijkstra(graph, directed=True, indices=source, min_only=True)
-            bounds.append(phi * dist.reshape(self.grid.shape))
-        bounds = tuple(bounds)
-        lists = tuple(b.ravel().tolist() for b in bounds)
-        self.cache[key] = (bounds, lists)
+                if self._graphs is None:
+                    self._graphs = self._relaxation_graphs()
+                dists = [dijkstra(graph, directed=True, indices=source, min_only=True)
+                         for graph in self._graphs]
+            entry = [tuple(phi * dist.reshape(self.grid.shape) for dist in dists), None, None]
+        self.cache[key] = entry
         while len(self.cache) > _CACHED_GOALS:
             self.cache.popitem(last=False)
-        return lists if as_lists else bounds
+        return entry
 
-    def _relaxation_graphs(self) -> tuple[csr_matrix, csr_matrix]:
-        """The reversed 8-connected graphs (edge v → u carries the cost of the move
-        u → v), for D and D_c, as CSR matrices over flat cell indices."""
+    def _relaxation_moves(self) -> _Moves:
+        """The per-map part of both relaxations (built once): which cells are passable
+        and, per grid move m, the terrain price min_{k ∈ S_m} F_k of entering each cell."""
+        if self._moves is not None:
+            return self._moves
         cfg, res = self.cfg, self.grid.resolution
-        H, W = self.grid.shape
         s = cfg.step_m
         rho = (step_cell_bounds(s, res)[1] + res / 2) / res  # [cells]
         half = math.floor(rho)
         d = np.arange(-half, half + 1)
         disk = np.hypot(d[:, None], d[None, :]) <= rho
         # F_k: min of C'_k over the unblocked cells within ρ (a pose's cell is unblocked)
-        least = np.stack([
-            ndimage.minimum_filter(np.where(self.blocked, np.inf, amplified_cost(layer, cfg.beta)),
-                                   footprint=disk, mode="constant", cval=np.inf)
-            for layer in self.costmap
-        ])
+        least, done = [], []
+        for layer in self.costmap:
+            same = next((i for i, prev in enumerate(done) if np.array_equal(prev, layer)), None)
+            if same is not None:  # equal layers (an isotropic or zero costmap): filter once
+                least.append(least[same])
+            else:
+                least.append(disk_minimum(
+                    np.where(self.blocked, np.inf, amplified_cost(layer, cfg.beta)), disk))
+            done.append(layer)
+        least = np.stack(least)
         sagitta = s * s / (8 * self.min_turn_radius_m)
         slack = res / 2 + math.sqrt(2) * res + sagitta + self.substep_m / 2
         self.impassable = self.occupied_distance < self.clearance_m - slack
-        passable = ~self.impassable
         n_headings = len(self.costmap)
         theta_k = TWO_PI * np.arange(n_headings) / n_headings
-        index = np.arange(H * W).reshape(H, W)
-        rows, cols, terrain, lengths = [], [], [], []
+        steps, lengths, terrain = [], [], []
+        spread = math.pi / 4 + math.pi / n_headings + 1e-9
         for m in range(8):
             psi = m * math.pi / 4
             dr, dc = round(math.sin(psi)), round(math.cos(psi))
-            spread = math.pi / 4 + math.pi / n_headings + 1e-9
             near = np.abs(angle_diff(theta_k, psi)) <= spread
-            length = res * math.hypot(dr, dc)
+            steps.append((dr, dc))
+            lengths.append(res * math.hypot(dr, dc))
+            terrain.append(least[near].min(axis=0))
+        self._moves = _Moves(~self.impassable, np.asarray(steps, dtype=np.int64),
+                             np.asarray(lengths), np.stack(terrain))
+        return self._moves
+
+    def _relaxation_graphs(self) -> tuple[csr_matrix, csr_matrix]:
+        """The reversed 8-connected graphs (edge v → u carries the cost of the move
+        u → v), for D and D_c, as CSR matrices over flat cell indices."""
+        passable, steps, lengths, least = self._relaxation_moves()
+        H, W = self.grid.shape
+        index = np.arange(H * W).reshape(H, W)
+        rows, cols, terrain, edge_lengths = [], [], [], []
+        for (dr, dc), length, least_m in zip(steps, lengths, least, strict=True):
             # moves u -> v = u + (dr, dc) with both cells passable, charged at v
             u = (slice(max(0, -dr), H - max(0, dr)), slice(max(0, -dc), W - max(0, dc)))
             v = (slice(max(0, dr), H - max(0, -dr)), slice(max(0, dc), W - max(0, -dc)))
-            ok = passable[u] & passable[v] & np.isfinite(least[near].min(axis=0)[v])
+            ok = passable[u] & passable[v] & np.isfinite(least_m[v])
             rows.append(index[v][ok])
             cols.append(index[u][ok])
-            terrain.append(length * least[near].min(axis=0)[v][ok])
-            lengths.append(np.full(int(ok.sum()), length))
+            terrain.append(length * least_m[v][ok])
+            edge_lengths.append(np.full(int(ok.sum()), length))
         index_pairs = (np.concatenate(rows), np.concatenate(cols))
-        terrain, lengths = np.concatenate(terrain), np.concatenate(lengths)
+        terrain, edge_lengths = np.concatenate(terrain), np.concatenate(edge_lengths)
         shape = (H * W, H * W)
-        return (csr_matrix((lengths + terrain, index_pairs), shape=shape),
+        return (csr_matrix((edge_lengths + terrain, index_pairs), shape=shape),
                 csr_matrix((terrain, index_pairs), shape=shape))
+
+    def _compiled_weights(self, moves: _Moves) -> tuple:
+        """(passable (H·W,), full (H·W, 8), terrain (H·W, 8) or None): the edge weights of
+        the compiled runs, weights[v, m] = the cost of entering v by move m as in
+        :meth:`_relaxation_graphs` (∞: no edge). None where every terrain price is 0 (a
+        zero costmap): D_c is then 0 wherever D is finite — what its run would return."""
+        if self._weights is None:
+            least = moves.least.reshape(8, -1).T  # (H·W, 8)
+            lengths = moves.lengths[None, :]
+            no_edge = ~moves.passable.ravel()[:, None] | ~np.isfinite(least)
+            terrain = np.where(no_edge, np.inf, lengths * np.where(no_edge, 0.0, least))
+            full = np.where(no_edge, np.inf, lengths + terrain)
+            zero = not np.any(terrain[~no_edge])
+            self._weights = (np.ascontiguousarray(moves.passable.ravel()),
+                             np.ascontiguousarray(full),
+                             None if zero else np.ascontiguousarray(terrain))
+        return self._weights
+
+
+class DijkstraRuns:
+    """One goal's two relaxations D and D_c as compiled Dijkstra runs that go only as far
+    as asked (:func:`.compiled.settle`): the compiled search settles the cells it prices,
+    :meth:`finish` every cell. Either way a settled cell holds the distance scipy's
+    dijkstra gives it.
+
+    weights: :meth:`CostToGo._compiled_weights`; steps: (8, 2) the grid moves; shape:
+    (H, W); source: the goal's flat cells; phi: φ (the bound is φ·D)."""
+
+    def __init__(self, weights: tuple, steps: np.ndarray, shape: tuple[int, int],
+                 source: np.ndarray, phi: float):
+        from dgt_lib.navigation.planner.compiled import dijkstra_seed
+
+        passable, full, terrain = weights
+        self.shape, self.phi = shape, phi
+        self.zero_terrain = terrain is None
+        n = shape[0] * shape[1]
+
+        def run(size):
+            return (np.empty(size), np.empty(size, np.int64), np.empty(size, np.int64),
+                    np.zeros(1, np.int64))
+
+        self.full = run(n)
+        self.terrain = run(1) if self.zero_terrain else run(n)
+        dijkstra_seed(source, *self.full)
+        if not self.zero_terrain:
+            dijkstra_seed(source, *self.terrain)
+        # the arguments of compiled.search / compiled._bounds_at, in their order
+        self.args = (passable, steps, full, full if terrain is None else terrain,
+                     *self.full, *self.terrain)
+
+    def at(self, flat: int) -> tuple[float, float]:
+        """(φ·D, φ·D_c) of flat cell ``flat``."""
+        from dgt_lib.navigation.planner.compiled import _bounds_at
+
+        return _bounds_at(flat, *self.shape, self.phi, self.zero_terrain, *self.args)
+
+    def finish(self) -> tuple[np.ndarray, np.ndarray]:
+        """(φ·D, φ·D_c), each (H, W): both runs taken to the end."""
+        from dgt_lib.navigation.planner.compiled import settle
+
+        passable, steps, w_full, w_terrain = self.args[:4]
+        settle(-1, *self.shape, passable, w_full, steps, *self.full)
+        full = self.full[0]
+        if self.zero_terrain:
+            terrain = np.where(np.isfinite(full), 0.0, np.inf)
+        else:
+            settle(-1, *self.shape, passable, w_terrain, steps, *self.terrain)
+            terrain = self.terrain[0]
+        return tuple(self.phi * d.reshape(self.shape) for d in (full, terrain))
+
+
+class _Moves(NamedTuple):
+    """The 8 grid moves of the 2D relaxations: passable (H, W) bool; steps (8, 2) (Δrow,
+    Δcol) of move m (direction m·45°); lengths (8,) [m]; least (8, H, W) the terrain price
+    min_{k ∈ S_m} F_k of entering each cell by move m (∞: no unblocked cell within ρ)."""
+
+    passable: np.ndarray
+    steps: np.ndarray
+    lengths: np.ndarray
+    least: np.ndarray
+
+
+def disk_minimum(values: np.ndarray, disk: np.ndarray) -> np.ndarray:
+    """``ndimage.minimum_filter(values, footprint=disk, mode="constant", cval=inf)`` for a
+    symmetric disk (odd side, convex rows), as one 1D minimum filter per distinct row width
+    and a shifted minimum per row: the same values, several times faster."""
+    half = disk.shape[0] // 2
+    widths = [int(np.flatnonzero(row).size) for row in disk]
+    rows = {w: ndimage.minimum_filter1d(values, w, axis=1, mode="constant", cval=np.inf)
+            for w in set(widths) if w > 0}
+    out = np.full(values.shape, np.inf)
+    H = values.shape[0]
+    for i, w in enumerate(widths):
+        if w == 0:
+            continue
+        dy = i - half  # out[r] takes row r + dy
+        src = rows[w]
+        if dy >= 0:
+            np.minimum(out[:H - dy], src[dy:], out=out[:H - dy])
+        else:
+            np.minimum(out[-dy:], src[:H + dy], out=out[-dy:])
+    return out

@@ -23,6 +23,13 @@ from dgt_lib.core.geometry import TWO_PI, nearest_heading_bin, wrap_angle
 TURN_STEPS: tuple[int, ...] = (0, 1, -1)
 
 
+def distance(dx: float, dy: float) -> float:
+    """√(dx² + dy²) [m], the search's one formula for a distance between two points: plain
+    IEEE operations, which the compiled search (:mod:`.compiled`) reproduces bit for bit
+    (``math.hypot`` rounds differently from the C library's ``hypot`` that numba calls)."""
+    return math.sqrt(dx * dx + dy * dy)
+
+
 def travel_heading_bin(d_row, d_col, n_headings: int):
     """Directional cost layer for a move of (Δrow, Δcol) grid cells.
 

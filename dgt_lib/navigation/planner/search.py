@@ -13,11 +13,17 @@ from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import TWO_PI, GridSpec, angle_diff, wrap_angle
 from dgt_lib.core.vehicles import VehicleSpec, footprint_circles, get_vehicle
 from dgt_lib.navigation.planner.collision import BlockedMap
-from dgt_lib.navigation.planner.heuristics import CostToGo, euclidean
+from dgt_lib.navigation.planner.heuristics import (
+    CostToGo,
+    DijkstraRuns,
+    euclidean,
+    step_cell_bounds,
+)
 from dgt_lib.navigation.planner.primitives import (
     TURN_STEPS,
     PrimitiveSet,
     amplified_cost,
+    distance,
     edge_cost,
     travel_bin_table,
 )
@@ -36,7 +42,10 @@ BLOCKING_CELLS = {1: "occupied cells (steeper than τ_s: a slope, a step or a tr
                   2: "unobserved cells (terrain the BEV map did not see)"}
 """How a rejected query names the occupancy values that block it."""
 
-heappush, hypot = heapq.heappush, math.hypot
+BACKENDS: tuple[str, ...] = ("compiled", "python")
+"""The ways :class:`HybridAStar` can run its search (all return the same plans)."""
+
+heappush = heapq.heappush
 _new_node = tuple.__new__  # _new_node(Node, fields): Node(*fields) at a plain tuple's cost
 
 
@@ -50,6 +59,11 @@ class HybridAStar:
     min_turn_radius_m: r_min [m] of the arc primitives.
     footprint: (length_m, width_m) of the vehicle rectangle centred on the pose.
     cfg: :class:`PlannerConfig` (step_m, beta, heuristic, tolerances, caps, ...).
+    backend: how the search runs, one of :data:`BACKENDS`; both return the same plans
+        (``tests/test_planner_exact.py``). ``"compiled"`` (default): the search loop and
+        the 2D cost-to-go's Dijkstra compiled by numba (:mod:`.compiled`), 5–20× faster per
+        query (``benchmarks/bench_planner.py --backends compiled,python``);
+        ``"python"``: the reference search, plain Python (and scipy's Dijkstra).
     """
 
     def __init__(
@@ -61,9 +75,20 @@ class HybridAStar:
         min_turn_radius_m: float,
         footprint: tuple[float, float],
         cfg: PlannerConfig | None = None,
+        backend: str = "compiled",
     ):
         cfg = PlannerConfig() if cfg is None else cfg
         check_config(cfg)
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if backend == "compiled":
+            try:
+                import numba  # noqa: F401
+            except ImportError as exc:
+                raise ImportError(
+                    "HybridAStar(backend='compiled') needs numba, a dependency of dgt-kit "
+                    "(pip install numba); backend='python' runs without it") from exc
+        self.backend = backend
         costmap, occupancy = np.asarray(costmap), np.asarray(occupancy)
         if costmap.ndim == 2:
             costmap = costmap[None]
@@ -95,19 +120,28 @@ class HybridAStar:
         self._cost_to_go = CostToGo(
             self._costmap, self.blocked, self._occupied_distance, grid, cfg,
             clearance_m=self.clearance_m, min_turn_radius_m=self.min_turn_radius_m,
-            substep_m=self._substep(),
+            substep_m=self._substep(), compiled=backend == "compiled",
         )
         self._cost_to_go_cache = self._cost_to_go.cache  # the cost-to-go of recent goals
+        self._compiled: tuple[np.ndarray, ...] | None = None
 
     @classmethod
     def for_vehicle(cls, costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec,
-                    vehicle: str | VehicleSpec, cfg: PlannerConfig | None = None
-                    ) -> HybridAStar:
+                    vehicle: str | VehicleSpec, cfg: PlannerConfig | None = None,
+                    backend: str = "compiled") -> HybridAStar:
         """The planner of one vehicle: its centre turning radius and its footprint
         (length × width) from :mod:`dgt_lib.core.vehicles`."""
         spec = get_vehicle(vehicle)
         return cls(costmap, occupancy, grid, min_turn_radius_m=spec.centre_turn_radius_m,
-                   footprint=(spec.length_m, spec.width_m), cfg=cfg)
+                   footprint=(spec.length_m, spec.width_m), cfg=cfg, backend=backend)
+
+    def _compiled_maps(self) -> tuple[np.ndarray, ...]:
+        """The per-map arrays of :func:`.compiled.search` (built once): the padded blocked
+        map, the flat costmap and the travel-direction layer table."""
+        if self._compiled is None:
+            self._compiled = (self._blocked.flat, self._cost_flat,
+                              np.asarray(self._bin_table, dtype=np.int64))
+        return self._compiled
 
     # --- collision -------------------------------------------------------------------------
 
@@ -207,7 +241,17 @@ class HybridAStar:
         ``max_expansions`` and ``max_time_s``.
         """
         t0 = time.perf_counter()
-        search = _Search(self, *self._check_query(start, goal))
+        query = self._check_query(start, goal)
+        if self.backend == "compiled":
+            result = _CompiledSearch(self, *query).run(t0)
+            if result is not None:
+                return result
+            # a turn count beyond the compiled search's tables: the reference search
+        return self._plan_python(query, t0)
+
+    def _plan_python(self, query, t0: float) -> PlanResult:
+        """The reference search (``backend="python"``)."""
+        search = _Search(self, *query)
         if not search.push_start():
             return failure("no path: the goal is unreachable even in the 2D relaxation", [], t0)
         max_expansions, max_time_s = self.cfg.max_expansions, self.cfg.max_time_s
@@ -326,7 +370,7 @@ class _Search:
         gx, gy = self.gx, self.gy
         if (x - gx) ** 2 + (y - gy) ** 2 > self.shot_range2:
             return
-        if g + math.hypot(x - gx, y - gy) >= self.best_goal:
+        if g + distance(x - gx, y - gy) >= self.best_goal:
             return
         planner = self.planner
         pose = (x, y, self.primitives.heading(node.turns))
@@ -384,7 +428,7 @@ class _Search:
             if goal:
                 hn = 0.0
             else:
-                hn = hypot(xn - gx, yn - gy)
+                hn = distance(xn - gx, yn - gy)
                 if h_grid is not None:
                     flat = rn * W + cn
                     hn = max(h_grid[flat], hn + h_terrain[flat])
@@ -397,6 +441,178 @@ class _Search:
             heappush(open_list, (gn + self.weight * hn, next(counter), successor))
 
 
+class _CompiledSearch:
+    """One query's search by :func:`.compiled.search`: the same steps as :class:`_Search`
+    on arrays (nodes, open list, closed set, turn tables), run in chunks of
+    :attr:`CHUNK` expansions so that ``max_time_s`` is checked between them."""
+
+    CHUNK = 4096  # expansions between two checks of max_time_s (a few ms)
+    TURNS = 1024  # turn tables for turn counts −TURNS … TURNS (a path turns < 2π per 23)
+    CAPACITY = 1 << 15  # nodes the arrays hold at first (doubled when full)
+
+    def __init__(self, planner: HybridAStar, sx: float, sy: float, sth: float,
+                 gx: float, gy: float, gth: float | None):
+        from dgt_lib.navigation.planner import compiled
+
+        self.kernel = compiled
+        cfg, grid = planner.cfg, planner.grid
+        self.planner, self.cfg = planner, cfg
+        self.start, self.goal, self.gth = (sx, sy, sth), (gx, gy), gth
+        self.primitives = PrimitiveSet(
+            sth, step_m=cfg.step_m, min_turn_radius_m=planner.min_turn_radius_m,
+            substep_m=cfg.substep_m, circle_offsets=planner.circle_offsets,
+            resolution=grid.resolution, theta_bins=cfg.theta_bins,
+            n_headings=planner.n_headings,
+        )
+        H, W = grid.shape
+        res = grid.resolution
+        blocked = planner._blocked
+        c = compiled
+        ip = np.zeros(c.I_N_I, dtype=np.int64)
+        ip[c.I_H], ip[c.I_W], ip[c.I_K] = H, W, planner.n_headings
+        ip[c.I_NX_CLOSED] = math.ceil(W * res / cfg.closed_cell_m) + 1
+        ip[c.I_BINS], ip[c.I_REACH] = cfg.theta_bins, planner._bin_reach
+        ip[c.I_HAS_GTH] = gth is not None
+        ip[c.I_USE_H] = cfg.heuristic == "cost_to_go"
+        ip[c.I_PAD_W], ip[c.I_PAD] = blocked.padded_shape[1], blocked.pad
+        ip[c.I_NSUB], ip[c.I_NCIRC] = len(self.primitives.sub_t), len(planner.circle_offsets)
+        ip[c.I_MAX_EXP], ip[c.I_TURN_OFFSET] = cfg.max_expansions, self.TURNS
+        fp = np.zeros(c.F_N_F)
+        fp[c.F_X0], fp[c.F_Y0] = grid.origin_xy
+        fp[c.F_INV_RES], fp[c.F_CELL], fp[c.F_RES] = 1.0 / res, cfg.closed_cell_m, res
+        fp[c.F_GX], fp[c.F_GY], fp[c.F_GTH] = gx, gy, 0.0 if gth is None else gth
+        fp[c.F_TOL2] = cfg.goal_tolerance_m * cfg.goal_tolerance_m
+        fp[c.F_HEADING_TOL], fp[c.F_WEIGHT] = cfg.goal_heading_tolerance_rad, cfg.heuristic_weight
+        fp[c.F_SHOT_RANGE2] = cfg.shot_distance_m**2 if cfg.analytic_shot else -1.0
+        fp[c.F_STEP], fp[c.F_BETA] = cfg.step_m, cfg.beta
+        fp[c.F_START_TH], fp[c.F_DTHETA] = sth, self.primitives.dtheta
+        fp[c.F_RADIUS], fp[c.F_SUBSTEP] = planner.min_turn_radius_m, planner._substep()
+        fp[c.F_ORIGIN_R], fp[c.F_ORIGIN_C] = blocked._origin
+        fp[c.F_PHI] = cfg.step_m / step_cell_bounds(cfg.step_m, res)[0]
+        self.ip, self.fp = ip, fp
+        self.ny_closed = math.ceil(H * res / cfg.closed_cell_m) + 1
+
+    def _heuristic_runs(self):
+        """The goal's compiled Dijkstra runs (:class:`DijkstraRuns`), or 1-element dummies
+        of the same types without the cost-to-go heuristic."""
+        if self.cfg.heuristic == "cost_to_go":
+            return self.planner._cost_to_go.runs(self.goal)
+        return DijkstraRuns((np.zeros(1, np.bool_), np.zeros((1, 8)), None),
+                            np.zeros((8, 2), np.int64), (1, 1), np.zeros(0, np.int64), 1.0)
+
+    def run(self, t0: float) -> PlanResult | None:
+        """The query's result, or None when a turn count left the tables (then the
+        reference search must answer)."""
+        c, cfg, planner = self.kernel, self.cfg, self.planner
+        runs = self._heuristic_runs()
+        self.ip[c.I_ZERO_TERRAIN] = runs.zero_terrain
+        sx, sy, sth = self.start
+        gx, gy = self.goal
+        row, col = (int(v) for v in planner.grid.xy_to_cell(sx, sy))
+        flat = row * planner.grid.shape[1] + col
+        use_h = cfg.heuristic == "cost_to_go"
+        if use_h:
+            h_grid, h_terrain = runs.at(flat)
+            if not math.isfinite(h_grid):
+                return failure("no path: the goal is unreachable even in the 2D relaxation",
+                               [], t0)
+        # the start node, as _Search.push_start makes it
+        n_bins = cfg.theta_bins
+        theta_bin = int(math.floor(sth / (TWO_PI / n_bins) + 0.5)) % n_bins
+        x0, y0 = planner.grid.origin_xy
+        key = ((int((sy - y0) / cfg.closed_cell_m) * self.ip[c.I_NX_CLOSED]
+                + int((sx - x0) / cfg.closed_cell_m)) * n_bins + theta_bin)
+        h = distance(sx - gx, sy - gy)
+        if use_h:
+            h = max(h_grid, h + h_terrain)
+        heading_tol = cfg.goal_heading_tolerance_rad
+        start_is_goal = (sx - gx) ** 2 + (sy - gy) ** 2 <= self.fp[c.F_TOL2] and (
+            self.gth is None or abs(float(angle_diff(sth, self.gth))) <= heading_tol)
+
+        capacity = min(1 + 4 * cfg.max_expansions, self.CAPACITY)
+        nodes = self._node_arrays(capacity)
+        hf, hc, hnode = (np.empty(capacity), np.empty(capacity, np.int64),
+                         np.empty(capacity, np.int64))
+        nodes[0][0], nodes[1][0], nodes[2][0] = sx, sy, 0.0  # x, y, g
+        for arr, value in zip(nodes[3:], (0, row, col, -1, -1, key, start_is_goal),
+                              strict=True):
+            arr[0] = value  # turns, row, col, parent, primitive, key, is_goal
+        hf[0], hc[0], hnode[0] = cfg.heuristic_weight * h, 0, 0
+        n_keys = self.ny_closed * self.ip[c.I_NX_CLOSED] * n_bins
+        key_state = np.zeros(n_keys, dtype=np.uint8)
+        best_g = np.empty(n_keys)
+        key_state[key], best_g[key] = 1, 0.0
+        expanded = np.empty(capacity, np.int64)
+        state = np.zeros(c.S_N_S, dtype=np.int64)
+        state[c.S_NODES], state[c.S_HEAP], state[c.S_COUNTER] = 1, 1, 1
+        best_goal = np.array([math.inf])
+        n_tables = 2 * self.TURNS + 1
+        m = len(self.primitives.sub_t) * len(planner.circle_offsets)
+        tables = (np.zeros(n_tables, dtype=np.bool_), np.empty((n_tables, 3, m)),
+                  np.empty((n_tables, 3, m)), np.empty((n_tables, 3, 2)),
+                  np.empty((n_tables, 3), np.int64), np.empty((n_tables, 3), np.int64))
+        maps = planner._compiled_maps()
+        stop_at = 0  # max_time_s is checked first before the first expansion, as _Search does
+        while True:
+            status = c.search(self.ip, self.fp, *maps, *runs.args,
+                              planner.circle_offsets, self.primitives.sub_t, *tables, *nodes,
+                              hf, hc, hnode, key_state, best_g, expanded, state, best_goal,
+                              stop_at)
+            if status == c.NEED_ROOM:
+                capacity *= 2
+                nodes = tuple(np.resize(a, capacity) for a in nodes)
+                hf, hc, hnode, expanded = (np.resize(a, capacity)
+                                           for a in (hf, hc, hnode, expanded))
+                continue
+            if status == c.PAUSED:
+                if time.perf_counter() - t0 > cfg.max_time_s:
+                    return failure(f"no path within max_time_s={cfg.max_time_s}",
+                                   self._expanded_xy(nodes, expanded, state), t0)
+                stop_at += self.CHUNK
+                continue
+            break
+        done = self._expanded_xy(nodes, expanded, state)
+        if status == c.FOUND:
+            return success(self._chain(nodes, int(state[c.S_RESULT])), self.primitives, done, t0)
+        if status == c.CAPPED:
+            return failure(f"no path within max_expansions={cfg.max_expansions}", done, t0)
+        if status == c.EXHAUSTED:
+            return failure("no path: every reachable pose was expanded (open list exhausted)",
+                           done, t0)
+        return None  # OUT_OF_TABLES
+
+    @staticmethod
+    def _node_arrays(capacity: int) -> tuple[np.ndarray, ...]:
+        """x, y, g, turns, row, col, parent, primitive, key, is_goal."""
+        return (*(np.empty(capacity) for _ in range(3)),
+                *(np.empty(capacity, np.int64) for _ in range(6)),
+                np.empty(capacity, np.bool_))
+
+    def _expanded_xy(self, nodes, expanded, state) -> np.ndarray:
+        ids = expanded[:state[self.kernel.S_EXPANDED]]
+        return np.column_stack([nodes[0][ids], nodes[1][ids]])
+
+    def _chain(self, nodes, goal: int) -> Node:
+        """The goal's :class:`Node`, linked to its ancestors (the shot's poses rebuilt)."""
+        x, y, g, turns, row, col, parent, primitive, key, is_goal = nodes
+        ids = []
+        i = goal
+        while i >= 0:
+            ids.append(i)
+            i = int(parent[i])
+        node = None
+        for i in reversed(ids):
+            shot = None
+            if primitive[i] == SHOT:
+                pose = (node.x, node.y, self.primitives.heading(node.turns))
+                shot = shot_poses(pose, self.goal, self.gth, self.planner.min_turn_radius_m,
+                                  self.planner._substep(), math.inf)
+            node = Node(float(x[i]), float(y[i]), int(turns[i]), int(row[i]), int(col[i]),
+                        float(g[i]), node, int(primitive[i]), bool(is_goal[i]), int(key[i]),
+                        shot)
+        return node
+
+
 def plan(
     start,
     goal,
@@ -407,6 +623,7 @@ def plan(
     min_turn_radius_m: float,
     footprint: tuple[float, float],
     cfg: PlannerConfig | None = None,
+    backend: str = "compiled",
 ) -> PlanResult:
     """One query: ``HybridAStar(costmap, occupancy, grid, ...).plan(start, goal)``.
 
@@ -414,7 +631,6 @@ def plan(
     [0, 1]; occupancy (H, W) uint8; footprint (length_m, width_m). See
     :class:`HybridAStar`. For several queries on one map, build the planner once.
     """
-    planner = HybridAStar(
-        costmap, occupancy, grid, min_turn_radius_m=min_turn_radius_m, footprint=footprint, cfg=cfg
-    )
+    planner = HybridAStar(costmap, occupancy, grid, min_turn_radius_m=min_turn_radius_m,
+                          footprint=footprint, cfg=cfg, backend=backend)
     return planner.plan(start, goal)

@@ -15,6 +15,7 @@ from dgt_lib.core.geometry import TWO_PI, GridSpec, nearest_heading_bin
 from dgt_lib.navigation.planner.primitives import (
     amplified_cost,
     arc_poses,
+    distance,
     edge_cost,
     travel_heading_bin,
 )
@@ -49,7 +50,7 @@ def dubins_path(start, goal, radius: float) -> list[tuple[str, float]]:
     origin and the goal on the +x axis, distances in units of the radius).
     """
     dx, dy = goal[0] - start[0], goal[1] - start[1]
-    d = math.hypot(dx, dy) / radius
+    d = distance(dx, dy) / radius
     phi = math.atan2(dy, dx)
     a, b = _mod2pi(start[2] - phi), _mod2pi(goal[2] - phi)
     sa, sb, ca, cb, cab = math.sin(a), math.sin(b), math.cos(a), math.cos(b), math.cos(a - b)
@@ -96,7 +97,7 @@ def turn_then_straight(start, goal_xy, radius: float) -> list[tuple[str, float]]
     best = None
     for kind, side in (("L", 1.0), ("R", -1.0)):
         cx, cy = x - side * radius * math.sin(th), y + side * radius * math.cos(th)
-        dist = math.hypot(goal_xy[0] - cx, goal_xy[1] - cy)
+        dist = distance(goal_xy[0] - cx, goal_xy[1] - cy)
         if dist < radius:
             continue
         straight = math.sqrt(max(dist * dist - radius * radius, 0.0))

@@ -1,0 +1,159 @@
+"""The exact planner's costs do not move: recorded from the pure-Python search at commit
+3adf92a (before the planner was made faster) on the deterministic queries of
+``tests/planner_cases.py``; the compiled search (the default backend) must return the
+reference search's plan on every one of them, node for node.
+
+Hybrid A*'s closed set keeps the first node expanded in each (x, y, θ) cell, so a search
+that pops nodes in another order may return another (slightly costlier or cheaper) path:
+the cost is exact only up to that discretisation. A faster search that pops the same nodes
+in the same order returns the same cost to rounding, which is what is asserted: the
+recorded cost to 1e-9, relative. A heuristic that overestimates, a wrong edge cost, a
+missed collision or a changed closed-set rule moves some of these costs far more.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from dgt_lib.core.config import PlannerConfig
+from dgt_lib.navigation.planner import HybridAStar
+from dgt_lib.navigation.planner.heuristics import disk_minimum
+from tests import planner_cases
+
+RECORDED = {  # name: (cost, expansions) of the pure-Python search at commit 3adf92a
+    "hill-up-cost_to_go": (79.09468236695092, 3092),
+    "hill-down-cost_to_go": (49.968000000000025, 435),
+    "hill-up-euclidean": (79.56400517657829, 6749),
+    "hill-down-euclidean": (49.968000000000025, 749),
+    "hill-up-isotropic": (79.09468236695092, 3092),
+    "hill-up-noshot": (79.344, 3238),
+    "field-0": (125.66461791217671, 362),
+    "field-1": (235.8881376462216, 6606),
+    "field-2": (228.09691041358047, 2768),
+    "field-3": (186.4613357809515, 1730),
+    "field-4": (105.82731680001736, 773),
+    "field-5": (140.19387993435078, 1097),
+    "field-6": (136.60338543726445, 528),
+    "field-7": (354.1924583124266, 12456),
+    "field-0-euclidean": (125.66461791217671, 471),
+    "box-main": (123.91569911277193, 15182),
+}
+
+CASES = planner_cases.cases()
+
+
+@pytest.fixture(scope="module")
+def maps():
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            cache[name] = planner_cases.maps(name)
+        return cache[name]
+
+    return get
+
+
+def test_every_case_is_recorded():
+    assert sorted(name for name, *_ in CASES) == sorted(RECORDED)
+
+
+def same_plan(a, b) -> bool:
+    """Whether two PlanResults describe the same search: outcome, path, nodes, node costs,
+    and every expanded node in the same order."""
+    return (a.success == b.success and a.reason == b.reason and a.expansions == b.expansions
+            and a.cost == b.cost and np.array_equal(a.path, b.path)
+            and np.array_equal(a.nodes, b.nodes) and np.array_equal(a.node_costs, b.node_costs)
+            and np.array_equal(a.expanded_xy, b.expanded_xy))
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
+def test_exact_cost_is_the_recorded_one_and_both_backends_agree(maps, case):
+    """The reference search returns the recorded cost; the compiled search expands the
+    same nodes in the same order and returns the same plan, to the bit."""
+    name, map_name, vehicle, cfg, start, goal = case
+    results = {}
+    for backend in ("python", "compiled"):
+        planner = HybridAStar(*maps(map_name), cfg=cfg, backend=backend, **vehicle)
+        results[backend] = planner.plan(start, goal)
+        if cfg.heuristic == "cost_to_go":  # scipy's Dijkstra and the compiled one agree
+            results[backend + " h"] = planner.cost_to_go(goal[:2])
+    ref = results["python"]
+    cost, _ = RECORDED[name]
+    assert ref.success and math.isfinite(ref.cost)
+    assert ref.cost == pytest.approx(cost, rel=1e-9, abs=0.0)
+    assert ref.node_costs[-1] == ref.cost
+    assert same_plan(ref, results["compiled"])
+    if cfg.heuristic == "cost_to_go":
+        np.testing.assert_array_equal(results["python h"], results["compiled h"])
+
+
+def _hill_planners(occupancy=None, **cfg):
+    costmap, hill_occupancy, grid = planner_cases.hill_maps()
+    occupancy = hill_occupancy if occupancy is None else occupancy
+    return [HybridAStar(costmap, occupancy, grid, cfg=PlannerConfig(**cfg), backend=b,
+                        **planner_cases.HILL) for b in ("python", "compiled")]
+
+
+UP = ((40.0, 8.0, math.pi / 2), (40.0, 52.0))
+
+
+def test_failures_are_the_same_in_both_backends():
+    """No path: refuted by the 2D relaxation, the open list exhausted, max_expansions."""
+    costmap, occupancy, grid = planner_cases.hill_maps()
+    X, Y = grid.cell_centers()
+    closed = occupancy.copy()
+    closed[(Y > 25.0) & (Y < 35.0)] = 1
+    pen = closed.copy()
+    pen[(Y < 25.0) & ((X < 25.0) | (X > 55.0))] = 1
+    for occ, cfg, reason in (
+            (closed, {}, "relaxation"),
+            (pen, dict(heuristic="euclidean", closed_cell_m=1.6, theta_bins=36),
+             "open list exhausted"),
+            (closed, dict(heuristic="euclidean", max_expansions=500), "max_expansions=500")):
+        ref, fast = (p.plan(*UP) for p in _hill_planners(occ, **cfg))
+        assert not ref.success and reason in ref.reason
+        assert same_plan(ref, fast)
+
+
+def test_max_time_is_checked_before_the_first_expansion():
+    for planner in _hill_planners(max_time_s=1e-9):
+        result = planner.plan(*UP)
+        assert not result.success and "max_time_s" in result.reason
+        assert result.expansions == 0
+
+
+def test_a_start_in_the_goal_region_is_the_whole_path():
+    start = (40.0, 8.0, math.pi / 2)
+    ref, fast = (p.plan(start, (40.3, 8.4)) for p in _hill_planners())
+    assert ref.success and ref.expansions == 0 and len(ref.path) == 1
+    assert same_plan(ref, fast)
+
+
+@pytest.mark.parametrize("limits", [dict(CHUNK=7), dict(CAPACITY=8), dict(TURNS=2)],
+                         ids=["time-checks", "growing-arrays", "turn-table-fallback"])
+def test_compiled_bookkeeping_does_not_change_the_plan(monkeypatch, limits):
+    """Pausing every 7 expansions (to check max_time_s), growing the node arrays from 8
+    entries, or running out of turn tables (the reference search then answers) gives the
+    reference plan."""
+    from dgt_lib.navigation.planner import search
+
+    for attr, value in limits.items():
+        monkeypatch.setattr(search._CompiledSearch, attr, value)
+    ref, fast = (p.plan(*UP) for p in _hill_planners())
+    assert ref.success and same_plan(ref, fast)
+
+
+def test_disk_minimum_is_scipys_minimum_filter():
+    rng = np.random.default_rng(3)
+    values = rng.random((37, 53))
+    values[rng.random(values.shape) < 0.2] = np.inf
+    for rho in (0.5, 1.0, 2.5, 5.5):
+        half = math.floor(rho)
+        d = np.arange(-half, half + 1)
+        disk = np.hypot(d[:, None], d[None, :]) <= rho
+        expected = ndimage.minimum_filter(values, footprint=disk, mode="constant",
+                                          cval=np.inf)
+        np.testing.assert_array_equal(disk_minimum(values, disk), expected)
