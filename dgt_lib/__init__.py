@@ -48,6 +48,9 @@ _API = {
     "ensure_costmap_accuracy": "dgt_lib.stages.ground_truth",
     # one query on any terrain
     "plan_query": "dgt_lib.query",
+    # where the work runs (README → Run it bigger): executors and devices
+    "ExecutionConfig": "dgt_lib.core.config", "make_executor": "dgt_lib.core.executors",
+    "use_executor": "dgt_lib.core.executors",
 }
 __all__ = sorted(_API)
 

@@ -1,7 +1,8 @@
 """Command line: ``dgt`` (or ``python -m dgt_lib``).
 
     dgt reproduce [--profile P] [--stages a b …] [--seeds N] [--set NAME=VALUE …]
-                                                   run the cached pipeline stages
+                  [--executor process|dask|ray] [--address A] [--workers N]
+                  [--device auto|cpu|cuda]         run the cached pipeline stages
     dgt stages                                     list the stages
     dgt plan --world W --vehicle V --start x,y,yaw --goal x,y [--method M] [--drive]
              [--set NAME=VALUE …]                  plan (and drive) one query
@@ -13,13 +14,17 @@ as in ``dgt_lib/core/config.py``, checked before anything runs).
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import re
 import shlex
 import sys
 import time
+from dataclasses import replace
 
 from dgt_lib.core.config import (
+    DEVICES,
+    EXECUTORS,
     PROFILE_NAMES,
     InvalidOverrideError,
     Profile,
@@ -52,17 +57,70 @@ def _profile(args: argparse.Namespace) -> Profile:
     return get_profile(args.profile).with_overrides(parse_overrides(args.set or []))
 
 
+EXECUTOR_PACKAGES = {"dask": "distributed", "ray": "ray"}
+"""The package each optional executor needs (the extras ``dgt-kit[dask]``, ``dgt-kit[ray]``)."""
+
+
+class UsageError(ValueError):
+    """A command-line value that cannot work here (exit status 2, one line)."""
+
+
+def _with_execution(profile: Profile, args: argparse.Namespace) -> Profile:
+    """``profile`` with ``--executor``, ``--address``, ``--workers`` and ``--device``
+    applied (:class:`~dgt_lib.core.config.ExecutionConfig`); raises :class:`UsageError`
+    for a combination that cannot run here, before any work starts."""
+    ex = profile.execution
+    executor = getattr(args, "executor", None) or ex.executor
+    address = getattr(args, "address", None)
+    if address is None and executor == ex.executor:
+        address = ex.address
+    try:
+        execution = replace(ex, executor=executor, address=address,
+                            device=getattr(args, "device", None) or ex.device)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    package = EXECUTOR_PACKAGES.get(execution.executor)
+    if package is not None and importlib.util.find_spec(package) is None:
+        raise UsageError(f"--executor {execution.executor} needs the {package!r} package: "
+                         f"pip install 'dgt-kit[{execution.executor}]'")
+    if execution.device == "cuda":
+        from dgt_lib.learning.training import resolve_device
+
+        try:
+            resolve_device("cuda")
+        except ValueError as exc:
+            raise UsageError(f"--device cuda: {exc}") from None
+    workers = getattr(args, "workers", None)
+    if workers is not None and workers < 1:
+        raise UsageError(f"--workers must be ≥ 1, got {workers}")
+    return profile.with_(execution=execution,
+                         workers=workers if workers is not None else profile.workers)
+
+
+def _executor_text(profile: Profile) -> str:
+    """How the jobs run, for the first line of ``dgt reproduce``."""
+    ex = profile.execution
+    if ex.executor == "process":
+        return f"{profile.workers} worker processes"
+    where = ex.address or f"a local cluster of {profile.workers} workers"
+    return f"{ex.executor} on {where}"
+
+
 def _reproduce(args: argparse.Namespace) -> int:
+    from dgt_lib.core.executors import use_executor
+
     profile = _profile(args)
     if args.seeds is not None:
         if args.seeds < 1:
             print(f"dgt: error: --seeds must be ≥ 1, got {args.seeds}", file=sys.stderr)
             return 2
         profile = profile.with_(seeds=args.seeds)
+    profile = _with_execution(profile, args)
     stages = registry.select(args.stages)
     runs = profile.seed_profiles()
     print(f"dgt reproduce — profile {profile.describe()}, seed(s) "
-          f"{', '.join(str(p.seed) for p in runs)}, outputs under {profile_root(profile)}")
+          f"{', '.join(str(p.seed) for p in runs)}, outputs under {profile_root(profile)}; "
+          f"jobs: {_executor_text(profile)}, device {profile.execution.device}")
     if not stages:
         print("The pipeline has no stages yet: nothing to run.")
         return 0
@@ -71,8 +129,11 @@ def _reproduce(args: argparse.Namespace) -> int:
     rows = []
     jobs = [(run, stage) for run in runs for stage in stages]
     run, stage = jobs[0]
+    ex = profile.execution
     try:
-        with tqdm(jobs, desc="pipeline", bar_format=PIPELINE_BAR_FORMAT) as bar:
+        # one executor for the whole run (one local cluster, started once, stopped after)
+        with use_executor(ex.executor, address=ex.address, workers=profile.workers), \
+                tqdm(jobs, desc="pipeline", bar_format=PIPELINE_BAR_FORMAT) as bar:
             for run, stage in bar:
                 tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
                 t0 = time.perf_counter()
@@ -172,7 +233,7 @@ def _plan(args: argparse.Namespace) -> int:
     from dgt_lib.navigation.planner import InvalidQueryError
     from dgt_lib.query import plan_query
 
-    profile = _profile(args)
+    profile = _with_execution(_profile(args), args)
     if args.vehicle not in VEHICLES:
         print(f"dgt: error: unknown vehicle {args.vehicle!r}; valid vehicles: "
               f"{', '.join(VEHICLES)}", file=sys.stderr)
@@ -188,6 +249,12 @@ def _plan(args: argparse.Namespace) -> int:
     return 0 if report.plan.success else 1
 
 
+def _device_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--device", choices=DEVICES, default=None,
+                        help="where training and costmap inference run: auto (a CUDA GPU "
+                             "when there is one, the default), cpu or cuda")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dgt", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -200,6 +267,18 @@ def build_parser() -> argparse.ArgumentParser:
                      help="run every stage for N seeds (default: the profile's; demo 3) and "
                           "report each seed and the pooled results")
     _add_set_option(rep)
+    rep.add_argument("--executor", choices=EXECUTORS, default=None,
+                     help="what runs collection episodes and trials: a process pool on this "
+                          "machine (default), a Dask cluster (pip install 'dgt-kit[dask]') or "
+                          "a Ray cluster ('dgt-kit[ray]'); results do not depend on it")
+    rep.add_argument("--address", default=None, metavar="ADDRESS",
+                     help="an existing cluster's scheduler (Dask tcp://host:8786, Ray "
+                          "ray://host:10001 or auto); default: start a local cluster of "
+                          "--workers workers for the run")
+    rep.add_argument("--workers", type=int, default=None, metavar="N",
+                     help="worker processes, or local cluster workers (default: the "
+                          "profile's, 2)")
+    _device_arg(rep)
     rep.set_defaults(func=_reproduce)
     st = sub.add_parser("stages", help="list the pipeline stages")
     st.set_defaults(func=_stages)
@@ -221,6 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--vertical-scale", type=float, default=None,
                     help="PNG heightmap: metres at the brightest pixel")
     _add_set_option(pl)
+    _device_arg(pl)
     pl.set_defaults(func=_plan)
     return parser
 
@@ -236,7 +316,8 @@ def main(argv: list[str] | None = None) -> int:
     args.command_line = shlex.join(["dgt", *argv])
     try:
         return args.func(args)
-    except (UnknownProfileError, InvalidOverrideError, registry.UnknownStageError) as exc:
+    except (UnknownProfileError, InvalidOverrideError, registry.UnknownStageError,
+            UsageError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

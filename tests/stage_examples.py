@@ -1,9 +1,10 @@
 """Tiny stages used by tests/test_cli.py to exercise `dgt reproduce`."""
 
+import os
 import time
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.executors import run_jobs
+from dgt_lib.core.executors import current_executor, run_jobs
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
 
@@ -20,8 +21,27 @@ def second(profile):
 
 
 def _job(index, seconds):
+    pids = os.path.join(os.environ.get(artifacts.DATA_ENV_VAR, "."), "pids")
+    os.makedirs(pids, exist_ok=True)
+    open(os.path.join(pids, str(os.getpid())), "w").close()  # who ran it (test_cli)
     time.sleep(seconds)
     return index
+
+
+def executor(profile):
+    """Four quick jobs through whatever `dgt reproduce` chose; says which executor ran
+    them and in how many processes."""
+    pids = set(run_jobs(_pid_of, [(i,) for i in range(4)], workers=profile.workers,
+                        progress=False).values())
+    ex = current_executor()
+    return StageOutput([], f"executor {type(ex).__name__ if ex else None} with "
+                           f"{getattr(ex, 'workers', None)} workers; "
+                           f"{len(pids - {os.getpid()})} worker processes")
+
+
+def _pid_of(_):
+    time.sleep(0.2)
+    return os.getpid()
 
 
 def pool(profile):

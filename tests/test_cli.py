@@ -131,6 +131,99 @@ def test_ctrl_c_in_a_terminal_stops_a_pool_stage_in_seconds_and_keeps_its_result
     assert not (tmp_path / "smoke" / "seed-0" / "example.json").exists()  # "first" never ran
 
 
+def _alive(pid: int) -> bool:
+    """Running (a zombie left for init to reap is not)."""
+    try:
+        os.kill(pid, 0)
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except (ProcessLookupError, FileNotFoundError):
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+@pytest.mark.parametrize("kind", ["dask", "ray"])
+def test_reproduce_runs_its_jobs_on_the_executor_it_is_given(kind, capsys, tmp_path,
+                                                             monkeypatch):
+    pytest.importorskip({"dask": "distributed", "ray": "ray"}[kind])
+    from dgt_lib.core.executors import current_executor
+
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("jobs", "tests.stage_examples:executor", "four quick jobs")])
+    assert main(["reproduce", "--profile", "smoke", "--executor", kind, "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    assert f"jobs: {kind} on a local cluster of 2 workers" in out
+    name = {"dask": "DaskExecutor", "ray": "RayExecutor"}[kind]
+    assert f"executor {name} with 2 workers; 2 worker processes" in out
+    assert current_executor() is None  # closed with the run
+    assert main(["reproduce", "--profile", "smoke"]) == 0  # the default: its own pools
+    assert "executor None with None workers; 2 worker processes" in capsys.readouterr().out
+
+
+def test_execution_options_that_cannot_work_are_one_line_errors(capsys, monkeypatch):
+    import torch
+
+    monkeypatch.setattr(pipeline, "STAGES", [])
+    assert main(["reproduce", "--address", "tcp://h:8786"]) == 2
+    assert "an address needs executor 'dask' or 'ray'" in capsys.readouterr().err
+    assert main(["reproduce", "--workers", "0"]) == 2
+    assert "--workers must be ≥ 1" in capsys.readouterr().err
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert main(["reproduce", "--device", "cuda"]) == 2
+    assert "--device cuda" in capsys.readouterr().err
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "ray" else real(name, *a))
+    assert main(["reproduce", "--executor", "ray"]) == 2
+    assert "pip install 'dgt-kit[ray]'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--executor", "spark"])
+    assert "invalid choice" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["dask", "ray"])
+def test_ctrl_c_stops_a_cluster_run_in_seconds_and_stops_its_local_cluster(kind, tmp_path):
+    """SIGINT to the whole process group (the cluster's workers included) while jobs run on
+    a local Dask or Ray cluster: exit 130 with the one line, the finished job kept, no
+    worker process left."""
+    pytest.importorskip({"dask": "distributed", "ray": "ray"}[kind])
+    script = textwrap.dedent(f"""
+        import sys
+        from dgt_lib.stages import registry
+        registry.STAGES[:] = [registry.Stage("pool", "tests.stage_examples:pool", "jobs")]
+        from dgt_lib.cli import main
+        sys.exit(main(["reproduce", "--profile", "smoke", "--executor", "{kind}"]))
+    """)
+    env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    saved = tmp_path / "smoke" / "seed-0" / "jobs" / "0.json.meta.json"
+    pids = tmp_path / "pids"
+    deadline = time.monotonic() + 120
+    while (not saved.exists() or len(list(pids.glob("*"))) < 2) and proc.poll() is None \
+            and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert saved.exists()
+    time.sleep(0.5)
+    t0 = time.monotonic()
+    os.killpg(proc.pid, signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and time.monotonic() - t0 < 15, err
+    assert "Traceback" not in out + err
+    assert [line for line in err.splitlines() if "interrupted" in line] == [
+        "dgt: interrupted in seed 0 · pool. Kept: the earlier stages' outputs; what it had "
+        f"finished. Rerun `dgt reproduce --profile smoke --executor {kind}` to resume."]
+    workers = [int(p.name) for p in pids.iterdir()]
+    assert workers and proc.pid not in workers
+    deadline = time.monotonic() + 10
+    while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(pid) for pid in workers)
+
+
 def test_profile_names_follow_one_rule_on_the_command_line_and_in_the_environment(
         capsys, tmp_path, monkeypatch):
     """`DGT_PROFILE=Smoke` works, so `--profile Smoke` must too (case-insensitive both)."""

@@ -175,6 +175,44 @@ class ExperimentsConfig:
     time_limit_factor: float = 2.0
 
 
+EXECUTORS: tuple[str, ...] = ("process", "dask", "ray")
+"""Valid ``ExecutionConfig.executor`` values (``dgt reproduce --executor``)."""
+
+DEVICES: tuple[str, ...] = ("auto", "cpu", "cuda")
+"""Valid ``ExecutionConfig.device`` values (``dgt reproduce --device``)."""
+
+
+@dataclass(frozen=True)
+class ExecutionConfig:
+    """Where the work runs — never what it computes (README → Run it bigger).
+
+    executor: what runs the independent jobs (collection episodes, closed-loop trials):
+    ``"process"`` a pool of ``Profile.workers`` processes on this machine; ``"dask"`` a
+    Dask cluster (``pip install 'dgt-kit[dask]'``); ``"ray"`` a Ray cluster
+    (``'dgt-kit[ray]'``). address: the scheduler of an existing Dask cluster
+    (``tcp://host:8786``) or a Ray cluster (``ray://host:10001``, ``auto``); None starts a
+    local cluster of ``Profile.workers`` single-threaded workers for the run and stops it
+    after. device: where training and costmap inference run, ``"auto"`` (a CUDA GPU when
+    torch sees one, else the CPU), ``"cpu"`` or ``"cuda"``.
+
+    No artifact's cache key includes this section and two profiles that differ only here
+    compare equal, so a run resumed on another executor or device reuses everything.
+    """
+
+    executor: str = "process"
+    address: str | None = None
+    device: str = "auto"
+
+    def __post_init__(self) -> None:
+        if self.executor not in EXECUTORS:
+            raise ValueError(f"unknown executor {self.executor!r}; valid: {', '.join(EXECUTORS)}")
+        if self.device not in DEVICES:
+            raise ValueError(f"unknown device {self.device!r}; valid: {', '.join(DEVICES)}")
+        if self.address is not None and self.executor == "process":
+            raise ValueError("an address needs executor 'dask' or 'ray' (the process pool "
+                             "runs on this machine)")
+
+
 @dataclass(frozen=True)
 class GroundTruthConfig:
     """Ground-truth directional locomotion (``dgt_lib.evaluation.ground_truth``): cells of
@@ -203,13 +241,18 @@ class Profile:
     name: str
     seed: int = 0  # the run's seed: collection, training, queries, controller noise
     seeds: int = 1  # `dgt reproduce` runs seeds seed, seed + 1, …, seed + seeds − 1
-    workers: int = 2  # processes for episodes and trials (concurrent.futures)
+    # processes (or local cluster workers) for episodes and trials; like `execution`, not
+    # compared: it changes how fast, not what, so a resumed run may use another count
+    workers: int = field(default=2, compare=False)
     worlds: WorldsConfig = field(default_factory=WorldsConfig)
     collect: CollectConfig = field(default_factory=CollectConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     experiments: ExperimentsConfig = field(default_factory=ExperimentsConfig)
+    # where jobs and networks run, not what they compute: left out of comparisons (and of
+    # every cache key), so the same run on another executor or device is the same Profile
+    execution: ExecutionConfig = field(default=ExecutionConfig(), compare=False)
     ground_truth: GroundTruthConfig = field(default_factory=GroundTruthConfig)
     overrides: tuple[tuple[str, object], ...] = ()
     """The settings changed by :meth:`with_overrides`, ``(dotted name, value)`` in the order

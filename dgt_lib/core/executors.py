@@ -3,19 +3,28 @@ samples and closed-loop trials (docs/ARCHITECTURE.md → Scale).
 
 Any :class:`concurrent.futures.Executor` works — a process pool of spawned workers by
 default (:func:`default_executor`), a :class:`SerialExecutor` for one worker, or a
-Dask/Ray executor passed in. :func:`run_jobs` submits at most ``max_in_flight`` jobs at a
+Dask/Ray executor. :func:`run_jobs` submits at most ``max_in_flight`` jobs at a
 time, hands every finished result to ``on_result`` *in this process* as soon as it is
 there (so the caller can save or journal it: an interruption loses only the jobs in
 flight) and shows a progress bar with an ETA. Results do not depend on the executor.
 
+The choice of executor is made here only: :func:`make_executor` opens one of
+:data:`~dgt_lib.core.config.EXECUTORS` — ``"process"``, ``"dask"`` (``distributed``) or
+``"ray"`` — on a local cluster or an existing one (``address``), and closes what it opened;
+:func:`use_executor` makes it the one every :func:`run_jobs` without an executor uses
+(``dgt reproduce --executor``).
+
 Example::
 
     results = run_jobs(square, [(1,), (2,), (3,)], workers=2, desc="squares")
+    with make_executor("dask", workers=2) as ex:          # a local Dask cluster
+        results = run_jobs(square, [(1,), (2,), (3,)], executor=ex)
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing
 import os
 import signal
@@ -23,6 +32,10 @@ import sys
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from typing import Any
+
+from dgt_lib.core.artifacts import DATA_ENV_VAR
+from dgt_lib.core.config import ENV_VAR as PROFILE_ENV_VAR
+from dgt_lib.core.config import EXECUTORS
 
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
@@ -89,6 +102,220 @@ def worker_environment() -> Iterator[None]:
                 os.environ[k] = v
 
 
+def worker_env() -> dict[str, str]:
+    """Environment variables of the cluster workers :func:`make_executor` starts: one
+    thread each (:data:`THREAD_VARS`), headless MuJoCo, and this process's data directory
+    and profile, so that a worker reads the same artifact cache."""
+    env = {var: "1" for var in THREAD_VARS}
+    env["MUJOCO_GL"] = os.environ.get("MUJOCO_GL", "egl")
+    for var in (DATA_ENV_VAR, PROFILE_ENV_VAR):
+        if os.environ.get(var):
+            env[var] = os.environ[var]
+    return env
+
+
+def call_in_worker(fn: Callable[..., Any], *args: Any) -> Any:
+    """What a Dask or Ray worker runs for one job: the set-up a pool worker gets from its
+    initializer (headless MuJoCo, :func:`limit_threads`), then ``fn(*args)``. Workers of
+    a cluster we did not start (``address``) get it too."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    limit_threads()
+    return fn(*args)
+
+
+class DaskExecutor(Executor):
+    """Jobs on a Dask cluster through ``client``: each job runs :func:`call_in_worker`,
+    as a fresh task (``pure=False``: never merged with an identical earlier one). A worker
+    that dies mid-job has its job rerun on another (Dask's ``allowed-failures``).
+    ``workers`` is the cluster's thread count (what :func:`run_jobs` keeps busy)."""
+
+    def __init__(self, client: Any) -> None:
+        self.client = client
+        self._inner = client.get_executor(pure=False)
+
+    @property
+    def workers(self) -> int:
+        return max(1, sum(self.client.nthreads().values()))
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        if kwargs:
+            raise TypeError("DaskExecutor.submit takes positional arguments only")
+        return self._inner.submit(call_in_worker, fn, *args)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """Stop taking jobs; ``cancel_futures`` (or ``wait=False``) cancels the jobs not
+        finished. The client and the cluster stay open (:func:`make_executor` owns them)."""
+        self._inner.shutdown(wait=wait and not cancel_futures)
+
+
+class RayExecutor(Executor):
+    """Jobs on the Ray cluster this process is connected to (``ray.init``): each job is a
+    remote task of one CPU running :func:`call_in_worker`; its ``ObjectRef.future()`` is the
+    :class:`~concurrent.futures.Future`. A worker that dies mid-job has its job retried
+    (Ray's ``max_retries``). ``workers`` is the cluster's CPU count."""
+
+    def __init__(self) -> None:
+        import ray
+
+        self._ray = ray
+        self._remote = ray.remote(num_cpus=1)(call_in_worker)
+        self._refs: dict[Future, Any] = {}
+        self._shutdown = False
+
+    @property
+    def workers(self) -> int:
+        return max(1, int(self._ray.cluster_resources().get("CPU", 1)))
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        if kwargs:
+            raise TypeError("RayExecutor.submit takes positional arguments only")
+        if self._shutdown:
+            raise RuntimeError("cannot schedule new futures after shutdown")
+        ref = self._remote.remote(fn, *args)
+        future = ref.future()
+        self._refs[future] = ref
+        future.add_done_callback(lambda f: self._refs.pop(f, None))
+        return future
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """Stop taking jobs; ``cancel_futures`` (or ``wait=False``) cancels the jobs not
+        finished (their workers are stopped). Ray stays connected (:func:`make_executor`)."""
+        self._shutdown = True
+        refs = list(self._refs.values())
+        if cancel_futures or not wait:
+            for ref in refs:
+                with contextlib.suppress(Exception):
+                    self._ray.cancel(ref, force=True)
+        elif refs:
+            self._ray.wait(refs, num_returns=len(refs))
+
+
+def _missing(kind: str, module: str) -> ImportError:
+    return ImportError(f"executor {kind!r} needs the {module!r} package: "
+                       f"pip install 'dgt-kit[{kind}]' (or pip install {module})")
+
+
+@contextlib.contextmanager
+def _dask(address: str | None, workers: int) -> Iterator[Executor]:
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise _missing("dask", "distributed") from None
+    cluster = None
+    if address is None:  # our own cluster: single-threaded worker processes, quiet logs
+        cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1,
+                               processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR, env=worker_env())
+    try:
+        client = Client(cluster if cluster is not None else address)
+        try:
+            ex = DaskExecutor(client)
+            try:
+                yield ex
+            except BaseException:
+                ex.shutdown(wait=False, cancel_futures=True)  # our jobs, not the cluster
+                raise
+        finally:
+            client.close()  # ours; a cluster at `address` is the user's and stays up
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
+@contextlib.contextmanager
+def _ray(address: str | None, workers: int) -> Iterator[Executor]:
+    try:
+        import ray
+    except ImportError:
+        raise _missing("ray", "ray") from None
+    own = not ray.is_initialized()  # a user's own ray.init() stays as it is
+    if own:
+        kwargs: dict[str, Any] = {"runtime_env": {"env_vars": worker_env()},
+                                  "logging_level": logging.ERROR}
+        if address is None:  # a local cluster of `workers` CPUs, stopped at the end
+            kwargs.update(num_cpus=max(1, workers), include_dashboard=False)
+        ray.init(address=address, **kwargs)
+    try:
+        ex = RayExecutor()
+        try:
+            yield ex
+        except BaseException:
+            ex.shutdown(wait=False, cancel_futures=True)
+            raise
+        ex.shutdown(wait=True)
+    finally:
+        if own:
+            ray.shutdown()  # stops a local cluster; only disconnects from `address`
+
+
+@contextlib.contextmanager
+def make_executor(kind: str = "process", *, address: str | None = None, workers: int = 2,
+                  start_method: str = "spawn") -> Iterator[Executor]:
+    """An executor of ``kind`` for the ``with`` block, closed after it — the one place
+    the kit chooses how jobs run.
+
+    ``"process"``: :func:`default_executor` (``workers`` processes, ``start_method``; a
+    :class:`SerialExecutor` for ``workers <= 1``). ``"dask"``: a :class:`DaskExecutor` on
+    the scheduler at ``address``, or on a ``LocalCluster`` of ``workers`` single-threaded
+    worker processes started here (needs ``distributed``). ``"ray"``: a
+    :class:`RayExecutor` on the cluster at ``address``, or on a local one of ``workers``
+    CPUs (needs ``ray``). Local workers get :func:`worker_env`.
+
+    On an exception or Ctrl-C in the block, the jobs not finished are cancelled and the
+    pool's processes terminated (:func:`stop_workers`); the Dask client or Ray connection
+    opened here is closed, and a local cluster started here is stopped — a cluster at
+    ``address`` is never stopped.
+    """
+    if kind not in EXECUTORS:
+        raise ValueError(f"unknown executor {kind!r}; valid: {', '.join(EXECUTORS)}")
+    if kind == "dask":
+        with _dask(address, workers) as ex:
+            yield ex
+        return
+    if kind == "ray":
+        with _ray(address, workers) as ex:
+            yield ex
+        return
+    if address is not None:
+        raise ValueError("executor 'process' runs on this machine: it takes no address")
+    ex = default_executor(workers, start_method)
+    try:
+        yield ex
+    except BaseException:
+        stop_workers(ex)
+        raise
+    ex.shutdown(wait=True)
+
+
+_CURRENT: list[Executor] = []
+"""The executors of the enclosing :func:`use_executor` blocks, innermost last."""
+
+
+def current_executor() -> Executor | None:
+    """The executor of the innermost :func:`use_executor` block, or None."""
+    return _CURRENT[-1] if _CURRENT else None
+
+
+@contextlib.contextmanager
+def use_executor(kind: str = "process", *, address: str | None = None,
+                 workers: int = 2) -> Iterator[Executor | None]:
+    """Run every :func:`run_jobs` of the block that is given no executor through one
+    executor of ``kind`` (:func:`make_executor`), opened once for the block — one local
+    Dask or Ray cluster for a whole ``dgt reproduce``. ``"process"`` changes nothing
+    (each :func:`run_jobs` keeps its own pool, forked for trials) and yields None."""
+    if kind == "process":
+        if address is not None:
+            raise ValueError("executor 'process' runs on this machine: it takes no address")
+        yield None
+        return
+    with make_executor(kind, address=address, workers=workers) as ex:
+        _CURRENT.append(ex)
+        try:
+            yield ex
+        finally:
+            _CURRENT.remove(ex)
+
+
 def default_executor(workers: int, start_method: str = "spawn") -> Executor:
     """A process pool of ``workers`` processes (each one thread), or a
     :class:`SerialExecutor` for ``workers <= 1``.
@@ -109,6 +336,8 @@ def run_jobs(
     executor: Executor | None = None,
     workers: int = 2,
     start_method: str = "spawn",
+    backend: str = "process",
+    address: str | None = None,
     max_in_flight: int | None = None,
     on_result: Callable[[tuple, Any], None] | None = None,
     progress: bool = True,
@@ -120,14 +349,18 @@ def run_jobs(
 ) -> dict[Hashable, Any]:
     """Run ``fn(*job)`` for every job; returns ``{job: result}``.
 
-    executor: any Executor; default :func:`default_executor` (``workers``,
-    ``start_method``), shut down afterwards. On an exception or Ctrl-C
-    (KeyboardInterrupt) the jobs not yet finished are cancelled and the exception
-    re-raised; the default pool's workers are terminated at once (:func:`stop_workers`),
-    so Ctrl-C stops within seconds, and every result already handed to ``on_result``
-    stays with the caller. At most
-    ``max_in_flight`` jobs are submitted at once (default 2 per worker, 1 for a
-    :class:`SerialExecutor`), in ``jobs`` order. ``on_result(job, result)`` runs in this
+    executor: any Executor; default the one of the enclosing :func:`use_executor` block,
+    else one :func:`make_executor` opens for this call — ``backend`` (``"process"``:
+    ``workers`` processes started by ``start_method``; ``"dask"``, ``"ray"``: a local
+    cluster of ``workers``, or the one at ``address``) — and closes afterwards. On an
+    exception or Ctrl-C (KeyboardInterrupt) the jobs not yet finished are cancelled and
+    the exception re-raised; an executor opened here is stopped at once (the pool's
+    workers terminated, :func:`stop_workers`), so Ctrl-C stops within seconds, and every
+    result already handed to ``on_result`` stays with the caller; so does every result
+    that finished together with a failed job. At most
+    ``max_in_flight`` jobs are submitted at once (default 2 per worker — the cluster's
+    workers for a Dask or Ray executor —, 1 for a :class:`SerialExecutor`), in ``jobs``
+    order. ``on_result(job, result)`` runs in this
     process for each finished job, in ``jobs`` order among those finishing together.
     The bar starts at ``initial`` of ``total`` (default ``initial + len(jobs)``), for
     work done earlier; ``postfix()`` is shown beside it after every job.
@@ -137,45 +370,51 @@ def run_jobs(
     out: dict[Hashable, Any] = {}
     if not jobs:
         return out
-    own = executor is None
-    ex = default_executor(workers, start_method) if own else executor
-    serial = isinstance(ex, SerialExecutor)
-    limit = max_in_flight or (1 if serial else max(2, 2 * workers))
-    order = {job: k for k, job in enumerate(jobs)}
-    queue = iter(jobs)
-    pending: dict[Future, tuple] = {}
-    bar = tqdm(total=total if total is not None else initial + len(jobs), initial=initial,
-               desc=desc, unit=unit, disable=not progress)
+    with contextlib.ExitStack() as scope:
+        ex = executor if executor is not None else current_executor()
+        if ex is None:
+            ex = scope.enter_context(make_executor(backend, address=address, workers=workers,
+                                                   start_method=start_method))
+        serial = isinstance(ex, SerialExecutor)
+        n_workers = getattr(ex, "workers", workers)
+        limit = max_in_flight or (1 if serial else max(2, 2 * n_workers))
+        order = {job: k for k, job in enumerate(jobs)}
+        queue = iter(jobs)
+        pending: dict[Future, tuple] = {}
+        bar = tqdm(total=total if total is not None else initial + len(jobs), initial=initial,
+                   desc=desc, unit=unit, disable=not progress)
 
-    def fill() -> None:
-        while len(pending) < limit:
-            job = next(queue, None)
-            if job is None:
-                return
-            pending[ex.submit(fn, *job)] = job
+        def fill() -> None:
+            while len(pending) < limit:
+                job = next(queue, None)
+                if job is None:
+                    return
+                pending[ex.submit(fn, *job)] = job
 
-    try:
-        with worker_environment():
-            fill()
-            while pending:
-                finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
-                for fut in sorted(finished, key=lambda f: order[pending[f]]):
-                    job = pending.pop(fut)
-                    out[job] = result = fut.result()
-                    if on_result is not None:
-                        on_result(job, result)
-                    bar.update(1)
-                    if postfix is not None:
-                        bar.set_postfix_str(postfix())
+        try:
+            with worker_environment():
                 fill()
-    except BaseException:
-        for fut in pending:
-            fut.cancel()
-        if own:
-            stop_workers(ex)
-        raise
-    finally:
-        bar.close()
-    if own:
-        ex.shutdown(wait=True)
+                while pending:
+                    finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+                    failed: BaseException | None = None
+                    for fut in sorted(finished, key=lambda f: order[pending[f]]):
+                        job = pending.pop(fut)
+                        if fut.exception() is not None:  # keep the others' results first
+                            failed = failed or fut.exception()
+                            continue
+                        out[job] = result = fut.result()
+                        if on_result is not None:
+                            on_result(job, result)
+                        bar.update(1)
+                        if postfix is not None:
+                            bar.set_postfix_str(postfix())
+                    if failed is not None:
+                        raise failed
+                    fill()
+        except BaseException:
+            for fut in pending:
+                fut.cancel()
+            raise
+        finally:
+            bar.close()
     return out

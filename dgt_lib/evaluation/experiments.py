@@ -140,5 +140,6 @@ def run_experiment(name: str, profile: Profile | str | None = None, *,
     tasks = [t for v in vehicles
              for t in trial_tasks(name, world, v, queries[v], methods, prof)]
     results = run_trials(tasks, load_maps, executor, workers=prof.workers, progress=progress,
-                         journal=journal)
+                         journal=journal, backend=prof.execution.executor,
+                         address=prof.execution.address)
     return ExperimentResult(name, world, results)

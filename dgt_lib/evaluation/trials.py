@@ -140,9 +140,16 @@ def _start_method() -> str:
 
 def run_trials(tasks: Sequence[TrialTask], load_maps: MapsLoader,
                executor: Executor | None = None, *, workers: int = 2, progress: bool = True,
-               journal: str | Path | None = None) -> list[TrialResult]:
-    """Run trials in parallel (a process pool of ``workers`` unless an executor is given),
-    with a progress bar; results come back in task order.
+               journal: str | Path | None = None, backend: str = "process",
+               address: str | None = None) -> list[TrialResult]:
+    """Run trials in parallel, with a progress bar; results come back in task order.
+
+    executor: default that of an enclosing :func:`~dgt_lib.core.executors.use_executor`
+    block, else ``backend`` at ``address`` (a process pool of ``workers``, or a Dask or
+    Ray cluster, :func:`~dgt_lib.core.executors.run_jobs`). The results do not depend on
+    it. A worker calls ``load_maps``: with :func:`dgt_lib.stages.experiments.trial_maps`,
+    cluster workers must see this machine's data directory (``DGT_DATA_DIR``, a shared
+    file system on a multi-machine cluster).
 
     journal: a file to which every trial is appended as soon as it ends. Trials
     already in it are not run again (those that ended in ``error`` are retried), so
@@ -161,7 +168,8 @@ def run_trials(tasks: Sequence[TrialTask], load_maps: MapsLoader,
 
     try:
         run_jobs(run_trial, [(t, load_maps) for t in todo], executor=executor,
-                 workers=workers, start_method=_start_method(), on_result=keep,
+                 workers=workers, start_method=_start_method(), backend=backend,
+                 address=address, on_result=keep,
                  progress=progress,
                  desc="trials", unit="trial", initial=len(done),
                  postfix=lambda: f"{sum(r.outcome.success for r in done.values())}/"

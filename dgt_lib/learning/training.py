@@ -99,6 +99,20 @@ def default_device() -> torch.device:
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
 
 
+def resolve_device(device: str | torch.device | None = None) -> torch.device:
+    """A torch device from ``ExecutionConfig.device`` or ``--device``: None or ``"auto"``
+    → :func:`default_device`; ``"cpu"``, ``"cuda"``, ``"cuda:1"`` or a
+    :class:`torch.device` as given. Asking for CUDA where torch sees no GPU is a
+    :class:`ValueError` saying so, not a failure deep inside the first batch."""
+    if device is None or device == "auto":
+        return default_device()
+    dev = torch.device(device)
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"device {str(device)!r}: torch {torch.__version__} sees no CUDA GPU "
+                         "(use --device auto or cpu)")
+    return dev
+
+
 def _index_batches(index: np.ndarray, batch_size: int) -> list[np.ndarray]:
     return [index[i : i + batch_size] for i in range(0, len(index), batch_size)]
 
@@ -325,7 +339,7 @@ def train_model(
     if not np.all((used >= 0) & (used <= 1)):  # also catches NaN
         raise ValueError("labels must be locomotion values in [0, 1]; found "
                          f"{np.sum(~((used >= 0) & (used <= 1)))} outside (or NaN)")
-    device = torch.device(device) if device is not None else default_device()
+    device = resolve_device(device)
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     model = DGTNet(vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden, rgb_weights=rgb_weights)

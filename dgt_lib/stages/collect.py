@@ -10,7 +10,10 @@ trajectory, as the paper's aggregate over all runs does).
 Each episode is its own artifact ``episodes/<vehicle>_<index>.npz`` (written atomically
 as it completes), so an interrupted collection resumes: completed episodes are loaded,
 only the missing ones run. Episodes run through any :class:`concurrent.futures.Executor`
-— a process pool of ``profile.workers`` by default, or a Dask/Ray executor passed in.
+— a process pool of ``profile.workers`` by default, a Dask or Ray cluster with
+``profile.execution`` (or :func:`~dgt_lib.core.executors.use_executor`), or an executor
+passed in; workers return the episode's arrays and this process saves them, so workers
+need no access to the data directory.
 The dataset built from them is :func:`dgt_lib.stages.dataset.ensure_dataset`.
 
 Example::
@@ -31,7 +34,7 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
-from dgt_lib.core.executors import SerialExecutor, limit_threads, run_jobs
+from dgt_lib.core.executors import SerialExecutor, current_executor, limit_threads, run_jobs
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
 from dgt_lib.perception.episodes import (
@@ -112,10 +115,12 @@ def collect_episodes(
     """All episodes of ``profile`` (``profile.collect.episodes`` per vehicle), each
     loaded from its artifact when it is there and built otherwise.
 
-    executor: any :class:`concurrent.futures.Executor` (a Dask or Ray one for a
-    cluster); default a process pool of ``profile.workers``
-    (:func:`~dgt_lib.core.executors.run_jobs`). Each missing episode is written as soon
-    as it completes, so an interruption loses only the episodes in flight.
+    executor: any :class:`concurrent.futures.Executor`; default the one of an enclosing
+    :func:`~dgt_lib.core.executors.use_executor` block, else ``profile.execution``'s
+    (a process pool of ``profile.workers``, or a Dask or Ray cluster:
+    :func:`~dgt_lib.core.executors.run_jobs`). The episodes do not depend on it. Each
+    missing episode is written as soon as it completes, so an interruption (or a worker
+    that dies) loses only the episodes in flight.
     on_episode: called in this process with every newly computed episode (after it is
     saved). Returns the episodes in :data:`VEHICLES` order, by index, *without* their
     sparse BEV sums (see :func:`~dgt_lib.perception.episodes.load_episode`) to keep
@@ -146,9 +151,12 @@ def collect_episodes(
         if on_episode is not None:
             on_episode(ep)
 
-    serial = isinstance(executor, SerialExecutor) or (executor is None and prof.workers <= 1)
+    serial = isinstance(executor, SerialExecutor) or (
+        executor is None and current_executor() is None and prof.workers <= 1
+        and prof.execution.executor == "process")
     run_jobs(_serial_job if serial else _episode_job, [(prof, v, i) for v, i in todo],
-             executor=executor, workers=prof.workers, max_in_flight=max_in_flight,
+             executor=executor, workers=prof.workers, backend=prof.execution.executor,
+             address=prof.execution.address, max_in_flight=max_in_flight,
              on_result=save, progress=progress, desc=f"episodes ({prof.name})", unit="ep")
     return [done[job] for job in jobs]
 

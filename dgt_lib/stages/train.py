@@ -23,7 +23,7 @@ from dgt_lib.learning.checkpoints import (
     load_checkpoint,
     prediction_digest,
 )
-from dgt_lib.learning.training import collapsed_heads, default_device, train_model
+from dgt_lib.learning.training import collapsed_heads, resolve_device, train_model
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.stages.dataset import ensure_dataset
 from dgt_lib.stages.paths import cache_dir, data_dir
@@ -92,8 +92,13 @@ def ensure_model(
     weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training
     propagates at once and writes nothing: an interrupted model is never cached as a
     finished one, and the next call trains it again from the start.
+
+    device: where the model trains and is returned (default ``profile.execution.device``:
+    a CUDA GPU when there is one); not part of the cache key — a checkpoint holds
+    CPU tensors and loads on any device.
     """
     vehicles = parse_kind(kind)
+    device = resolve_device(device if device is not None else profile.execution.device)
     cfg = profile.train
     seed = profile.seed if seed is None else seed
     if rgb_weights is None and cfg.width == 64:
@@ -113,8 +118,7 @@ def ensure_model(
 
     ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile),
                             fingerprint=prediction_digest)
-    return load_checkpoint(ckpt, vehicles=vehicles,
-                           device=device if device is not None else default_device())
+    return load_checkpoint(ckpt, vehicles=vehicles, device=device)
 
 
 def models_stage(profile: Profile, dataset: PatchDataset,
