@@ -320,9 +320,10 @@ TOP_LEVEL_SETTINGS: tuple[str, ...] = ("seed", "seeds", "workers")
 _PROFILE_TYPES: dict[str, object] = typing.get_type_hints(Profile)
 
 SECTIONS: tuple[str, ...] = tuple(f.name for f in fields(Profile)
-                                  if is_dataclass(_PROFILE_TYPES[f.name]))
-"""The :class:`Profile` sections, one per pipeline stage: worlds, collect, train, costmap,
-planner, experiments."""
+                                  if is_dataclass(_PROFILE_TYPES[f.name]) and f.compare)
+"""The :class:`Profile` sections ``--set`` can change, one per pipeline stage: worlds,
+collect, train, costmap, planner, experiments, ground_truth. (``execution`` — where jobs
+run, not what they compute — is set by ``--executor``, ``--address`` and ``--device``.)"""
 
 
 class InvalidOverrideError(ValueError):
