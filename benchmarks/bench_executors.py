@@ -2,9 +2,10 @@
 whether the results are identical (README → Run it bigger).
 
 Run: ``.venv/bin/python benchmarks/bench_executors.py [--profile smoke] [--workers 2]
-[--executors process dask ray] [--trials 4]``.
+[--executors process dask ray] [--episodes N] [--trials 4]``.
 
-1. The profile's collection episodes (smoke: 3 per vehicle, 20 s each) through
+1. The profile's collection episodes (smoke: 3 per vehicle, 20 s each; ``--episodes N``:
+   N per vehicle) through
    ``collect_episodes`` in a fresh temporary data directory per executor — the real
    thing: for Dask and Ray a local cluster of ``--workers`` single-threaded workers is
    started for the call and stopped after, and that start-up is in the wall time (also
@@ -25,6 +26,7 @@ import importlib.util
 import os
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -78,6 +80,8 @@ def main() -> None:
     parser.add_argument("--profile", default="smoke")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--executors", nargs="+", default=["process", "dask", "ray"])
+    parser.add_argument("--episodes", type=int, default=None, metavar="N",
+                        help="episodes per vehicle (default: the profile's)")
     parser.add_argument("--trials", type=int, default=4)
     args = parser.parse_args()
     kinds = [k for k in args.executors
@@ -85,6 +89,8 @@ def main() -> None:
     for k in sorted(set(args.executors) - set(kinds)):
         print(f"{k}: not installed (pip install 'dgt-kit[{k}]'), skipped")
     prof = get_profile(args.profile).with_(workers=args.workers)
+    if args.episodes is not None:
+        prof = prof.with_(collect=replace(prof.collect, episodes=(args.episodes,) * 4))
     n_eps = sum(prof.collect.episodes)
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; profile "
           f"{prof.name}, {args.workers} workers; {n_eps} episodes of "

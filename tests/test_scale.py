@@ -202,7 +202,7 @@ def test_make_executor_closes_what_it_opened_and_never_a_users_cluster(data_dir)
         cluster = ex.client.cluster
     assert ex.client.status == "closed" and cluster.status.name == "closed"
 
-    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as users:
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=":0") as users:
         with pytest.raises(KeyboardInterrupt), make_executor(
                 "dask", address=users.scheduler_address) as ex:
             assert ex.workers == 1

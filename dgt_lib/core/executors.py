@@ -203,8 +203,10 @@ def _dask(address: str | None, workers: int) -> Iterator[Executor]:
         raise _missing("dask", "distributed") from None
     cluster = None
     if address is None:  # our own cluster: single-threaded worker processes, quiet logs
+        # no dashboard, and its HTTP server on a free port: never "8787 already in use"
         cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1,
                                processes=True, dashboard_address=None,
+                               scheduler_kwargs={"dashboard_address": ":0"},
                                silence_logs=logging.ERROR, env=worker_env())
     try:
         client = Client(cluster if cluster is not None else address)
