@@ -26,13 +26,12 @@ from dgt_lib.core.config import (
     DEVICES,
     EXECUTORS,
     PROFILE_NAMES,
-    InvalidOverrideError,
     Profile,
     UnknownProfileError,
     get_profile,
-    parse_overrides,
     profile_name,
 )
+from dgt_lib.core.overrides import InvalidOverrideError, parse_overrides
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import profile_root
 

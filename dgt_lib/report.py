@@ -21,7 +21,8 @@ import json
 import matplotlib.pyplot as plt  # noqa: E402
 
 from dgt_lib import rr, viz
-from dgt_lib.core.config import Profile, as_profile, format_setting
+from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.core.overrides import format_setting
 from dgt_lib.evaluation import accuracy, seeds
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.paper import PAPER

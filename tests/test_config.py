@@ -5,12 +5,11 @@ import pytest
 from dgt_lib.core.config import (
     PROFILE_NAMES,
     VEHICLES,
-    InvalidOverrideError,
     UnknownProfileError,
     get_profile,
-    parse_overrides,
     profile_name,
 )
+from dgt_lib.core.overrides import InvalidOverrideError, parse_overrides
 
 
 def test_three_profiles_exist_and_are_named():

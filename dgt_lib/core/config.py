@@ -19,17 +19,15 @@ by the field's annotation and checked (an unknown name lists the valid ones)::
     profile = get_profile("demo").with_overrides({"planner.beta": 50, "experiments.n_hill": 10})
     profile = get_profile("demo").with_overrides(parse_overrides(["planner.beta=50"]))
 
-(the command line's ``dgt reproduce --set planner.beta=50``).
+(the command line's ``dgt reproduce --set planner.beta=50``; the rules live in
+:mod:`dgt_lib.core.overrides`).
 """
 
 from __future__ import annotations
 
-import math
 import os
-import types
-import typing
-from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field, fields, is_dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 
 PROFILE_NAMES: tuple[str, ...] = ("smoke", "demo", "paper")
 DEFAULT_PROFILE = "demo"
@@ -271,33 +269,23 @@ class Profile:
         """A copy with settings changed by dotted name, e.g.
         ``p.with_overrides({"planner.beta": 50, "collect.episodes": "10,10,10,10"})``.
 
-        A name is ``section.field`` (a field of ``worlds``, ``collect``, ``train``,
-        ``costmap``, ``planner`` or ``experiments``) or one of :data:`TOP_LEVEL_SETTINGS`.
-        A value is converted to the field's type (:func:`coerce_setting`): a string as it
-        would be typed on the command line, or a Python value of that type. Raises
-        :class:`InvalidOverrideError` naming the valid fields for an unknown name, or the
-        expected type for a value that does not fit."""
-        prof, recorded = self, dict(self.overrides)
-        for key, raw in overrides.items():
-            section, name, hint = setting_type(key)
-            value = coerce_setting(key, raw, hint, example=_current(prof, section, name))
-            try:
-                if section is None:
-                    prof = replace(prof, **{name: value})
-                else:
-                    prof = replace(prof, **{section: replace(getattr(prof, section),
-                                                             **{name: value})})
-            except ValueError as exc:  # a section's own check (Profile.seeds ≥ 1)
-                raise InvalidOverrideError(f"{key.strip()}={format_setting(value)}: {exc}"
-                                           ) from None
-            recorded[key.strip()] = value
-        return replace(prof, overrides=tuple(recorded.items()))
+        A name is ``section.field`` (a field of a section: ``worlds``, ``collect``,
+        ``train``, ``costmap``, ``planner``, ``experiments``, ``ground_truth``) or ``seed``,
+        ``seeds``, ``workers``. A value is converted to the field's type: a string as it
+        would be typed on the command line, or a Python value of that type. An unknown name
+        or a value that does not fit raises ``InvalidOverrideError`` naming the valid fields
+        or the type expected. The rules: :mod:`dgt_lib.core.overrides`."""
+        from dgt_lib.core.overrides import apply_overrides  # (it imports this module)
+
+        return apply_overrides(self, overrides)
 
     def describe(self) -> str:
         """The profile's name and its overrides: ``'demo'`` or
         ``'demo' with planner.beta=50.0``."""
         text = repr(self.name)
         if self.overrides:
+            from dgt_lib.core.overrides import format_setting
+
             text += " with " + ", ".join(f"{k}={format_setting(v)}" for k, v in self.overrides)
         return text
 
@@ -310,159 +298,6 @@ class Profile:
         same in every seed, so a seed is "the same experiment, run again", as on another
         machine."""
         return [self.with_(seed=self.seed + i) for i in range(self.seeds)]
-
-
-# ----------------------------------------------------------------------------- overrides
-
-TOP_LEVEL_SETTINGS: tuple[str, ...] = ("seed", "seeds", "workers")
-"""The :class:`Profile` fields that are settings of their own (not a section's)."""
-
-_PROFILE_TYPES: dict[str, object] = typing.get_type_hints(Profile)
-
-SECTIONS: tuple[str, ...] = tuple(f.name for f in fields(Profile)
-                                  if is_dataclass(_PROFILE_TYPES[f.name]) and f.compare)
-"""The :class:`Profile` sections ``--set`` can change, one per pipeline stage: worlds,
-collect, train, costmap, planner, experiments, ground_truth. (``execution`` — where jobs
-run, not what they compute — is set by ``--executor``, ``--address`` and ``--device``.)"""
-
-
-class InvalidOverrideError(ValueError):
-    """An override with an unknown name, or a value that does not fit its field's type."""
-
-
-def setting_names(section: str | None = None) -> list[str]:
-    """The valid dotted names: every ``section.field`` and :data:`TOP_LEVEL_SETTINGS`, or
-    one section's ``section.field`` names."""
-    chosen = SECTIONS if section is None else (section,)
-    names = [f"{s}.{f.name}" for s in chosen for f in fields(_PROFILE_TYPES[s])]
-    return names + list(TOP_LEVEL_SETTINGS) if section is None else names
-
-
-def setting_type(key: str) -> tuple[str | None, str, object]:
-    """``"planner.beta"`` → ``("planner", "beta", float)``: the section (None for a
-    top-level setting), the field and its annotation. Raises
-    :class:`InvalidOverrideError` listing the valid names for an unknown one."""
-    section, dot, name = key.strip().rpartition(".")
-    if not dot and name in TOP_LEVEL_SETTINGS:
-        return None, name, _PROFILE_TYPES[name]
-    if not dot or section not in SECTIONS:
-        raise InvalidOverrideError(
-            f"unknown setting {key!r}: a setting is SECTION.FIELD, SECTION one of "
-            f"{', '.join(SECTIONS)}, or one of {', '.join(TOP_LEVEL_SETTINGS)}")
-    hints = typing.get_type_hints(_PROFILE_TYPES[section])
-    if name not in hints:
-        raise InvalidOverrideError(f"unknown setting {key!r}; valid {section} settings: "
-                                   + ", ".join(setting_names(section)))
-    return section, name, hints[name]
-
-
-def _current(profile: Profile, section: str | None, name: str) -> object:
-    """The profile's value of a setting (the example in an error message)."""
-    return getattr(profile if section is None else getattr(profile, section), name)
-
-
-def format_setting(value: object) -> str:
-    """A value as it is typed on the command line: ``50.0``, ``true``, ``4,2``, ``none``."""
-    if value is None:
-        return "none"
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, tuple):
-        return ",".join(format_setting(v) for v in value)
-    return str(value)
-
-
-_TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
-_TYPE_WORDS = {bool: "true or false", int: "an integer", float: "a number", str: "a string"}
-
-
-def _scalar(value: object, hint: type) -> object:
-    """``value`` (a command-line string or a Python value) as ``hint``; ValueError if it
-    does not fit (a bool is not a number, 2.5 is not an integer)."""
-    if hint is bool:
-        if isinstance(value, bool):
-            return value
-        if isinstance(value, str) and value.strip().lower() in _TRUE + _FALSE:
-            return value.strip().lower() in _TRUE
-    elif hint is int:
-        if isinstance(value, str):
-            return int(value.strip())
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-    elif hint is float:
-        number = float(value.strip()) if isinstance(value, str) else value
-        if (isinstance(number, (int, float)) and not isinstance(number, bool)
-                and not math.isnan(number)):
-            return float(number)
-    elif hint is str:
-        if isinstance(value, str):
-            return value.strip()
-    raise ValueError(value)
-
-
-def _expected(hint: object) -> str:
-    """Words for a type: ``"2 integers separated by commas"``, ``"a number or none"``."""
-    args = typing.get_args(hint)
-    if typing.get_origin(hint) in (typing.Union, types.UnionType):
-        return " or ".join(_expected(a) if a is not type(None) else "none" for a in args)
-    if typing.get_origin(hint) is tuple:
-        word = _TYPE_WORDS[args[0]].split(" ", 1)[1]  # "an integer" → "integer"
-        count = "any number of" if args[-1] is Ellipsis else str(len(args))
-        return f"{count} {word}s separated by commas"
-    return _TYPE_WORDS.get(hint, getattr(hint, "__name__", str(hint)))
-
-
-def _convert(value: object, hint: object) -> object:
-    """``value`` as the annotation ``hint`` (bool, int, float, str, ``X | None``, tuples
-    of those); ValueError if it does not fit."""
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType):
-        if value is None or (isinstance(value, str) and value.strip().lower() == "none"):
-            if type(None) in args:
-                return None
-            raise ValueError(value)
-        for arg in (a for a in args if a is not type(None)):
-            try:
-                return _convert(value, arg)
-            except ValueError:
-                pass
-        raise ValueError(value)
-    if origin is tuple:
-        items = value.split(",") if isinstance(value, str) else value
-        if not isinstance(items, (list, tuple)):
-            raise ValueError(value)
-        types_ = [args[0]] * len(items) if args[-1] is Ellipsis else list(args)
-        if len(items) != len(types_):
-            raise ValueError(value)
-        return tuple(_scalar(v, t) for v, t in zip(items, types_, strict=True))
-    return _scalar(value, hint)
-
-
-def coerce_setting(key: str, value: object, hint: object, *, example: object = None) -> object:
-    """``value`` converted to the annotation ``hint`` of setting ``key``; raises
-    :class:`InvalidOverrideError` saying what was expected (with ``example``, the current
-    value, as it would be typed)."""
-    try:
-        return _convert(value, hint)
-    except (ValueError, TypeError):
-        hint_text = "" if example is None else f" (e.g. {key}={format_setting(example)})"
-        raise InvalidOverrideError(f"{key} expects {_expected(hint)}{hint_text}, "
-                                   f"got {value!r}") from None
-
-
-def parse_overrides(items: Iterable[str]) -> dict[str, str]:
-    """``["planner.beta=50", "experiments.n_hill=10"]`` → ``{"planner.beta": "50", …}``
-    (the command line's ``--set``; a later item wins). The names are checked here, the
-    values by :meth:`Profile.with_overrides`."""
-    out: dict[str, str] = {}
-    for item in items:
-        key, eq, value = item.partition("=")
-        if not eq or not key.strip():
-            raise InvalidOverrideError(f"a setting is NAME=VALUE (e.g. planner.beta=50), "
-                                       f"got {item!r}")
-        setting_type(key)
-        out[key.strip()] = value
-    return out
 
 
 def _smoke() -> Profile:
