@@ -46,7 +46,7 @@ from dgt_lib.perception.episodes import (
 )
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
-from dgt_lib.world.mujoco_model import CAMERA, LIGHTING, MAX_DEPTH_M
+from dgt_lib.world.mujoco_model import CAMERA, LIGHTING, MAX_DEPTH_M, PHYSICS
 from dgt_lib.world.rendering import survey_frames, survey_poses
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
@@ -85,7 +85,7 @@ def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, obje
     return {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
             "episode": _fields(profile.collect, EPISODE_FIELDS),
             "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
-            "index": int(index), "camera": CAMERA, "lighting": LIGHTING}
+            "index": int(index), "camera": CAMERA, "lighting": LIGHTING, "physics": PHYSICS}
 
 
 def _episode_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:

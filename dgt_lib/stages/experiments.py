@@ -22,6 +22,7 @@ from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.train import MODEL_KINDS, model_relpath
+from dgt_lib.world.mujoco_model import PHYSICS
 from dgt_lib.world.terrain import get_world
 
 
@@ -48,7 +49,8 @@ def _model_digests(prof: Profile) -> dict[str, str | None]:
 def experiment_config(name: str, prof: Profile) -> dict[str, object]:
     """What an experiment's trials depend on (its cache key)."""
     return {"stage": name, "experiments": prof.experiments, "planner": prof.planner,
-            "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof)}
+            "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof),
+            "physics": PHYSICS}
 
 
 def ensure_experiment(name: str, profile: Profile | str | None = None, *,

@@ -37,6 +37,7 @@ from dgt_lib.mapping.methods import METHODS
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_tau_s, ensure_world_costmaps
 from dgt_lib.stages.paths import cache_dir, data_dir, profile_root
 from dgt_lib.stages.registry import StageOutput
+from dgt_lib.world.mujoco_model import PHYSICS
 from dgt_lib.world.terrain import get_world
 
 GROUND_TRUTH_FORMAT = 3
@@ -69,7 +70,8 @@ def ground_truth_config(world: str, vehicle: str, prof: Profile) -> dict[str, ob
     return {"stage": "ground_truth", "format": GROUND_TRUTH_FORMAT, "world": world,
             "worlds": prof.worlds, "vehicle": get_vehicle(vehicle),
             "ground_truth": prof.ground_truth, "n_headings": prof.costmap.n_headings,
-            "collect": {f: getattr(prof.collect, f) for f in COLLECT_FIELDS}}
+            "collect": {f: getattr(prof.collect, f) for f in COLLECT_FIELDS},
+            "physics": PHYSICS}
 
 
 def _journal_path(world: str, vehicle: str, prof: Profile) -> Path:

@@ -4,7 +4,7 @@ The terrain is a heightfield (one vertex per world cell centre) textured with
 ``World.colors``, trees are collision cylinders with a visual crown, and the vehicle is
 a chassis on a free joint with, per corner, a preloaded suspension slide (≈1.6 Hz,
 ζ ≈ 0.5), a steering hinge (front, position servo, Ackermann split) and a sphere wheel.
-Physics runs at 4 ms (implicitfast, pyramidal friction cones). The onboard camera
+Physics runs at 8 ms (implicitfast, pyramidal friction cones). The onboard camera
 (:data:`CAMERA`): 160 × 120 px, vertical field of view 70°, mounted per vehicle.
 """
 
@@ -24,7 +24,8 @@ from dgt_lib.world.worlds import World
 # trees; its upper body touches trees only (box–heightfield tests are expensive and the
 # upper body only meets the ground when the vehicle has already flipped).
 BIT_TERRAIN, BIT_LOW, BIT_TREE, BIT_BODY = 1, 2, 4, 8
-TIMESTEP_S = 0.004  # physics step [s]
+TIMESTEP_S = 0.008  # physics step [s]: 5 per 25 Hz control period (4 ms gave the same
+# premises at 0.6–0.7× the speed: issue "Speed", benchmarks/bench_sim.py)
 MAX_DEPTH_M = 40.0  # depth beyond this (and sky) is NaN [m]
 WHEEL_NAMES = ("fl", "fr", "rl", "rr")
 VEHICLE_GEOM_GROUP = 2  # visual group of the vehicle's geoms (hidden from its own camera)
@@ -52,6 +53,20 @@ class Lighting:
 
 LIGHTING = Lighting()
 """The light every world is rendered with (part of the frames' and BEV maps' cache keys)."""
+
+
+@dataclass(frozen=True)
+class Physics:
+    """What a run's dynamics depend on beyond the world and the vehicle (part of the cache
+    keys of everything simulated: episodes, ground truth, closed-loop trials)."""
+
+    timestep_s: float = TIMESTEP_S
+    integrator: str = "implicitfast"
+    cone: str = "pyramidal"
+    friction: float = FRICTION
+
+
+PHYSICS = Physics()
 
 
 def _add_terrain(spec: mujoco.MjSpec, world: World) -> None:
@@ -195,7 +210,7 @@ def _add_vehicle(spec: mujoco.MjSpec, v: VehicleSpec) -> None:
 
 
 def build_model(world: World, vehicle: str | VehicleSpec) -> mujoco.MjModel:
-    """Compile the MuJoCo model of ``world`` with ``vehicle`` on it (4 ms steps,
+    """Compile the MuJoCo model of ``world`` with ``vehicle`` on it (8 ms steps,
     implicitfast, pyramidal friction cones, rendering shadows/reflections off)."""
     v = get_vehicle(vehicle)
     spec = mujoco.MjSpec()

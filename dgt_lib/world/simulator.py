@@ -12,7 +12,7 @@ braked vehicle holds on a slope; drag is applied at control rate) and its data::
     frame = sim.render_rgbd()                    # dgt_lib.core.camera.RGBDFrame
 
 Steering ``steer`` is normalised to [−1, 1] of the vehicle's maximum steering
-angle (paper, Controller Integration). Physics runs at 4 ms; control at 25 Hz
+angle (paper, Controller Integration). Physics runs at 8 ms; control at 25 Hz
 (``CONTROL_DT_S``). A NaN state ends the run with ``done_reason = "diverged"``
 instead of raising; other reasons: ``"flipped"``, ``"off_map"``.
 
@@ -42,13 +42,15 @@ from dgt_lib.world.mujoco_model import (
     build_model,
 )
 from dgt_lib.world.speed_control import SpeedController
+from dgt_lib.world.underside_gate import min_underside_gap
 from dgt_lib.world.worlds import World
 
 CONTROL_DT_S = 0.04  # control period [s] (25 Hz)
 IMMOBILE_SPEED_MPS = 0.25  # below this horizontal speed the vehicle counts as immobile
 FLIP_UP_Z = 0.3  # flipped when the chassis up-axis z-component drops below this
 UNDERSIDE_MARGIN_M = 0.05  # belly/bumper collision tests run within this of the ground
-GATE_STEPS = 5  # physics steps between two checks of that gap
+GATE_PERIOD_S = 0.04  # time between two checks of that gap [s]: one per control period
+GATE_STEPS = max(1, round(GATE_PERIOD_S / TIMESTEP_S))  # physics steps between two checks
 
 
 _DIVERGENCE_WARNINGS = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
@@ -84,7 +86,7 @@ def ackermann_angles(steer: float, vehicle: VehicleSpec) -> tuple[float, float]:
     """Left and right road-wheel angles [rad] for a normalised steer ∈ [−1, 1]:
     δ = steer·δ_max on the virtual centre wheel, R = L / tan δ, and
     δ_{l,r} = atan(L / (R ∓ T/2)) (positive = left turn)."""
-    d = float(np.clip(steer, -1.0, 1.0)) * vehicle.max_steer_rad
+    d = min(max(float(steer), -1.0), 1.0) * vehicle.max_steer_rad
     if abs(d) < 1e-6:
         return 0.0, 0.0
     L, T = vehicle.wheelbase_m, vehicle.track_m
@@ -164,6 +166,7 @@ class Simulator:
         self._underside = np.stack([gx.ravel(), gy.ravel(),
                                     np.full(gx.size, v.ground_clearance_m - v.wheel_radius_m)], 1)
         self._underside_geoms = self._chassis_geoms[:3]  # belly and bumpers
+        self._underside_aff = -1  # their conaffinity as last set (-1: not yet)
         self._z = world.heights.astype(np.float64)
         if min(self._z.shape) < 2:
             raise ValueError("a world needs at least 2 × 2 height cells")
@@ -215,8 +218,8 @@ class Simulator:
 
     def _apply(self, throttle: float, brake: float, steer: float) -> None:
         d, m = self.data, self.model
-        d.ctrl[self._motors] = float(np.clip(throttle, -1.0, 1.0))
-        m.dof_frictionloss[self._spin_dofs] = self._brake0 + float(np.clip(brake, 0, 1)) * (
+        d.ctrl[self._motors] = min(max(float(throttle), -1.0), 1.0)
+        m.dof_frictionloss[self._spin_dofs] = self._brake0 + min(max(float(brake), 0.0), 1.0) * (
             self.vehicle.brake_torque_nm)
         d.ctrl[self._steer] = ackermann_angles(steer, self.vehicle)
 
@@ -251,8 +254,9 @@ class Simulator:
         self._apply(throttle, brake, steer)
         v = self.vehicle
         vel = self.data.qvel[0:3]
+        speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
         self.data.xfrc_applied[self._chassis, 0:3] = (
-            -0.5 * AIR_DENSITY_KGPM3 * v.drag_area_m2 * np.linalg.norm(vel) * vel)
+            -0.5 * AIR_DENSITY_KGPM3 * v.drag_area_m2 * speed) * vel
         n = max(1, int(round(duration_s / TIMESTEP_S)))
         done = 0
         while done < n:
@@ -260,7 +264,8 @@ class Simulator:
             self._gate_underside(chunk * TIMESTEP_S)
             mujoco.mj_step(self.model, self.data, nstep=chunk)
             done += chunk
-        ok = np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel))
+        # A sum is NaN/inf when any term is (or when the state has blown up anyway).
+        ok = math.isfinite(float(self.data.qpos.sum()) + float(self.data.qvel.sum()))
         # MuJoCo resets the state itself when it meets NaN/huge values and counts a warning.
         if not ok or self.data.warning.number[_DIVERGENCE_WARNINGS].any():
             self._done = "diverged"
@@ -273,30 +278,23 @@ class Simulator:
         """Test belly/bumper–terrain collisions only while the terrain may reach the
         underside within ``horizon_s``: box–heightfield tests cost more than the rest
         of a step, and the underside is clear of the ground most of the time. "May
-        reach" = the gap over the footprint is below UNDERSIDE_MARGIN_M plus the
-        horizontal travel (terrain rising up to 1:1 under the vehicle) plus the
-        vertical travel in ``horizon_s``."""
+        reach" = the gap over the footprint (:func:`~dgt_lib.world.underside_gate.
+        min_underside_gap`) is below UNDERSIDE_MARGIN_M plus the horizontal travel
+        (terrain rising up to 1:1 under the vehicle) plus the vertical travel in
+        ``horizon_s``."""
         d = self.data
-        R = d.xmat[self._chassis].reshape(3, 3)
-        pts = self._underside @ R.T + d.xpos[self._chassis]
-        gap = pts[:, 2] - self._terrain_z(pts[:, 0], pts[:, 1])
-        reach = UNDERSIDE_MARGIN_M + horizon_s * (np.linalg.norm(d.qvel[0:3]) + 2.0 * abs(
-            d.qvel[2]))
-        near = force or bool(np.min(gap) < reach)
+        near = force
+        if not near:
+            vx, vy, vz = d.qvel[0], d.qvel[1], d.qvel[2]
+            reach = UNDERSIDE_MARGIN_M + horizon_s * (
+                math.sqrt(vx * vx + vy * vy + vz * vz) + 2.0 * abs(vz))
+            near = min_underside_gap(self._underside, d.xmat[self._chassis],
+                                     d.xpos[self._chassis], self._z, self._x0, self._y0,
+                                     self._inv_res) < reach
         aff = BIT_TERRAIN | BIT_TREE if near else BIT_TREE
-        self.model.geom_conaffinity[self._underside_geoms] = aff
-
-    def _terrain_z(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """World.height_at's bilinear lookup, trimmed for the per-step gate."""
-        z = self._z
-        h, w = z.shape
-        col = np.clip((x - self._x0) * self._inv_res, 0.0, w - 1.001)
-        row = np.clip((y - self._y0) * self._inv_res, 0.0, h - 1.001)
-        c0, r0 = col.astype(np.intp), row.astype(np.intp)
-        fc, fr = col - c0, row - r0
-        top = z[r0, c0] + fc * (z[r0, c0 + 1] - z[r0, c0])
-        bottom = z[r0 + 1, c0] + fc * (z[r0 + 1, c0 + 1] - z[r0 + 1, c0])
-        return top + fr * (bottom - top)
+        if aff != self._underside_aff:
+            self.model.geom_conaffinity[self._underside_geoms] = aff
+            self._underside_aff = aff
 
     @property
     def state(self) -> VehicleState:
@@ -315,7 +313,7 @@ class Simulator:
         R = d.xmat[self._chassis].reshape(3, 3)
         fwd, up = R[:, 0], R[:, 2]
         yaw = math.atan2(fwd[1], fwd[0]) % (2 * math.pi)
-        pitch = math.asin(float(np.clip(fwd[2], -1, 1)))
+        pitch = math.asin(min(max(float(fwd[2]), -1.0), 1.0))
         roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
         vel = d.qvel[0:3].copy()
         w_body = d.qvel[3:6].copy()  # free joint: angular velocity in the body frame
@@ -331,7 +329,7 @@ class Simulator:
             chassis_terrain = bool(np.any((env == _TERRAIN) & (car == _CHASSIS)))
             touching = car[(env == _TERRAIN) | (env == _TREE)]
             wheel[touching[touching >= _WHEEL] - _WHEEL] = True
-        self._immobile_s = immobile_time(self._immobile_s, float(np.hypot(vel[0], vel[1])), dt)
+        self._immobile_s = immobile_time(self._immobile_s, math.hypot(vel[0], vel[1]), dt)
         flipped = bool(up[2] < FLIP_UP_Z)
         if flipped and self._done is None:
             self._done = "flipped"

@@ -6,8 +6,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from dgt_lib.core.vehicles import AIR_DENSITY_KGPM3, GRAVITY_MPS2, VehicleSpec
 
 
@@ -53,8 +51,8 @@ class SpeedController:
         resist = GRAVITY_MPS2 * v.rolling_resistance * math.cos(pitch_rad) + (
             0.5 * AIR_DENSITY_KGPM3 * v.drag_area_m2 * speed_mps**2 / v.mass_kg)
         a_ff = sign * resist + GRAVITY_MPS2 * math.sin(pitch_rad)
-        integral = float(np.clip(self._integral + e * dt_s, -self.integral_limit,
-                                 self.integral_limit))
+        integral = min(max(self._integral + e * dt_s, -self.integral_limit),
+                       self.integral_limit)
         throttle, brake = self._actuate(a_ff + self.kp * e + self.ki * integral + self.kd * de,
                                         speed_mps, sign)
         saturated = (throttle >= 1.0 and e > 0) or (brake >= 1.0 and e < 0) or (
@@ -72,7 +70,7 @@ class SpeedController:
         back_emf = speed_mps / v.max_speed_mps  # throttle that gives zero motor torque
         throttle = torque / n_t + back_emf
         if sign * throttle >= 0 or sign * torque >= 0:
-            return float(np.clip(throttle, -1.0, 1.0)), 0.0
+            return min(max(float(throttle), -1.0), 1.0), 0.0
         # More braking than the motors give at zero throttle: friction brakes.
         brake = (abs(torque) - abs(back_emf) * n_t) / (4 * v.brake_torque_nm)
-        return 0.0, float(np.clip(brake, 0.0, 1.0))
+        return 0.0, min(max(float(brake), 0.0), 1.0)
