@@ -222,7 +222,8 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
         report.outcome = outcome
     else:
         traj = speed = None
-    report.recording = _recording(w, maps, cost, report, traj, speed, out_dir / f"{stem}.rrd")
+    report.recording = _recording(w, maps, cost, report, traj, speed, out_dir / f"{stem}.rrd",
+                                  prof)
     return report
 
 
@@ -240,17 +241,19 @@ def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
     return path
 
 
-def _recording(world, maps, cost, report, traj, speed, path: Path) -> Path:
+def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Profile) -> Path:
     from dgt_lib import rr
 
-    with rr.Recording(path, f"plan_{world.name}") as rec:
+    with rr.Recording(path, f"plan_{world.name}", profile) as rec:
         rec.log_terrain(world.heights, world.colors, world.grid)
+        rec.log_bev(maps.bev.channels, maps.bev.observed)
         rec.log_occupancy(maps.occupancy)
-        rec.log_costmap(cost, report.vehicle, report.method)
+        rec.log_costmap(cost, maps.grid, report.vehicle, report.method)
         if report.plan.success:
             z = world.height_at(report.plan.path[:, 0], report.plan.path[:, 1]) + 0.5
             rec.log_path(report.method, np.column_stack([report.plan.path[:, :2], z]))
         if traj is not None and len(traj):
-            rec.log_trajectory(report.vehicle, traj[:, 0], traj[:, 1:4], {"speed_mps": speed})
+            rec.log_trajectory(report.vehicle, traj[:, 0], traj[:, 1:4], {"speed_mps": speed},
+                               vehicle=report.vehicle)
         rec.log_text("summary", "```\n" + report.summary() + "\n```")
     return path

@@ -124,14 +124,16 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
 
 
 def write_recording(result: ExperimentResult, prof: Profile) -> Path:
-    """``runs/<name>.rrd`` of an experiment, rewritten when older than its results."""
+    """``runs/<name>.rrd`` of an experiment, rewritten when older than its results or
+    than ``dgt_lib/rr.py`` (the code that lays it out)."""
     out = data_dir(prof)
     rrd = out / "runs" / f"{result.name}.rrd"
     pkl = out / "experiments" / f"{result.name}.pkl"
-    if not rrd.exists() or (pkl.exists() and rrd.stat().st_mtime < pkl.stat().st_mtime):
+    sources = [p for p in (pkl, Path(rr.__file__)) if p.exists()]
+    if not rrd.exists() or rrd.stat().st_mtime < max(p.stat().st_mtime for p in sources):
         vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
         maps = ensure_world_costmaps(result.world, vehicles, prof, progress=False)
-        rr.log_experiment(result, get_world(result.world, prof), maps, rrd)
+        rr.log_experiment(result, get_world(result.world, prof), maps, rrd, prof)
     return rrd
 
 
