@@ -37,6 +37,26 @@ def _recording_entities(printed: str) -> set[str]:
     return entities
 
 
+def _file_views(path) -> list[dgt_rr.ViewSpec]:
+    """The views of the blueprint stored in the file, read from `rerun rrd print -vvv`:
+    each view's origin (``/view/<id>``) and contents (``/view/<id>/ViewContents``)."""
+    printed = subprocess.run([dgt_rr._rerun_exe(), "rrd", "print", "-vvv", str(path)],
+                             capture_output=True, text=True, check=True).stdout
+    origins, contents, entity = {}, {}, None
+    for line in printed.splitlines():
+        m = re.match(r"Chunk\(\S+\) with .* - (/\S+) - ", line)
+        if m:
+            entity = m.group(1)
+        elif line.startswith("│ │ row_") and entity:
+            last = line.split("┆")[-1].strip(" │").removeprefix("[").removesuffix("]")
+            if m := re.fullmatch(r"/view/([0-9a-f-]+)", entity):
+                origins[m.group(1)] = last
+            elif m := re.fullmatch(r"/view/([0-9a-f-]+)/ViewContents", entity):
+                contents[m.group(1)] = tuple(q.strip() for q in last.split(","))
+    return [dgt_rr.ViewSpec(object, origins[i], i, contents.get(i, ("$origin/**",)))
+            for i in origins]
+
+
 def _tiny_experiment(n_trials=2):
     """A 12 m × 16 m ramp, its BEV and two methods' costmaps, and trials that drove it."""
     heights = np.tile(np.linspace(0.0, 2.0, 40), (30, 1))
@@ -61,8 +81,8 @@ def _tiny_experiment(n_trials=2):
 
 
 def test_every_entity_of_an_experiment_recording_is_in_a_view(tmp_path):
-    """What a learner opens: every entity the file holds (as `rerun rrd print` lists it)
-    is shown by some view of the blueprint the recording was written with."""
+    """What a learner opens: every entity the file holds is shown by some view of the
+    blueprint stored in the same file (both as `rerun rrd print` lists them)."""
     result, world, maps = _tiny_experiment()
     path = tmp_path / "experiment1.rrd"
     layout = dgt_rr.log_experiment(result, world, maps, path, SMOKE)
@@ -70,7 +90,10 @@ def test_every_entity_of_an_experiment_recording_is_in_a_view(tmp_path):
     entities = _recording_entities(printed)
     assert {"world/terrain", "maps/bev/height", "maps/occupancy", "notes/results",
             "world/costmap/jeep/dgt/heading_7", "world/vehicle/binary/jeep_1_A/pose"} <= entities
-    assert entities == layout.entities | {"world"}  # nothing logged behind the layout's back
+    assert entities == layout.entities  # nothing logged behind the layout's back
+    views = _file_views(path)
+    assert len(views) == len([v for side in layout.views() for v in side]) > 5
+    assert sorted(e for e in entities if not any(v.shows(e) for v in views)) == []
     assert layout.uncovered(entities) == []
     left, right = layout.views()
     assert [v.name for v in right if v.origin == "world"] == [
