@@ -30,6 +30,8 @@ blueprint per kind of recording.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import re
 import subprocess
@@ -427,7 +429,9 @@ def show(path: str | Path, *, height: int = 560) -> None:
         return
     os.environ.setdefault("RERUN_NOTEBOOK_ASSET", "serve-local")
     from IPython.display import display
-    from rerun_notebook import Viewer
+
+    with contextlib.redirect_stdout(io.StringIO()):  # the asset server's start-up chatter
+        from rerun_notebook import Viewer
 
     viewer = Viewer(width="auto", height=height, panel_states={
         "blueprint": "expanded", "selection": "expanded", "time": "expanded"})
