@@ -125,19 +125,18 @@ def _yaw_quaternions(yaw: np.ndarray) -> np.ndarray:
 
 def motion_yaw(xy: np.ndarray) -> np.ndarray:
     """Heading [rad] of travel at each of N positions (N, 2) [m]: the direction to the next
-    position that differs; the last one, and stops, keep the previous heading."""
+    position that differs. Stops and the last position keep the previous heading; before
+    the first move, the first heading driven (0 if it never moves)."""
     xy = np.asarray(xy, dtype=np.float64)
     step = np.diff(xy, axis=0)
-    moving = np.hypot(step[:, 0], step[:, 1]) > 1e-6
-    yaw = np.zeros(len(xy))
-    last = float(np.arctan2(*step[moving][0][::-1])) if moving.any() else 0.0
-    for i, (d, m) in enumerate(zip(step, moving, strict=True)):
-        if m:
-            last = float(np.arctan2(d[1], d[0]))
-        yaw[i] = last
-    if len(xy):
-        yaw[-1] = last
-    return yaw
+    is_move = np.hypot(step[:, 0], step[:, 1]) > 1e-6
+    if not is_move.any():
+        return np.zeros(len(xy))
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    index = np.arange(len(step))
+    latest = np.maximum.accumulate(np.where(is_move, index, -1))  # latest move at or before
+    yaw = heading[np.where(latest >= 0, latest, np.argmax(is_move))]
+    return np.append(yaw, yaw[-1])
 
 
 # -- blueprints ------------------------------------------------------------
@@ -193,7 +192,7 @@ class Layout:
             base = f"{COSTMAPS}/{vehicle}/{method}"
             right.append(ViewSpec(
                 rrb.Spatial3DView, WORLD,
-                f"{METHOD_LABELS.get(method, method)} · {vehicle} (heading: blueprint panel)",
+                f"costmap {METHOD_LABELS.get(method, method)} · {vehicle}",
                 (f"+ {TERRAIN}", f"+ {base}/**"),
                 tuple(f"{base}/heading_{i}" for i in range(1, k))))
         right += [ViewSpec(rrb.Spatial2DView, p, self.titles.get(p, p))

@@ -97,7 +97,7 @@ def test_every_entity_of_an_experiment_recording_is_in_a_view(tmp_path):
     assert layout.uncovered(entities) == []
     left, right = layout.views()
     assert [v.name for v in right if v.origin == "world"] == [
-        "Binary · jeep (heading: blueprint panel)", "DGT-Map · jeep (heading: blueprint panel)"]
+        "costmap Binary · jeep", "costmap DGT-Map · jeep"]
     assert "Blueprint," in printed and "make_active: true" in printed  # the file carries it
 
 
@@ -143,6 +143,10 @@ def test_trials_play_one_after_another_and_the_vehicle_is_an_oriented_box(tmp_pa
 def test_motion_yaw_keeps_the_heading_through_a_stop():
     xy = np.array([[0, 0], [1, 0], [1, 0], [1, 1]], float)
     assert dgt_rr.motion_yaw(xy) == pytest.approx([0, 0, np.pi / 2, np.pi / 2])
+    # standing still first: the first heading it drives
+    xy = np.array([[0, 0], [0, 0], [0, -1], [0, -1]], float)
+    assert dgt_rr.motion_yaw(xy) == pytest.approx([-np.pi / 2] * 4)
+    assert dgt_rr.motion_yaw(np.zeros((3, 2))).tolist() == [0, 0, 0]
 
 
 def test_recording_with_every_kind_of_entity_verifies(tmp_path):
