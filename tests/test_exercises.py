@@ -1,7 +1,9 @@
 """The notebooks' graded exercises: the grader accepts the library's own answer, catches
 each common mistake with its hint, and tells an unanswered exercise apart from a wrong one."""
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,3 +137,24 @@ def test_the_learner_cannot_change_the_inputs_the_reference_sees():
 def test_an_unknown_exercise_names_the_known_ones():
     with pytest.raises(KeyError, match="locomotion"):
         grade("no_such_exercise", _unanswered)
+
+
+NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
+
+
+def _exercise_cells(name):
+    nb = json.loads((NOTEBOOKS / f"{EXERCISES[name].notebook}.ipynb").read_text())
+    cells = {c.get("id"): "".join(c["source"]) for c in nb["cells"]}
+    return [cells.get(f"exercise-{name}-{part}") for part in ("task", "answer", "check")]
+
+
+@pytest.mark.parametrize("name", sorted(EXERCISES))
+def test_each_notebook_ships_its_exercise_unanswered_and_checked(name, capsys):
+    task, answer, check_cell = _exercise_cells(name)
+    assert task and "$$" in task, "state the task with its equation"
+    assert answer and "raise NotImplementedError" in answer, "ship the answer unanswered"
+    assert check_cell and f'check("{name}"' in check_cell
+    namespace = {}
+    exec(answer, namespace)  # noqa: S102 — the notebook's own cells, as a learner runs them
+    exec(check_cell, namespace)  # noqa: S102
+    assert capsys.readouterr().out.startswith("not answered yet")
