@@ -32,11 +32,9 @@ from typing import Any
 
 import numpy as np
 
+from dgt_lib.perception.bev import BEV_RESOLUTION_M
+
 RIGHT, WRONG, NOT_ANSWERED = "right", "wrong", "not answered"
-
-CELL_M = 0.4
-"""The BEV cell size of the plane-fit exercise [m] (paper: Global Map, 0.4 m)."""
-
 
 @dataclass(frozen=True)
 class Case:
@@ -87,8 +85,8 @@ def _cell_plane(points: np.ndarray) -> tuple[float, float, float]:
     from dgt_lib.core.geometry import GridSpec
     from dgt_lib.perception.bev import BEVAccumulator
 
-    half = CELL_M / 2.0
-    acc = BEVAccumulator(GridSpec((-half, -half), CELL_M, (1, 1)))
+    half = BEV_RESOLUTION_M / 2.0
+    acc = BEVAccumulator(GridSpec((-half, -half), BEV_RESOLUTION_M, (1, 1)))
     points = np.asarray(points, dtype=np.float64)
     acc.add_points(points, np.zeros_like(points))
     planes = acc.planes()
@@ -158,7 +156,7 @@ def _pair_set(answer) -> np.ndarray:
 def _plane_points(h: float, a: float, b: float, centre_xy=(0.0, 0.0), n: int = 30,
                   seed: int = 0) -> np.ndarray:
     """(n, 3) points on z = h + a·x + b·y, x, y spread over ±0.12 m around centre_xy
-    (offsets from the cell centre [m], inside the 0.4 m cell)."""
+    (offsets from the cell centre [m], inside a BEV cell of ±0.2 m)."""
     xy = np.random.default_rng(seed).uniform(-0.12, 0.12, (n, 2)) + np.asarray(centre_xy)
     return np.column_stack([xy, h + xy @ np.array([a, b])])
 
