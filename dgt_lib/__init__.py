@@ -15,8 +15,9 @@ The sub-packages read as the paper's pipeline; each imports only those before it
 ==============  ===========================================================
 
 and on top ``viz`` (figures, one module per notebook), ``rr`` (rerun recordings),
-``report``, ``query`` (``dgt plan``) and ``cli``. This module sets ``MUJOCO_GL=egl``
-(headless rendering) before anything imports mujoco, and offers the few names a notebook
+``report``, ``query`` (``dgt plan``), ``cli`` and ``exercises`` (the notebooks' graded
+exercises). This module sets ``MUJOCO_GL=egl`` (headless rendering) before anything
+imports mujoco, and offers the few names a notebook
 starts with — imported on first use, so ``import dgt_lib`` stays light::
 
     import dgt_lib as dgt

@@ -51,6 +51,32 @@ def test_changed_config_rebuilds_with_a_one_line_message():
     assert "\n" not in messages[0]
 
 
+def test_a_rebuild_names_the_settings_that_changed():
+    cfg = {"physics": {"timestep_s": 0.004, "cone": "pyramidal"}, "episode": {"speed": 5.0},
+           "seed": 0}
+    artifacts.ensure("e.npz", cfg, Builder(1.0), profile="smoke", log=lambda _: None)
+    new = {**cfg, "physics": {"timestep_s": 0.008, "cone": "pyramidal"}}
+    assert artifacts.staleness("e.npz", new, profile="smoke") == (
+        "configuration changed (physics.timestep_s)")
+    assert artifacts.staleness("e.npz", {**new, "seed": 1, "extra": 2}, profile="smoke") == (
+        "configuration changed (extra, physics.timestep_s, seed)")
+    assert artifacts.staleness("e.npz", cfg, profile="smoke") is None
+    assert artifacts.staleness("other.npz", cfg, profile="smoke") == "missing"
+
+
+def test_many_stale_artifacts_are_reported_in_one_line():
+    lines: list[str] = []
+    changed = "configuration changed (physics)"
+    artifacts.report_rebuilds([changed] * 130 + [None, "missing"], "episodes (demo)",
+                              log=lines.append)
+    assert lines == ["[dgt] 130 episodes (demo) to rebuild: configuration changed (physics)"]
+    artifacts.report_rebuilds(["missing", None], "episodes (demo)", log=lines.append)
+    assert len(lines) == 1  # a first run says nothing
+    artifacts.report_rebuilds([changed, changed, "corrupt (x)"], "episodes", log=lines.append)
+    assert lines[-1] == ("[dgt] 3 episodes to rebuild: 2 configuration changed (physics); "
+                         "1 corrupt (x)")
+
+
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "flip_byte"])
 def test_corrupt_file_is_reported_and_rebuilt_never_used(data_dir, damage):
     artifacts.ensure("out.npz", {"a": 1}, Builder(1.0), profile="smoke")

@@ -135,8 +135,30 @@ class CorruptArtifactError(RuntimeError):
     """An artifact file that exists but cannot be trusted (truncated, changed, unreadable)."""
 
 
-def _check(path: Path, expected_hash: str) -> str | None:
-    """None when ``path`` is a valid artifact of ``expected_hash``; else why not."""
+def changed_settings(old: Any, new: Any, prefix: str = "", depth: int = 2) -> list[str]:
+    """Dotted names of the settings that differ between two configurations in their
+    :func:`config_hash` form (dicts compared key by key down to ``depth`` levels):
+    ``["physics", "episode.speed_mps"]``. What a user wants to read when an artifact is
+    rebuilt, instead of two hashes."""
+    if old == new:
+        return []
+    if depth == 0 or not (isinstance(old, dict) and isinstance(new, dict)):
+        return [prefix or "(whole configuration)"]
+    out = []
+    for key in sorted(set(old) | set(new)):
+        if key == "__type__":
+            continue
+        name = f"{prefix}.{key}" if prefix else key
+        if key not in old or key not in new:
+            out.append(name)
+        else:
+            out += changed_settings(old[key], new[key], name, depth - 1)
+    return out or [prefix or "(whole configuration)"]
+
+
+def _check(path: Path, config: Any) -> str | None:
+    """None when ``path`` is a valid artifact of ``config``; else why not, naming the
+    settings that changed (:func:`changed_settings`)."""
     meta_path = _meta_path(path)
     if not path.exists():
         return "missing"
@@ -146,11 +168,33 @@ def _check(path: Path, expected_hash: str) -> str | None:
         meta = json.loads(meta_path.read_text())
     except (OSError, ValueError):
         return "unreadable metadata"
-    if meta.get("config_hash") != expected_hash:
-        return f"configuration changed ({meta.get('config_hash')} → {expected_hash})"
+    if meta.get("config_hash") != config_hash(config):
+        changed = changed_settings(meta.get("config"), _jsonable(config))
+        return f"configuration changed ({', '.join(changed)})"
     if meta.get("size") != path.stat().st_size or meta.get("sha256") != _file_digest(path):
         return "corrupt (size or checksum differs from when it was written)"
     return None
+
+
+def staleness(relpath: str | Path, config: Any, *, profile: str) -> str | None:
+    """Why :func:`ensure` would rebuild this artifact ("missing", "configuration changed
+    (physics)", "corrupt …"), or None when it would load it."""
+    return _check(profile_dir(profile) / Path(relpath), config)
+
+
+def report_rebuilds(reasons: list[str | None], what: str,
+                    log: Callable[[str], None] = print) -> None:
+    """One line for many artifacts of one kind about to be rebuilt, e.g. "[dgt] 130
+    episodes (demo) to rebuild: configuration changed (physics)", instead of a line
+    each; nothing when all are missing (a first run) or fresh."""
+    stale = [r for r in reasons if r is not None and r != "missing"]
+    if not stale:
+        return
+    counts: dict[str, int] = {}
+    for reason in stale:
+        counts[reason] = counts.get(reason, 0) + 1
+    parts = [f"{n} {reason}" if len(counts) > 1 else reason for reason, n in counts.items()]
+    log(f"[dgt] {len(stale)} {what} to rebuild: {'; '.join(parts)}")
 
 
 def ensure(
@@ -173,7 +217,7 @@ def ensure(
     """
     path = profile_dir(profile) / Path(relpath)
     want = config_hash(config)
-    why = _check(path, want)
+    why = _check(path, config)
     if why is None:
         try:
             return load(path)
@@ -205,4 +249,4 @@ def stored_digest(relpath: str | Path, *, profile: str) -> str:
 
 def is_fresh(relpath: str | Path, config: Any, *, profile: str) -> bool:
     """Whether :func:`ensure` would load (not build) this artifact."""
-    return _check(profile_dir(profile) / Path(relpath), config_hash(config)) is None
+    return staleness(relpath, config, profile=profile) is None

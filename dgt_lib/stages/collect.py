@@ -132,21 +132,24 @@ def collect_episodes(
     key = cache_dir(prof)
     root = artifacts.profile_dir(key)
     done: dict[tuple[str, int], Episode] = {}
-    todo = []
+    todo, reasons = [], []
     for v, i in jobs:
         rel = episode_relpath(v, i)
-        if artifacts.is_fresh(rel, episode_config(prof, v, i), profile=key):
+        why = artifacts.staleness(rel, episode_config(prof, v, i), profile=key)
+        if why is None:
             try:
                 done[(v, i)] = load_episode(root / rel)
                 continue
-            except Exception:  # noqa: BLE001 - unreadable: recompute it
-                pass
+            except Exception as exc:  # noqa: BLE001 - unreadable: recompute it
+                why = f"corrupt ({type(exc).__name__})"
         todo.append((v, i))
+        reasons.append(why)
+    artifacts.report_rebuilds(reasons, f"episodes ({prof.name})")
 
     def save(job: tuple, arrays: dict[str, np.ndarray]) -> None:
         _, v, i = job
         artifacts.ensure(episode_relpath(v, i), episode_config(prof, v, i),
-                         lambda: arrays, profile=key)
+                         lambda: arrays, profile=key, log=lambda _: None)  # reported above
         done[(v, i)] = ep = Episode.from_arrays(arrays, with_bev=False)
         if on_episode is not None:
             on_episode(ep)

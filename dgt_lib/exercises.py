@@ -1,0 +1,394 @@
+"""Graded exercises for the notebooks: write a function from the paper, check it here.
+
+Each notebook has at least one exercise: a markdown cell states the task and its equation,
+a code cell holds the learner's function (shipped unanswered: it raises
+``NotImplementedError``) and a check cell calls :func:`check`. The hidden reference is the
+library's own function (never a copy of it): :func:`grade` calls the learner's function and
+the reference on a few inputs, each chosen to expose one common mistake, and reports
+
+* ``right`` — every input agrees;
+* ``wrong: <hint>`` — the first input that disagrees, its hint, and both values;
+* ``not answered yet`` — the function raises ``NotImplementedError`` or returns ``None``;
+  the message then shows what the reference gives on the first input, so a notebook run
+  top to bottom (as under nbmake in CI) still prints a result and never fails.
+
+As in the exercises of Tedrake's *Robotic Manipulation* course, the grader is a small
+library module with tests of its own (``tests/test_exercises.py``)::
+
+    from dgt_lib.exercises import check
+
+    def locomotion_label(displacement_m, dt_s):
+        ...  # the learner's code
+    check("locomotion", locomotion_label)
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dgt_lib.perception.bev import BEV_RESOLUTION_M
+
+RIGHT, WRONG, NOT_ANSWERED = "right", "wrong", "not answered"
+
+@dataclass(frozen=True)
+class Case:
+    """One test input: positional ``args`` for both functions, and the hint shown when the
+    learner's answer disagrees with the reference on it."""
+
+    args: tuple
+    hint: str
+
+
+@dataclass(frozen=True)
+class Exercise:
+    """An exercise: the notebook it belongs to, the library reference (called with each
+    case's args), the cases (built on demand: some need torch), and the tolerance of the
+    comparison. ``normalize`` maps both answers to a canonical form before comparing
+    (e.g. an unordered set of pairs)."""
+
+    notebook: str
+    reference: Callable[..., Any]
+    cases: Callable[[], Sequence[Case]]
+    atol: float = 1e-6
+    normalize: Callable[[Any], Any] | None = None
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """What :func:`grade` found: ``status`` is ``right``, ``wrong`` or ``not answered``;
+    ``message`` is the line :func:`check` prints; ``hint`` the failing case's hint."""
+
+    name: str
+    status: str
+    message: str
+    hint: str = ""
+
+    @property
+    def passed(self) -> bool:
+        return self.status == RIGHT
+
+
+# ----------------------------------------------------------------------------- references
+# Thin adapters that call the library's functions with the exercise's signature.
+
+def _cell_plane(points: np.ndarray) -> tuple[float, float, float]:
+    """(h, a, b) of the plane z = h + a·x + b·y through the points of one 0.4 m cell, by
+    the BEV's own per-cell fit (:func:`dgt_lib.perception.cell_planes.fit_cell_planes`, via
+    a one-cell :class:`~dgt_lib.perception.bev.BEVAccumulator`); points (N, 3) [m], x, y
+    offsets from the cell centre."""
+    from dgt_lib.core.geometry import GridSpec
+    from dgt_lib.perception.bev import BEVAccumulator
+
+    half = BEV_RESOLUTION_M / 2.0
+    acc = BEVAccumulator(GridSpec((-half, -half), BEV_RESOLUTION_M, (1, 1)))
+    points = np.asarray(points, dtype=np.float64)
+    acc.add_points(points, np.zeros_like(points))
+    planes = acc.planes()
+    return (float(planes.height[0, 0]), float(planes.slope_x[0, 0]),
+            float(planes.slope_y[0, 0]))
+
+
+def _locomotion(displacement_m, dt_s):
+    from dgt_lib.perception.locomotion import locomotion
+
+    return locomotion(displacement_m, dt_s)
+
+
+def _masked_loss(pred, labels, head):
+    from dgt_lib.learning.training import masked_loss
+
+    return masked_loss(pred, labels, head)
+
+
+def _heading_bin(theta, n_headings):
+    from dgt_lib.core.geometry import nearest_heading_bin
+
+    return nearest_heading_bin(theta, n_headings)
+
+
+def _edge_cost(length_m: float, cost: float, beta: float) -> float:
+    from dgt_lib.navigation.planner.primitives import amplified_cost, edge_cost
+
+    return edge_cost(length_m, amplified_cost(cost, beta))
+
+
+def _wilson(k: int, n: int) -> tuple[float, float]:
+    from dgt_lib.evaluation.statistics import wilson_interval
+
+    return wilson_interval(k, n)
+
+
+def _slope_locomotion(theta, theta0, theta_min, theta_max, p_u, p_d):
+    from dgt_lib.mapping.baselines import SlopeModel
+
+    return SlopeModel(theta0, theta_min, theta_max, p_u, p_d).locomotion(theta)
+
+
+def _test_errors(pred, true) -> tuple[float, float, float]:
+    from dgt_lib.learning.training import regression_metrics
+
+    m = regression_metrics(pred, true)
+    return m["mse"], m["mae"], m["spearman"]
+
+
+def _contrast_pairs(true_cost, valid, threshold):
+    from dgt_lib.evaluation.accuracy import contrast_pairs
+
+    return contrast_pairs(true_cost, valid, threshold)
+
+
+def _pair_set(answer) -> np.ndarray:
+    """(cells, k) → the (P, 2) pairs sorted: the order the learner lists them in is free."""
+    cells, k = (np.asarray(a, dtype=np.int64).ravel() for a in answer)
+    if cells.shape != k.shape:
+        raise ValueError("cells and k must have the same length")
+    return np.array(sorted(zip(cells.tolist(), k.tolist(), strict=True)),
+                    dtype=np.int64).reshape(-1, 2)
+
+
+# ----------------------------------------------------------------------------- cases
+def _plane_points(h: float, a: float, b: float, centre_xy=(0.0, 0.0), n: int = 30,
+                  seed: int = 0) -> np.ndarray:
+    """(n, 3) points on z = h + a·x + b·y, x, y spread over ±0.12 m around centre_xy
+    (offsets from the cell centre [m], inside a BEV cell of ±0.2 m)."""
+    xy = np.random.default_rng(seed).uniform(-0.12, 0.12, (n, 2)) + np.asarray(centre_xy)
+    return np.column_stack([xy, h + xy @ np.array([a, b])])
+
+
+def _plane_cases() -> list[Case]:
+    return [
+        Case((_plane_points(2.0, 0.0, 0.0),),
+             "a level cell: slopes a = b = 0 and h = the points' height"),
+        Case((_plane_points(1.0, 0.3, 0.0, seed=1),),
+             "a tilts along x (east): fit z = h + a·x + b·y by least squares "
+             "(np.linalg.lstsq on the columns [1, x, y])"),
+        Case((_plane_points(1.0, 0.0, -0.2, seed=2),),
+             "b is the slope along y (north); return (h, a, b) in that order"),
+        Case((_plane_points(0.5, 0.25, 0.1, centre_xy=(0.06, -0.05), seed=3),),
+             "h is the plane's height at the cell centre (x = y = 0), not the mean z of "
+             "points that sit off-centre"),
+    ]
+
+
+def _locomotion_cases() -> list[Case]:
+    return [
+        Case((5.0, 1.0), "at full speed, ‖Δx‖ = u·Δt with u = 5 m/s, L = 1"),
+        Case((0.0, 1.0), "standing still gives exp(−1/(2σ²)) with σ = 1/3, i.e. exp(−4.5)"),
+        Case((2.5, 1.0), "the error is relative: (u·Δt − ‖Δx‖)/(u·Δt), squared, "
+                         "times −1/(2σ²)"),
+        Case((10.0, 2.0), "the expected distance is u·Δt: divide by it, not by u"),
+        Case((7.5, 1.0), "driving faster than u is as bad as driving as much slower "
+                         "(the relative error is squared)"),
+        Case((np.array([0.0, 2.5, 5.0]), np.array([1.0, 1.0, 1.0])),
+             "work elementwise on arrays (np.exp, no math.exp or Python loops over floats)"),
+    ]
+
+
+def _masked_loss_cases() -> list[Case]:
+    import torch
+
+    g = torch.Generator().manual_seed(0)
+    pred1 = torch.tensor([[0.9, 0.2, 0.4, 0.7]])
+    pred = torch.rand(6, 4, generator=g)
+    labels = torch.rand(6, generator=g)
+    return [
+        Case((pred1, torch.tensor([0.5]), torch.tensor([2])),
+             "only the head of the vehicle that collected the patch counts: "
+             "L̂ = pred[i, head[i]] (e.g. pred.gather(1, head[:, None]))"),
+        Case((pred, labels, torch.tensor([0, 3, 1, 1, 2, 0])),
+             "average the squared errors over the batch (a mean, not a sum)"),
+        Case((pred, pred[torch.arange(6), torch.tensor([3, 2, 1, 0, 3, 2])],
+              torch.tensor([3, 2, 1, 0, 3, 2])),
+             "labels equal to the own heads' predictions give a loss of exactly 0"),
+    ]
+
+
+def _heading_cases() -> list[Case]:
+    deg = np.radians
+    return [
+        Case((deg(10.0), 8), "θ_k = 2πk/K: k = 0 faces east (+x), bins 45° apart for K = 8"),
+        Case((deg(40.0), 8), "round to the nearest bin: 40° is nearest 45° (k = 1), "
+                             "do not floor"),
+        Case((deg(90.0), 8), "bins turn counter-clockwise: north (90°) is k = 2"),
+        Case((deg(-20.0), 8), "wrap θ into [0, 2π) first: −20° is nearest θ_0"),
+        Case((deg(-100.0), 8), "a negative heading: −100° = 260°, nearest 270° (k = 6)"),
+        Case((deg(350.0), 8), "after the last bin comes bin 0 again: take k modulo K"),
+        Case((deg(30.0), 16), "use K, not a fixed 8: for K = 16 the bins are 22.5° apart"),
+        Case((deg(np.array([0.0, 100.0, 200.0, 300.0])), 8),
+             "work elementwise on arrays and return integers"),
+    ]
+
+
+def _edge_cost_cases() -> list[Case]:
+    return [
+        Case((1.0, 0.0, 150.0), "with cost C = 0 a move costs its length s [m]"),
+        Case((1.0, 0.5, 0.0), "with β = 0, C' = C and g = s·(1 + C)"),
+        Case((1.0, 0.5, 150.0), "C' = C·(1 + β·C): β multiplies C², the penalty is "
+                                "super-linear"),
+        Case((0.8, 0.3, 150.0), "g_edge = s·(1 + C'): the length multiplies the whole "
+                                "(1 + C')"),
+    ]
+
+
+def _wilson_cases() -> list[Case]:
+    return [
+        Case((16, 20), "Wilson, not the normal interval p̂ ± z·√(p̂(1−p̂)/n): centre "
+                       "(p̂ + z²/2n)/(1 + z²/n), z = Φ⁻¹(0.975) ≈ 1.96"),
+        Case((5, 10), "half-width z·√(p̂(1−p̂)/n + z²/4n²)/(1 + z²/n)"),
+        Case((0, 10), "k = 0: the interval is not empty; its lower bound is exactly 0"),
+        Case((10, 10), "k = n: the upper bound is exactly 1; keep both bounds in [0, 1]"),
+        Case((1, 3), "small n: return (low, high) as floats"),
+    ]
+
+
+def _slope_cases() -> list[Case]:
+    deg = np.radians
+    m = (deg(2.0), deg(-20.0), deg(15.0), 2.0, 0.5)  # θ0, θmin, θmax, p_u, p_d
+    return [
+        Case((deg(2.0), *m), "at θ = θ0 the terrain is fully traversable: L_sb = 1"),
+        Case((deg(8.5), *m), "uphill (θ ≥ θ0): 1 − ((θ − θ0)/(θmax − θ0))^p_u"),
+        Case((deg(-9.0), *m), "downhill (θ < θ0): 1 − ((θ0 − θ)/(θ0 − θmin))^p_d, "
+                              "with its own exponent p_d"),
+        Case((deg(20.0), *m), "beyond θmax (or below θmin) L_sb = 0"),
+        Case((deg(np.array([-25.0, -20.0, 0.0, 15.0, 30.0])), *m),
+             "work elementwise on arrays; L_sb(θmin) = L_sb(θmax) = 0"),
+    ]
+
+
+def _test_error_cases() -> list[Case]:
+    true = np.array([0.1, 0.4, 0.35, 0.8, 0.9, 0.2])
+    return [
+        Case((true + 0.1, true), "mse = mean((pred − true)²), mae = mean(|pred − true|)"),
+        Case((2.0 * true - 0.5, true),
+             "mae averages absolute errors: negative errors must not cancel positive ones"),
+        Case((true**3, true), "Spearman's ρ correlates ranks, not values: a monotone "
+                              "relation gives ρ = 1 (scipy.stats.spearmanr)"),
+        Case((np.array([0.2, 0.2, 0.5, 0.1, 0.9, 0.7]), true),
+             "ties share the mean of their ranks (scipy.stats.rankdata does this)"),
+    ]
+
+
+def _contrast_cases() -> list[Case]:
+    t = np.array([[0.1, 0.2, 0.3, 0.4, 0.9, 0.2, 0.3, 0.4],
+                  [0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5],
+                  [0.9, 0.0, 0.3, 0.8, 0.1, 0.6, 0.3, 0.0]])
+    valid = np.ones_like(t, dtype=bool)
+    some = valid.copy()
+    some[2, 7] = False
+    return [
+        Case((t, valid, 0.3), "θ_k's opposite heading is θ_{k+K/2}; list each pair once, "
+                              "with k < K/2, as (cell indices, k)"),
+        Case((t, some, 0.3), "both samples of a pair must be valid"),
+        Case((t, valid, 0.0), "a pair counts when |C*(θ_k) − C*(θ_{k+K/2})| is strictly "
+                              "more than the threshold"),
+    ]
+
+
+EXERCISES: dict[str, Exercise] = {
+    # the BEV's fit pulls slopes weakly towards its neighbourhood's: plain least squares
+    # lands within 5e-4 of it on these points
+    "cell_plane": Exercise("01_terrain_and_bev", _cell_plane, _plane_cases, atol=2e-3),
+    "locomotion": Exercise("02_locomotion_labels", _locomotion, _locomotion_cases),
+    "masked_loss": Exercise("03_multitask_training", _masked_loss, _masked_loss_cases),
+    "heading_bin": Exercise("04_directional_inference", _heading_bin, _heading_cases),
+    "edge_cost": Exercise("05_hybrid_astar", _edge_cost, _edge_cost_cases),
+    "wilson_interval": Exercise("06_experiment1_hill", _wilson, _wilson_cases, atol=1e-3),
+    "slope_locomotion": Exercise("07_experiment2_ridge", _slope_locomotion, _slope_cases,
+                                 atol=1e-5),
+    "test_errors": Exercise("08_experiment3_multitask", _test_errors, _test_error_cases),
+    "contrast_pairs": Exercise("09_costmap_accuracy", _contrast_pairs, _contrast_cases,
+                               normalize=_pair_set),
+}
+"""Every exercise by name; ``notebook`` says where it is asked."""
+
+
+# ----------------------------------------------------------------------------- grading
+def _as_numbers(x: Any) -> Any:
+    """Tensors → numpy, tuples/lists → tuples of the same, anything else → a float array."""
+    if isinstance(x, (tuple, list)):
+        return tuple(_as_numbers(v) for v in x)
+    if hasattr(x, "detach"):  # a torch tensor
+        x = x.detach().cpu().numpy()
+    return np.asarray(x, dtype=np.float64)
+
+
+def _agree(got: Any, want: Any, atol: float) -> bool:
+    if isinstance(want, tuple):
+        return (isinstance(got, tuple) and len(got) == len(want)
+                and all(_agree(g, w, atol) for g, w in zip(got, want, strict=True)))
+    if isinstance(got, tuple) or got.shape != want.shape:
+        return False
+    return bool(np.allclose(got, want, rtol=1e-6, atol=atol, equal_nan=True))
+
+
+def _show(x: Any) -> str:
+    """A short printout of an argument or answer."""
+    if isinstance(x, (tuple, list)):
+        return "(" + ", ".join(_show(v) for v in x) + ")"
+    if hasattr(x, "detach"):
+        x = x.detach().cpu().numpy()
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, np.ndarray):
+        return np.array2string(x, precision=4, threshold=12, edgeitems=2,
+                               separator=", ").replace("\n", "")
+    if isinstance(x, float) and not math.isnan(x):
+        return f"{x:.6g}"
+    return repr(x)
+
+
+def _call(fn: Callable[..., Any], args: tuple) -> Any:
+    return fn(*copy.deepcopy(args))  # the learner's function must not change the inputs
+
+
+def grade(name: str, learner_fn: Callable[..., Any]) -> CheckResult:
+    """Compare ``learner_fn`` with exercise ``name``'s reference on every case.
+
+    Returns a :class:`CheckResult`; never raises because of the learner's code (an
+    exception it raises, other than ``NotImplementedError``, is reported as wrong).
+    """
+    if name not in EXERCISES:
+        raise KeyError(f"no exercise {name!r}; known: {', '.join(EXERCISES)}")
+    ex = EXERCISES[name]
+    cases = ex.cases()
+    norm = ex.normalize or (lambda a: a)
+    for i, case in enumerate(cases):
+        want = _call(ex.reference, case.args)
+        try:
+            got = _call(learner_fn, case.args)
+        except NotImplementedError:
+            got = None
+        except Exception as err:  # noqa: BLE001 — any error in the learner's code is a wrong answer
+            msg = (f"wrong: {case.hint}\n  your function raised {type(err).__name__}: {err}\n"
+                   f"  on input {_show(case.args)}")
+            return CheckResult(name, WRONG, msg, case.hint)
+        if got is None:
+            if i == 0:
+                msg = (f"not answered yet — write the body of `{learner_fn.__name__}` and rerun "
+                       f"this cell.\n  Here is what the reference gives: "
+                       f"{name}{_show(case.args)} = {_show(want)}")
+                return CheckResult(name, NOT_ANSWERED, msg)
+            msg = f"wrong: {case.hint}\n  your function returned None on input {_show(case.args)}"
+            return CheckResult(name, WRONG, msg, case.hint)
+        try:
+            ok = _agree(_as_numbers(norm(got)), _as_numbers(norm(want)), ex.atol)
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            msg = (f"wrong: {case.hint}\n  input {_show(case.args)}\n  yours     {_show(got)}\n"
+                   f"  expected  {_show(want)}")
+            return CheckResult(name, WRONG, msg, case.hint)
+    return CheckResult(name, RIGHT, f"right — {name} agrees with dgt_lib on all "
+                                    f"{len(cases)} inputs")
+
+
+def check(name: str, learner_fn: Callable[..., Any]) -> None:
+    """Grade ``learner_fn`` against exercise ``name`` and print the verdict (``right``,
+    ``wrong: <hint>`` or ``not answered yet``) — the notebooks' check cells."""
+    print(grade(name, learner_fn).message)
