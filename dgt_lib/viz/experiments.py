@@ -5,7 +5,8 @@ Paper: Experiments → Experiment 1 (hill), Experiment 2 (ridge), Experiment 3
 
 Queries on a world figure, every method's planned and driven path for one query,
 where failed trials ended (marker by reason, colour by method), speed against time per
-method, and success rates with Wilson 95 % intervals beside the paper's. Methods are shown by their labels (:data:`~dgt_lib.mapping.methods.METHOD_LABELS`:
+method, and success rates with Wilson 95 % intervals beside the paper's. Methods are
+shown by their labels (:data:`~dgt_lib.mapping.methods.METHOD_LABELS`:
 DGT-Map, DGT-Map(Iso), DGT-Map(ST), Slope-Based, Binary), never by their code keys.
 """
 
