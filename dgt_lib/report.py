@@ -5,8 +5,8 @@ Writes ``results/README.md`` in the profile's data directory — each experiment
 (ours beside the paper's, with Wilson 95 % intervals), the routes each method planned,
 the failure reasons, and every costmap's accuracy against the measured ground truth
 (the ``ground_truth`` stage, :mod:`dgt_lib.stages.ground_truth`) — and beside it the
-figures: planned paths per method (the paper's path figure), success rates, and the
-ground truth on the learned layers.
+figures: planned paths per method (the paper's path figure), success rates, where the
+failed trials ended (marker by reason), and the ground truth on the learned layers.
 """
 
 from __future__ import annotations
@@ -57,6 +57,11 @@ def _figures(result: ExperimentResult, prof: Profile, out: Path) -> list[Path]:
     fig = viz.plot_success_rates(result, PAPER.get(result.name))
     paths.append(out / f"{result.name}_success.png")
     fig.savefig(paths[-1], dpi=90)
+    plt.close(fig)
+    fig = viz.plot_failure_map(get_world(result.world, prof), result,
+                               queries=result.world == "eval")
+    paths.append(out / f"{result.name}_failures.png")
+    fig.savefig(paths[-1], dpi=80)
     plt.close(fig)
     labels = sorted({r.task.query.label for r in result.results})
     if result.world in ("hill", "ridge"):

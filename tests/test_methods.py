@@ -86,3 +86,53 @@ def test_no_document_uses_an_old_name_of_a_method():
     offenders = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in _documents()
                  for m in OLD_NAMES.finditer(p.read_text())]
     assert offenders == []
+
+
+def _trial(method: str, outcome: TrialOutcome, track_end: tuple[float, float] | None,
+           index: int = 0) -> TrialResult:
+    """One Experiment 3 trial from (5, 5) whose driven track ends at ``track_end`` (no
+    track for None)."""
+    query = Query((5.0, 5.0, 0.0), (35.0, 30.0), "random")
+    task = TrialTask("experiment3", "eval", method, "vw_van", query, index, "smoke", 0)
+    if track_end is None:
+        return TrialResult(task, outcome)
+    xy = np.column_stack([np.linspace(5, track_end[0], 10), np.linspace(5, track_end[1], 10)])
+    track = np.column_stack([np.linspace(0, 9, 10), xy, np.zeros(10)])
+    return TrialResult(task, outcome, trajectory=track, speed=np.full(10, 5.0))
+
+
+def test_failure_figures_mark_where_each_failed_trial_ended_by_reason():
+    results = [_trial("dgt", TrialOutcome(True, "success", 9.0), (34.0, 30.0)),
+               _trial("binary", TrialOutcome.failure("immobilized", 20.0), (12.0, 7.5), 1),
+               _trial("single-task", TrialOutcome.failure("flipped", 5.0), (20.0, 17.0), 2),
+               _trial("binary", TrialOutcome.failure("no_path"), None, 3)]
+    result = ExperimentResult("experiment3", "eval", results)
+    world = from_heightmap(np.zeros((100, 100), np.float32), 0.4, name="flat")
+    fig = viz.plot_failure_map(world, result, queries=True)
+    ax = fig.axes[0]
+    marks = {}
+    for coll in ax.collections:
+        for xy in coll.get_offsets():
+            marks[(round(float(xy[0]), 3), round(float(xy[1]), 3))] = coll
+    assert set(marks) == {(12.0, 7.5), (20.0, 17.0), (5.0, 5.0)}  # not the success's end
+    # one marker shape per reason: the immobilized, flipped and no-path ends differ
+    paths = {k: tuple(map(tuple, c.get_paths()[0].vertices.round(3))) for k, c in marks.items()}
+    assert len(set(paths.values())) == 3
+    [failure_legend] = ax.artists
+    legend = [t.get_text() for t in failure_legend.get_texts()]
+    assert {"immobilized (1)", "flipped (1)", "no path (1)"} <= set(legend)
+    assert {METHOD_LABELS["binary"], METHOD_LABELS["single-task"]} <= set(legend)
+    plt.close("all")
+
+
+def test_the_path_figure_marks_the_failed_trials_of_its_query():
+    results = [_trial("dgt", TrialOutcome(True, "success", 9.0), (34.0, 30.0)),
+               _trial("binary", TrialOutcome.failure("immobilized", 20.0), (12.0, 7.5))]
+    result = ExperimentResult("experiment3", "eval", results)
+    world = from_heightmap(np.zeros((100, 100), np.float32), 0.4, name="flat")
+    maps = types.SimpleNamespace(occupancy=np.zeros(world.grid.shape, np.uint8), grid=world.grid)
+    fig, ax = plt.subplots()
+    viz.plot_planned_paths(ax, world, maps, result, "random")
+    ends = [tuple(np.round(xy, 3)) for c in ax.collections for xy in c.get_offsets()]
+    assert ends == [(12.0, 7.5)]
+    plt.close("all")

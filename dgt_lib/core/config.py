@@ -169,6 +169,12 @@ class ExperimentsConfig:
     start_jitter_m: float = 2.0  # starts and goals vary this much around the landmarks [m]
     heading_jitter_deg: float = 20.0  # start headings vary this much [deg]
     eval_distance_m: tuple[float, float] = (40.0, 90.0)  # random start–goal distance range [m]
+    # Experiment 3's rule, fixed before any method ran (dgt_lib/evaluation/hazards.py): keep a
+    # random query only when its straight segment start → goal crosses at least this much
+    # terrain that one of the experiment's vehicles cannot cross, from the TRUE heights (slope
+    # above its max climb, or a crest above its ground clearance between its axles) [m];
+    # about one vehicle length (jeep 4.3 m, vw_van 4.5 m). 0 = no rule (the paper's draw).
+    eval_min_hazard_m: float = 4.0
     time_limit_base_s: float = 30.0  # time limit = base + factor × planned length / 5 m/s
     time_limit_factor: float = 2.0
 

@@ -4,7 +4,16 @@
   Route A uphill and Route B downhill?
 * Experiment 2 — ridge, mercedes_van: does it cross at the smoothed section?
 * Experiment 3 — eval world, random start–goal pairs, jeep and vw_van:
-  multi-task vs single-task.
+  multi-task vs single-task, with Binary (occupancy only, a zero costmap) as the floor
+  that shows how much any costmap matters on these queries. The eval world is the
+  training world's generator from another seed (:mod:`dgt_lib.world.terrain`); a query
+  is kept only when its straight segment start → goal crosses at least
+  ``ExperimentsConfig.eval_min_hazard_m`` of cells that one of the experiment's vehicles
+  cannot cross, judged from the world's true heights and the vehicles' specifications
+  (slope above the max climb, or a crest above the ground clearance between the axles;
+  :mod:`dgt_lib.evaluation.hazards`), and when Hybrid A* finds a kinematically feasible
+  path for it (:func:`~dgt_lib.evaluation.queries.draw_random_queries`). The rule is
+  fixed in advance and sees no learned costmap and no method's outcome.
 
 Each is a set of closed-loop trials (:mod:`dgt_lib.evaluation.trials`) on identical
 queries for every method; :class:`ExperimentResult` turns them into the paper's tables
@@ -19,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.evaluation.hazards import hazard_map
 from dgt_lib.evaluation.queries import Query, hill_queries, random_queries, ridge_queries
 from dgt_lib.evaluation.statistics import markdown_table, reason_counts, success_rows
 from dgt_lib.evaluation.trials import MapsLoader, TrialResult, run_trials, trial_tasks
@@ -98,7 +108,7 @@ class ExperimentResult:
 EXPERIMENTS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     "experiment1": ("hill", ("carla_cola",), METHODS),
     "experiment2": ("ridge", ("mercedes_van",), METHODS),
-    "experiment3": ("eval", ("jeep", "vw_van"), ("dgt", "single-task")),
+    "experiment3": ("eval", ("jeep", "vw_van"), ("dgt", "single-task", "binary")),
 }
 """Each experiment's world, vehicles and default methods (paper: Experiments 1–3)."""
 
@@ -113,7 +123,9 @@ def experiment_queries(name: str, profile: Profile, load_maps: MapsLoader
     if name == "experiment2":
         return {"mercedes_van": ridge_queries(get_world(world, prof), ex.n_ridge, ex,
                                               prof.seed)}
-    return {v: random_queries(load_maps(world, "binary", v, prof), n, ex, prof.seed, v)
+    hazards = hazard_map(get_world(world, prof), EXPERIMENTS[name][1])
+    return {v: random_queries(load_maps(world, "binary", v, prof), n, ex, prof.seed, v,
+                              hazards=hazards, planner_cfg=prof.planner)
             for v, n in (("jeep", ex.n_eval_jeep), ("vw_van", ex.n_eval_vw_van))}
 
 

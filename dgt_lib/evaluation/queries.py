@@ -3,7 +3,9 @@
 
 Every method gets the same queries: Experiment 1 alternates ascents and descents of the
 hill, Experiment 2 crossings of the ridge both ways, Experiment 3 random start–goal pairs
-on the evaluation world. Queries are drawn from a seed, never from a method's result.
+on the evaluation world — kept only where the straight line crosses terrain a vehicle
+cannot cross (:mod:`dgt_lib.evaluation.hazards`) and Hybrid A* finds a kinematically
+feasible path. Queries are drawn from a seed, never from a method's result.
 """
 
 from __future__ import annotations
@@ -12,8 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dgt_lib.core.config import ExperimentsConfig
+from dgt_lib.core.config import ExperimentsConfig, PlannerConfig
 from dgt_lib.core.geometry import wrap_angle
+from dgt_lib.evaluation.hazards import HazardMap
 from dgt_lib.mapping.baselines import binary_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.navigation.planner import HybridAStar
@@ -74,33 +77,107 @@ def ridge_queries(world: World, n: int, cfg: ExperimentsConfig, seed: int) -> li
     return out
 
 
-def random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: int,
-                   vehicle: str) -> list[Query]:
-    """n random start–goal pairs on free cells of the occupancy map, their distance
-    in ``cfg.eval_distance_m``, start heading uniform; both must be valid planner
-    queries for ``vehicle`` (no footprint collision) — otherwise resampled."""
+REJECTIONS: tuple[str, ...] = ("off_map", "footprint", "hazard", "infeasible")
+"""Why :func:`draw_random_queries` rejected a candidate: the goal too near the map edge,
+the start or goal footprint in an obstacle, too little hazardous terrain on the straight
+segment, no kinematically feasible path."""
+
+
+@dataclass(frozen=True)
+class QueryDraw:
+    """The outcome of :func:`draw_random_queries`: the queries kept, how many candidates
+    were drawn, and how many were rejected for each of :data:`REJECTIONS`."""
+
+    queries: list[Query]
+    candidates: int
+    rejected: dict[str, int]
+
+    def kept_by_hazard_rule(self) -> float:
+        """Share of the candidates that reached the hazard rule (on the map, footprints
+        free) which it kept."""
+        reached = self.candidates - self.rejected["off_map"] - self.rejected["footprint"]
+        return (reached - self.rejected["hazard"]) / reached if reached else float("nan")
+
+
+def is_feasible(planner: HybridAStar, start, goal) -> bool:
+    """Whether ``planner`` (Hybrid A*: the vehicle's turning radius and footprint on the
+    occupancy map) finds a path from ``start`` (x, y, θ) to ``goal`` (x, y) [m, rad]. A
+    goal unreachable even in 2D (the cost-to-go field is ∞ at the start) is rejected
+    without a search."""
+    r, c = planner.grid.xy_to_cell(start[0], start[1])
+    if not np.isfinite(planner.cost_to_go(goal[:2])[r, c]):
+        return False
+    return planner.plan(start, goal).success
+
+
+def draw_random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: int,
+                        vehicle: str, *, hazards: HazardMap | None = None,
+                        planner_cfg: PlannerConfig | None = None,
+                        margin_m: float = 10.0) -> QueryDraw:
+    """n random start–goal pairs (Experiment 3) and what was rejected on the way.
+
+    Candidates: a start uniform on the map at least ``margin_m`` from its edge, heading
+    uniform, a goal at a distance uniform in ``cfg.eval_distance_m`` in a uniform
+    direction (also ``margin_m`` inside the map). A candidate is kept when, in this order,
+
+    1. the start footprint is free and some goal heading's footprint is (occupancy map);
+    2. with ``hazards``, the straight segment start → goal crosses at least
+       ``cfg.eval_min_hazard_m`` of hazard cells (:mod:`dgt_lib.evaluation.hazards`:
+       computed from the true heights, never from a method);
+    3. Hybrid A* with ``vehicle``'s turning radius and footprint finds a path on the
+       occupancy map with a zero costmap (``planner_cfg``: the trials' planner settings)
+       — a query no method could drive is not a test of the costmap.
+
+    Otherwise it is resampled; after 200 × n candidates a ``RuntimeError`` says how many
+    were found and why the others were rejected. Deterministic in ``seed``.
+    """
     rng = np.random.default_rng(seed)
     planner = HybridAStar.for_vehicle(binary_costmap(maps.grid.shape), maps.occupancy,
-                                      maps.grid, vehicle)
+                                      maps.grid, vehicle, cfg=planner_cfg)
     x0, x1, y0, y1 = maps.grid.extent
     lo, hi = cfg.eval_distance_m
     out: list[Query] = []
+    rejected = dict.fromkeys(REJECTIONS, 0)
+    candidates = 0
     for _ in range(200 * max(n, 1)):
         if len(out) == n:
             break
-        sx, sy = rng.uniform(x0 + 10, x1 - 10), rng.uniform(y0 + 10, y1 - 10)
+        candidates += 1
+        sx, sy = rng.uniform(x0 + margin_m, x1 - margin_m), rng.uniform(y0 + margin_m,
+                                                                         y1 - margin_m)
         ang, dist = rng.uniform(0, 2 * np.pi), rng.uniform(lo, hi)
         gx, gy = sx + dist * np.cos(ang), sy + dist * np.sin(ang)
-        if not (x0 + 10 < gx < x1 - 10 and y0 + 10 < gy < y1 - 10):
-            continue
         start = (float(sx), float(sy), float(rng.uniform(0, 2 * np.pi)))
+        goal = (float(gx), float(gy))
+        if not (x0 + margin_m < gx < x1 - margin_m and y0 + margin_m < gy < y1 - margin_m):
+            rejected["off_map"] += 1
+            continue
         goal_poses = [(gx, gy, th) for th in np.linspace(0, 2 * np.pi, 8, endpoint=False)]
         if planner.collides(start)[0] or planner.collides(np.array(goal_poses)).all():
+            rejected["footprint"] += 1
             continue
-        out.append(Query(start, (float(gx), float(gy)), "random"))
+        if hazards is not None and hazards.length_m(start, goal) < cfg.eval_min_hazard_m:
+            rejected["hazard"] += 1
+            continue
+        if not is_feasible(planner, start, goal):
+            rejected["infeasible"] += 1
+            continue
+        out.append(Query(start, goal, "random"))
     if len(out) < n:
-        raise RuntimeError(f"found only {len(out)} of {n} valid random queries on {maps.world}")
-    return out
+        raise RuntimeError(
+            f"found only {len(out)} of {n} random queries for {vehicle} on {maps.world} in "
+            f"{candidates} candidates; rejected: "
+            + ", ".join(f"{k} {v}" for k, v in rejected.items())
+            + " (ExperimentsConfig.eval_distance_m and eval_min_hazard_m set what is kept)")
+    return QueryDraw(out, candidates, rejected)
+
+
+def random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: int,
+                   vehicle: str, *, hazards: HazardMap | None = None,
+                   planner_cfg: PlannerConfig | None = None) -> list[Query]:
+    """The queries of :func:`draw_random_queries`."""
+    return draw_random_queries(maps, n, cfg, seed, vehicle, hazards=hazards,
+                               planner_cfg=planner_cfg).queries
 
 
 RIDGE_SMOOTH_HALF_WIDTH_M = 9.0

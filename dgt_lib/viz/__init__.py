@@ -10,7 +10,7 @@ One module per notebook, each named after what it draws:
 - :mod:`~dgt_lib.viz.planner` (05 and ``dgt plan``): Hybrid A* primitives, cost
   amplification, planned paths, one planning query;
 - :mod:`~dgt_lib.viz.experiments` (06–08 and :mod:`dgt_lib.report`): queries, planned
-  and driven paths, trial speeds, success rates;
+  and driven paths, where failed trials ended, trial speeds, success rates;
 - :mod:`~dgt_lib.viz.accuracy` (09 and :mod:`dgt_lib.report`): the measured ground truth
   beside the learned costmap layers, predicted against measured cost;
 - :mod:`~dgt_lib.viz.common`: colours and helpers several of them share, among them
@@ -43,6 +43,10 @@ from dgt_lib.viz.accuracy import (
 )
 from dgt_lib.viz.common import METHOD_COLORS, ROUTE_COLORS, VEHICLE_COLORS, source_markdown
 from dgt_lib.viz.experiments import (
+    FAILURE_MARKERS,
+    end_position,
+    plot_failure_map,
+    plot_failures,
     plot_planned_paths,
     plot_queries,
     plot_success_rates,
@@ -129,7 +133,8 @@ __all__ = [
     "PLAN_COLORS", "PRIMITIVES", "PRIMITIVE_COLORS", "plan_table", "plot_cost_amplification",
     "plot_motion_primitives", "plot_plans", "plot_query", "primitive_lookups",
     # experiments (notebooks 06–08, the report)
-    "plot_planned_paths", "plot_queries", "plot_success_rates", "plot_trial_speeds",
+    "FAILURE_MARKERS", "end_position", "plot_failure_map", "plot_failures", "plot_planned_paths",
+    "plot_queries", "plot_success_rates", "plot_trial_speeds",
     # accuracy against the ground truth (notebook 09, the report)
     "plot_ground_truth_beside_layers", "plot_predicted_vs_measured", "plot_truth_dots",
 ]

@@ -4,8 +4,9 @@ Paper: Experiments → Experiment 1 (hill), Experiment 2 (ridge), Experiment 3
 (multi-task), Experimental Protocol, Tables I and II.
 
 Queries on a world figure, every method's planned and driven path for one query,
-speed against time per method, and success rates with Wilson 95 % intervals beside the
-paper's. Methods are shown by their labels (:data:`~dgt_lib.mapping.methods.METHOD_LABELS`:
+where failed trials ended (marker by reason, colour by method), speed against time per
+method, and success rates with Wilson 95 % intervals beside the paper's. Methods are
+shown by their labels (:data:`~dgt_lib.mapping.methods.METHOD_LABELS`:
 DGT-Map, DGT-Map(Iso), DGT-Map(ST), Slope-Based, Binary), never by their code keys.
 """
 
@@ -15,8 +16,11 @@ from collections.abc import Mapping
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.legend import Legend
+from matplotlib.lines import Line2D
 
-from dgt_lib.mapping.methods import METHOD_LABELS
+from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
+from dgt_lib.navigation.outcome import REASONS
 from dgt_lib.viz.common import METHOD_COLORS
 from dgt_lib.world.worlds import World
 
@@ -29,9 +33,68 @@ def plot_queries(ax, queries) -> None:
         ax.plot(*q.goal, "*", color="yellow", ms=10, mec="k")
 
 
+FAILURE_MARKERS: dict[str, str] = {"immobilized": "X", "flipped": "v", "timeout": "s",
+                                   "no_path": "o", "diverged": "D", "error": "P"}
+"""The marker of each failure reason (:data:`~dgt_lib.navigation.outcome.REASONS`)."""
+
+
+def end_position(result) -> tuple[float, float]:
+    """Where a trial ended [m]: the driven track's last (x, y), or the start without one
+    (no path, or an error before driving)."""
+    if len(result.trajectory):
+        return float(result.trajectory[-1, 1]), float(result.trajectory[-1, 2])
+    return float(result.task.query.start[0]), float(result.task.query.start[1])
+
+
+def plot_failures(ax, results, legend: bool = True) -> list:
+    """Mark where each failed trial of ``results`` ended (:func:`end_position`): the
+    marker says why (:data:`FAILURE_MARKERS`), the colour which method; with ``legend``,
+    a legend of the reasons (with counts) and methods, kept beside any later legend.
+    Returns the scatter collections, one per reason."""
+    failed = [r for r in results if not r.outcome.success]
+    artists, handles = [], []
+    for reason in (x for x in REASONS if x in FAILURE_MARKERS):
+        rs = [r for r in failed if r.outcome.reason == reason]
+        if not rs:
+            continue
+        xy = np.array([end_position(r) for r in rs])
+        artists.append(ax.scatter(xy[:, 0], xy[:, 1], marker=FAILURE_MARKERS[reason], s=70,
+                                  c=[METHOD_COLORS[r.task.method] for r in rs],
+                                  edgecolors="k", linewidths=0.8, zorder=5))
+        handles.append(Line2D([], [], ls="", marker=FAILURE_MARKERS[reason], color="k",
+                              mfc="white", label=f"{reason.replace('_', ' ')} ({len(rs)})"))
+    if legend and handles:
+        methods = [m for m in METHODS if any(r.task.method == m for r in failed)]
+        handles += [Line2D([], [], ls="", marker="s", color=METHOD_COLORS[m],
+                           label=METHOD_LABELS[m]) for m in methods]
+        ax.add_artist(Legend(ax, handles, [h.get_label() for h in handles], loc="upper left",
+                             fontsize=7, title="failed trials ended", title_fontsize=7))
+    return artists
+
+
+def plot_failure_map(world: World, result, queries: bool = False):
+    """Every failed trial's end position over the world's terrain, one panel per vehicle
+    (:func:`plot_failures`); with ``queries``, each query's straight line start → goal."""
+    vehicles = sorted({r.task.vehicle for r in result.results})
+    fig, axes = plt.subplots(1, len(vehicles), figsize=(6.5 * len(vehicles), 6), squeeze=False)
+    for ax, v in zip(axes[0], vehicles, strict=True):
+        rs = [r for r in result.results if r.task.vehicle == v]
+        ax.imshow(world.heights, origin="lower", extent=world.grid.extent, cmap="terrain")
+        if queries:
+            for q in {r.task.query for r in rs}:
+                ax.plot([q.start[0], q.goal[0]], [q.start[1], q.goal[1]], color="k", lw=0.6,
+                        alpha=0.5)
+        plot_failures(ax, rs)
+        n_failed = sum(not r.outcome.success for r in rs)
+        ax.set_title(f"{result.name}: {v}, where the {n_failed} failed trials ended")
+    fig.tight_layout()
+    return fig
+
+
 def plot_planned_paths(ax, world: World, maps, result, label: str, index: int | None = None):
     """Every method's planned path for one query (the first with ``label``, or trial
-    ``index``) over the terrain and occupancy; success ✓ / failure ✗ in the legend."""
+    ``index``) over the terrain and occupancy; success ✓ / failure ✗ in the legend, and
+    where each failed trial ended (:func:`plot_failures`)."""
     ax.imshow(world.heights, origin="lower", extent=world.grid.extent, cmap="terrain")
     occ = np.ma.masked_equal(maps.occupancy, 0)
     ax.imshow(occ, origin="lower", extent=maps.grid.extent, cmap="gray_r", vmin=0, vmax=2,
@@ -55,6 +118,7 @@ def plot_planned_paths(ax, world: World, maps, result, label: str, index: int | 
     if picked:
         q = picked[0].task.query
         plot_queries(ax, [q])
+    plot_failures(ax, picked)
     ax.legend(fontsize=8, loc="lower right")
     ax.set_title(f"{label}: planned (solid) and driven (dotted)")
 
