@@ -137,10 +137,13 @@ class ResNet18(nn.Module):
         layers += [BasicBlock(planes, planes) for _ in range(1, blocks)]
         return nn.Sequential(*layers)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def feature_map(self, x: torch.Tensor) -> torch.Tensor:
+        """Layer-4 features before pooling: (B, C, H, W) → (B, 8·width, ⌈H/32⌉, ⌈W/32⌉)."""
         x = self.maxpool(self.relu(self.bn1(self.conv1(x))))
-        x = self.layer4(self.layer3(self.layer2(self.layer1(x))))
-        return torch.flatten(self.avgpool(x), 1)  # (B, 8·width)
+        return self.layer4(self.layer3(self.layer2(self.layer1(x))))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.flatten(self.avgpool(self.feature_map(x)), 1)  # (B, 8·width)
 
 
 def load_torchvision_weights(branch: ResNet18, path: str | Path) -> None:

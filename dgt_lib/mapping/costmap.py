@@ -20,6 +20,11 @@ Two implementations of the same procedure:
   neighbouring windows differ little (the windows overlap by most of their 154
   cells), so interpolation costs little accuracy; the benchmark
   (``benchmarks/bench_costmap.py``) measures speed and the difference.
+* :func:`directional_costmap_dense` — each network branch run once over the rotated
+  map (:mod:`dgt_lib.learning.dense`), every window's prediction read off the dense
+  field, then the same averaging. Fast, but not the per-window network (see there).
+
+:func:`model_costmap` picks one of them by name (:data:`INFERENCE_METHODS`).
 
 All vehicles come from one backbone pass: ``predict`` maps patches (N, 6, 22, 7)
 to locomotion (N, V), one column per vehicle head. Unobserved cells cost 1.
@@ -33,7 +38,11 @@ import cv2
 import numpy as np
 from tqdm.auto import tqdm
 
+from dgt_lib.core.config import CostmapConfig
 from dgt_lib.core.geometry import heading_bins
+from dgt_lib.learning.dense import dense_window_field
+from dgt_lib.learning.model import DGTNet
+from dgt_lib.learning.training import predict
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.patches import (
     PATCH_COLS,
@@ -45,6 +54,10 @@ from dgt_lib.perception.patches import (
 
 Predictor = Callable[[np.ndarray], np.ndarray]
 """patches (N, 6, 22, 7) float32 → locomotion L (N, V) in [0, 1]."""
+
+INFERENCE_METHODS = ("literal", "lattice", "dense")
+"""How a model's costmap is computed (``CostmapConfig.method``): the literal stride-1
+procedure, the lattice of window centres (``CostmapConfig.stride``), dense evaluation."""
 
 
 def _window_lattice(transform, grid, stride: tuple[int, int]):
@@ -190,17 +203,24 @@ def _interpolate_lattice(values: np.ndarray, a: np.ndarray, b: np.ndarray,
     return field, on_map & known
 
 
-def _costmap(bev: BEVMap, predict: Predictor, n_headings: int, stride: tuple[int, int],
-             skip_unobserved: bool, batch_size: int, progress: bool) -> np.ndarray:
+def _costmap(bev: BEVMap, heading_layer: Callable[[float], np.ndarray], n_headings: int,
+             progress: bool) -> np.ndarray:
+    """Cost (V, K, H, W) from ``heading_layer(θ)`` → locomotion (V, H, W) per heading."""
     thetas = heading_bins(n_headings)
-    layers = []
-    for theta in tqdm(thetas, desc="headings", unit="θ", disable=not progress, leave=False):
-        layers.append(_heading_layer(bev, float(theta), predict, stride, skip_unobserved,
-                                     batch_size))
+    layers = [heading_layer(float(theta))
+              for theta in tqdm(thetas, desc="headings", unit="θ", disable=not progress,
+                                leave=False)]
     locomotion = np.stack(layers, axis=1)  # (V, K, H, W)
     cost = 1.0 - np.clip(locomotion, 0.0, 1.0)
     cost[:, :, ~bev.observed] = 1.0
     return cost.astype(np.float32)
+
+
+def _window_costmap(bev: BEVMap, predict: Predictor, n_headings: int, stride: tuple[int, int],
+                    skip_unobserved: bool, batch_size: int, progress: bool) -> np.ndarray:
+    return _costmap(bev, lambda theta: _heading_layer(bev, theta, predict, stride,
+                                                      skip_unobserved, batch_size),
+                    n_headings, progress)
 
 
 def directional_costmap_reference(bev: BEVMap, predict: Predictor, n_headings: int = 8, *,
@@ -210,7 +230,7 @@ def directional_costmap_reference(bev: BEVMap, predict: Predictor, n_headings: i
     Returns cost (V, K, H, W) float32 in [0, 1]: C = 1 − L, layer k = heading
     θ_k = 2πk/K (k = 0 is +x, counter-clockwise), 1 on unobserved cells.
     """
-    return _costmap(bev, predict, n_headings, (1, 1), False, batch_size, progress)
+    return _window_costmap(bev, predict, n_headings, (1, 1), False, batch_size, progress)
 
 
 def directional_costmap(bev: BEVMap, predict: Predictor, n_headings: int = 8, *,
@@ -224,4 +244,42 @@ def directional_costmap(bev: BEVMap, predict: Predictor, n_headings: int = 8, *,
     stride = (int(stride[0]), int(stride[1]))
     if min(stride) < 1:
         raise ValueError(f"stride must be ≥ 1 cell, got {stride}")
-    return _costmap(bev, predict, n_headings, stride, skip_unobserved, batch_size, progress)
+    return _window_costmap(bev, predict, n_headings, stride, skip_unobserved, batch_size,
+                           progress)
+
+
+def dense_heading_layer(bev: BEVMap, theta: float, model: DGTNet) -> np.ndarray:
+    """Locomotion (V, H, W) for one heading by dense evaluation: rotate → dense window
+    field → average over covering windows → rotate back."""
+    rotated = rotate_map(bev, theta)
+    field = dense_window_field(model, rotated.channels)
+    _, on_map = _window_lattice(rotated.transform, bev.grid, (1, 1))
+    averaged = _average_over_covering_windows(field, on_map)
+    return unrotate_map(np.nan_to_num(averaged, nan=0.0), rotated.transform)
+
+
+def directional_costmap_dense(bev: BEVMap, model: DGTNet, n_headings: int = 8, *,
+                              progress: bool = True) -> np.ndarray:
+    """The directional costmap (V, K, H, W) by dense evaluation of ``model``
+    (:mod:`dgt_lib.learning.dense`); same layout as the reference."""
+    return _costmap(bev, lambda theta: dense_heading_layer(bev, theta, model), n_headings,
+                    progress)
+
+
+def model_costmap(bev: BEVMap, model: DGTNet, config: CostmapConfig, *,
+                  progress: bool = True) -> np.ndarray:
+    """The directional costmap (V, K, H, W) of ``model`` by ``config.method``
+    (:data:`INFERENCE_METHODS`), with its ``n_headings``, ``stride`` and ``batch_size``."""
+    if config.method == "dense":
+        return directional_costmap_dense(bev, model, config.n_headings, progress=progress)
+
+    def predictor(patches: np.ndarray) -> np.ndarray:
+        return predict(model, patches, config.batch_size)
+
+    if config.method == "literal":
+        return directional_costmap_reference(bev, predictor, config.n_headings,
+                                             batch_size=config.batch_size, progress=progress)
+    if config.method == "lattice":
+        return directional_costmap(bev, predictor, config.n_headings, stride=config.stride,
+                                   batch_size=config.batch_size, progress=progress)
+    raise ValueError(f"unknown costmap method {config.method!r}; one of {INFERENCE_METHODS}")
