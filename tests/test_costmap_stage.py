@@ -46,8 +46,8 @@ def built(tmp_path, monkeypatch, dataset):
     monkeypatch.setattr(costmaps, "ensure_model",
                         lambda *a, **k: real_load(*a, **k, device="cpu"))
     log = []
-    real_network, real_slope = costmaps.model_costmap, costmaps.slope_costmap
-    monkeypatch.setattr(costmaps, "model_costmap",
+    real_network, real_slope = costmaps.directional_costmap, costmaps.slope_costmap
+    monkeypatch.setattr(costmaps, "directional_costmap",
                         lambda *a, **k: log.append("network") or real_network(*a, **k))
     monkeypatch.setattr(costmaps, "slope_costmap",
                         lambda *a, **k: log.append("slope") or real_slope(*a, **k))
@@ -85,5 +85,3 @@ def test_more_slope_trials_rebuild_the_slope_map_not_the_networks(built):
     assert built == ["network", "slope", "slope"]
     _maps(more.with_(costmap=replace(more.costmap, stride=(2, 1))))  # other windows
     assert built == ["network", "slope", "slope", "network", "slope"]
-    _maps(more.with_(costmap=replace(more.costmap, stride=(2, 1), method="dense")))
-    assert built[-2:] == ["network", "slope"]  # another method: rebuilt, not read back

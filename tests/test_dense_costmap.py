@@ -1,17 +1,14 @@
 """Dense evaluation of the network (dgt_lib.learning.dense) against the per-window network
 and the literal costmap procedure."""
 
-from dataclasses import replace
 
 import numpy as np
-import pytest
 import torch
 
-from dgt_lib.core.config import CostmapConfig
 from dgt_lib.learning.dense import dense_window_field
 from dgt_lib.learning.model import DGTNet
 from dgt_lib.learning.training import predict
-from dgt_lib.mapping.costmap import directional_costmap_reference, model_costmap
+from dgt_lib.mapping.costmap import directional_costmap_dense, directional_costmap_reference
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS
 from tests.test_costmap import ramp, synthetic_bev
 
@@ -48,18 +45,10 @@ def test_dense_costmap_against_the_literal_procedure_on_a_small_map():
     model = seeded_model()
     literal = directional_costmap_reference(bev, lambda p: predict(model, p), 4,
                                             progress=False)
-    config = replace(CostmapConfig(), n_headings=4, method="dense")
-    dense = model_costmap(bev, model, config, progress=False)
+    dense = directional_costmap_dense(bev, model, 4, progress=False)
     assert dense.shape == literal.shape == (2, 4, 40, 36)
     assert dense.min() >= 0.0 and dense.max() <= 1.0
     assert np.all(dense[:, :, ~observed] == 1.0)
     diff = np.abs(dense - literal)[:, :, observed]
     print(f"mean |ΔC| {diff.mean():.4f}, max {diff.max():.4f}")
     assert diff.mean() <= 0.2 and diff.max() <= 0.6  # measured 0.14 and 0.32: not near-exact
-
-
-def test_unknown_method_is_refused():
-    bev = synthetic_bev(ramp((30, 30)))
-    with pytest.raises(ValueError, match="unknown costmap method"):
-        model_costmap(bev, seeded_model(), replace(CostmapConfig(), method="fast"),
-                      progress=False)

@@ -127,7 +127,6 @@ class CostmapConfig:
     """Directional costmap inference (``dgt_lib.mapping.costmap``), baselines and occupancy."""
 
     n_headings: int = 8  # K, paper: Spatial and Angular Discretization
-    method: str = "lattice"  # "literal", "lattice" (window centres every `stride`) or "dense"
     stride: tuple[int, int] = (6, 3)  # fast path: window centres every (along, across) cells
     batch_size: int = 2048  # patches per network call
     slope_trials: int = 200  # Optuna trials per vehicle for the slope-based baseline

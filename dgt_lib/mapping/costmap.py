@@ -22,9 +22,9 @@ Two implementations of the same procedure:
   (``benchmarks/bench_costmap.py``) measures speed and the difference.
 * :func:`directional_costmap_dense` — each network branch run once over the rotated
   map (:mod:`dgt_lib.learning.dense`), every window's prediction read off the dense
-  field, then the same averaging. Fast, but not the per-window network (see there).
-
-:func:`model_costmap` picks one of them by name (:data:`INFERENCE_METHODS`).
+  field, then the same averaging. Fast, but not the per-window network: on 22 × 7
+  windows zero padding dominates every layer (see there), so it is a measured negative
+  result (``benchmarks/bench_costmap.py``, notebook 04), not a pipeline option.
 
 All vehicles come from one backbone pass: ``predict`` maps patches (N, 6, 22, 7)
 to locomotion (N, V), one column per vehicle head. Unobserved cells cost 1.
@@ -38,11 +38,9 @@ import cv2
 import numpy as np
 from tqdm.auto import tqdm
 
-from dgt_lib.core.config import CostmapConfig
 from dgt_lib.core.geometry import heading_bins
 from dgt_lib.learning.dense import dense_window_field
 from dgt_lib.learning.model import DGTNet
-from dgt_lib.learning.training import predict
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.patches import (
     PATCH_COLS,
@@ -54,10 +52,6 @@ from dgt_lib.perception.patches import (
 
 Predictor = Callable[[np.ndarray], np.ndarray]
 """patches (N, 6, 22, 7) float32 → locomotion L (N, V) in [0, 1]."""
-
-INFERENCE_METHODS = ("literal", "lattice", "dense")
-"""How a model's costmap is computed (``CostmapConfig.method``): the literal stride-1
-procedure, the lattice of window centres (``CostmapConfig.stride``), dense evaluation."""
 
 
 def _window_lattice(transform, grid, stride: tuple[int, int]):
@@ -264,22 +258,3 @@ def directional_costmap_dense(bev: BEVMap, model: DGTNet, n_headings: int = 8, *
     (:mod:`dgt_lib.learning.dense`); same layout as the reference."""
     return _costmap(bev, lambda theta: dense_heading_layer(bev, theta, model), n_headings,
                     progress)
-
-
-def model_costmap(bev: BEVMap, model: DGTNet, config: CostmapConfig, *,
-                  progress: bool = True) -> np.ndarray:
-    """The directional costmap (V, K, H, W) of ``model`` by ``config.method``
-    (:data:`INFERENCE_METHODS`), with its ``n_headings``, ``stride`` and ``batch_size``."""
-    if config.method == "dense":
-        return directional_costmap_dense(bev, model, config.n_headings, progress=progress)
-
-    def predictor(patches: np.ndarray) -> np.ndarray:
-        return predict(model, patches, config.batch_size)
-
-    if config.method == "literal":
-        return directional_costmap_reference(bev, predictor, config.n_headings,
-                                             batch_size=config.batch_size, progress=progress)
-    if config.method == "lattice":
-        return directional_costmap(bev, predictor, config.n_headings, stride=config.stride,
-                                   batch_size=config.batch_size, progress=progress)
-    raise ValueError(f"unknown costmap method {config.method!r}; one of {INFERENCE_METHODS}")

@@ -20,6 +20,7 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, Profile, as_profile
 from dgt_lib.core.geometry import GridSpec
+from dgt_lib.learning.training import predict
 from dgt_lib.mapping.baselines import (
     SlopeModel,
     binary_costmap,
@@ -28,7 +29,7 @@ from dgt_lib.mapping.baselines import (
     isotropic_costmap,
     slope_costmap,
 )
-from dgt_lib.mapping.costmap import model_costmap
+from dgt_lib.mapping.costmap import directional_costmap
 from dgt_lib.mapping.methods import METHODS, check_method
 from dgt_lib.mapping.occupancy import (
     TAU_S_ROUTE_CORE_M,
@@ -165,7 +166,7 @@ def world_occupancy(world: World | str, profile: Profile | str | None = None, *,
     return occupancy_map(bev, ensure_tau_s(prof)), bev.grid
 
 
-INFERENCE_FIELDS: tuple[str, ...] = ("n_headings", "method", "stride")
+INFERENCE_FIELDS: tuple[str, ...] = ("n_headings", "stride")
 """The :class:`CostmapConfig` fields a stored costmap depends on (its cache key, with its
 source). Not ``batch_size`` (patches per call: the same costmap up to float rounding), nor
 ``slope_trials`` (the slope fit, which keys the slope map through its own digest), nor
@@ -212,7 +213,8 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
         config = _costmap_config(prof, bev_path, "dgt", _model_fingerprint(prof, "multitask"))
 
         def build_dgt() -> dict[str, np.ndarray]:
-            cost = model_costmap(bev, model, prof.costmap, progress=progress)
+            cost = directional_costmap(bev, lambda p: predict(model, p, prof.costmap.batch_size),
+                                       k, **kwargs)
             return {name: cost[model.head_index(name)] for name in model.vehicles}
 
         dgt = artifacts.ensure(f"costmaps/{key}/dgt.npz", config, build_dgt,
@@ -229,7 +231,8 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
             config = _costmap_config(prof, bev_path, kind, _model_fingerprint(prof, kind))
 
             def build_st(model=model) -> dict[str, np.ndarray]:
-                cost = model_costmap(bev, model, prof.costmap, progress=progress)
+                cost = directional_costmap(
+                    bev, lambda p: predict(model, p, prof.costmap.batch_size), k, **kwargs)
                 return {"cost": cost[0]}
 
             maps[("single-task", v)] = artifacts.ensure(
