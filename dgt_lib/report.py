@@ -29,7 +29,7 @@ from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.learning.training import collapsed_heads
 from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.stages.costmaps import ensure_world_costmaps
-from dgt_lib.stages.experiments import ensure_experiment
+from dgt_lib.stages.experiments import ensure_experiment, experiment_stem
 from dgt_lib.stages.ground_truth import (
     accuracy_markdown,
     cached_costmap_accuracy,
@@ -129,11 +129,13 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
 
 
 def write_recording(result: ExperimentResult, prof: Profile) -> Path:
-    """``runs/<name>.rrd`` of an experiment, rewritten when older than its results or
-    than ``dgt_lib/rr.py`` (the code that lays it out)."""
+    """``runs/<stem>.rrd`` of an experiment (``experiment_stem``: a variant's has its own),
+    rewritten when older than its results or than ``dgt_lib/rr.py`` (the code that lays
+    it out)."""
     out = data_dir(prof)
-    rrd = out / "runs" / f"{result.name}.rrd"
-    pkl = out / "experiments" / f"{result.name}.pkl"
+    stem = experiment_stem(result.name, prof)
+    rrd = out / "runs" / f"{stem}.rrd"
+    pkl = out / "experiments" / f"{stem}.pkl"
     sources = [p for p in (pkl, Path(rr.__file__)) if p.exists()]
     if not rrd.exists() or rrd.stat().st_mtime < max(p.stat().st_mtime for p in sources):
         vehicles = tuple(sorted({r.task.vehicle for r in result.results}))

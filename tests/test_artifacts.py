@@ -62,6 +62,10 @@ def test_a_rebuild_names_the_settings_that_changed():
         "configuration changed (extra, physics.timestep_s, seed)")
     assert artifacts.staleness("e.npz", cfg, profile="smoke") is None
     assert artifacts.staleness("other.npz", cfg, profile="smoke") == "missing"
+    with_array = {"bev": np.zeros(3), "seed": 0}
+    artifacts.ensure("a.npz", with_array, Builder(1.0), profile="smoke", log=lambda _: None)
+    assert artifacts.staleness("a.npz", {"bev": np.ones(3), "seed": 0}, profile="smoke") == (
+        "configuration changed (bev)")
 
 
 def test_many_stale_artifacts_are_reported_in_one_line():

@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation import trials
 from dgt_lib.evaluation.experiments import ExperimentResult, run_experiment
@@ -21,7 +22,7 @@ from dgt_lib.evaluation.trials import (
 )
 from dgt_lib.navigation.drive import drive
 from dgt_lib.navigation.outcome import TrialOutcome
-from dgt_lib.stages.experiments import trial_maps
+from dgt_lib.stages.experiments import experiment_stem, trial_maps
 from dgt_lib.world.terrain import get_world
 from dgt_lib.world.worlds import from_heightmap
 
@@ -208,3 +209,20 @@ def test_a_customised_profile_travels_with_its_trials():
     assert result.expansions <= 1
     planner, _ = trials._planner("hill", "binary", "carla_cola", PROFILE, trial_maps)
     assert planner.plan(query.start, query.goal).expansions > 1  # the default plans on
+
+
+def test_a_variant_keeps_its_results_apart_from_the_profiles_own(tmp_path, monkeypatch):
+    """Trying β = 50 from a notebook's SETTINGS (or --set) must not overwrite the default
+    results, and going back to the default must find them again."""
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    smoke = get_profile("smoke")
+    beta = smoke.planner.beta
+    assert experiment_stem("experiment1", smoke) == "experiment1"
+    b50 = experiment_stem("experiment1", smoke.with_overrides({"planner.beta": 50}))
+    b60 = experiment_stem("experiment1", smoke.with_overrides({"planner.beta": 60}))
+    assert b50.startswith("experiment1.") and b60.startswith("experiment1.") and b50 != b60
+    assert experiment_stem("experiment1", smoke.with_overrides({"planner.beta": beta})) == (
+        "experiment1")  # the same trials as the default: the same results
+    assert experiment_stem("experiment2", smoke.with_overrides({"experiments.n_hill": 9})) != (
+        "experiment2")  # the experiments section keys every experiment
+    assert experiment_stem("experiment1", smoke.with_(seed=2)) == "experiment1"

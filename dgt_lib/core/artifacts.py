@@ -142,7 +142,8 @@ def changed_settings(old: Any, new: Any, prefix: str = "", depth: int = 2) -> li
     rebuilt, instead of two hashes."""
     if old == new:
         return []
-    if depth == 0 or not (isinstance(old, dict) and isinstance(new, dict)):
+    if depth == 0 or not (isinstance(old, dict) and isinstance(new, dict)) or (
+            "__array__" in old or "__array__" in new):  # an array is one setting
         return [prefix or "(whole configuration)"]
     out = []
     for key in sorted(set(old) | set(new)):

@@ -14,7 +14,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.core.config import Profile, as_profile, get_profile
 from dgt_lib.evaluation.experiments import ExperimentResult, run_experiment
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import classify_route
@@ -53,17 +53,30 @@ def experiment_config(name: str, prof: Profile) -> dict[str, object]:
             "physics": PHYSICS}
 
 
+def experiment_stem(name: str, prof: Profile) -> str:
+    """The file stem of an experiment's results, ``experiment1``, or for a variant
+    ``experiment1.<hash>``: a profile changed by overrides (``--set``, an experiment
+    notebook's ``SETTINGS``) whose trials differ from those of the profile's own settings.
+    Trying β = 50 then keeps the default results, and going back loads them again."""
+    cfg = experiment_config(name, prof)
+    if not prof.overrides or cfg == experiment_config(name, get_profile(prof.name).with_(
+            seed=prof.seed)):
+        return name
+    return f"{name}.{artifacts.config_hash(cfg)[:8]}"
+
+
 def ensure_experiment(name: str, profile: Profile | str | None = None, *,
                       progress: bool = True) -> ExperimentResult:
-    """An experiment's results through the cache (``experiments/<name>.pkl``), with a
-    markdown report at ``results/<name>.md``. Every finished trial is journaled in
-    ``experiments/<name>.<hash>.trials.pkl`` until the experiment is complete, so an
-    interrupted run resumes."""
+    """An experiment's results through the cache (``experiments/<stem>.pkl``,
+    :func:`experiment_stem`), with a markdown report at ``results/<stem>.md``. Every
+    finished trial is journaled in ``experiments/<name>.<hash>.trials.pkl`` until the
+    experiment is complete, so an interrupted run resumes."""
     prof = as_profile(profile)
     cfg = experiment_config(name, prof)
+    stem = experiment_stem(name, prof)
     out = data_dir(prof)
     journal = out / "experiments" / f"{name}.{artifacts.config_hash(cfg)}.trials.pkl"
-    result = artifacts.ensure(f"experiments/{name}.pkl", cfg,
+    result = artifacts.ensure(f"experiments/{stem}.pkl", cfg,
                               lambda: run_experiment(name, prof, load_maps=trial_maps,
                                                      progress=progress, journal=journal),
                               profile=cache_dir(prof))
@@ -73,5 +86,5 @@ def ensure_experiment(name: str, profile: Profile | str | None = None, *,
     for r in result.results:  # routes follow the current classification rule
         r.route = classify_route(world, r.path)
     (out / "results").mkdir(parents=True, exist_ok=True)
-    (out / "results" / f"{name}.md").write_text(result.markdown(PAPER.get(name)))
+    (out / "results" / f"{stem}.md").write_text(result.markdown(PAPER.get(name)))
     return result
