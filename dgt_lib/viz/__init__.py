@@ -7,6 +7,9 @@ One module per notebook, each named after what it draws:
 - :mod:`~dgt_lib.viz.labels` (02): locomotion labels, the dataset, L against slope;
 - :mod:`~dgt_lib.viz.training` (03): the network's parts and shapes, learning curves,
   multi-task against single-task errors, predictions, the width trade-off;
+- :mod:`~dgt_lib.viz.costmaps` (04): directional costmap layers in metres (per heading,
+  per method, uphill against downhill, per vehicle), the occupancy map, one heading's
+  rotate → slide → average → rotate back;
 - :mod:`~dgt_lib.viz.planner` (05 and ``dgt plan``): Hybrid A* primitives, cost
   amplification, planned paths, one planning query;
 - :mod:`~dgt_lib.viz.experiments` (06–08 and :mod:`dgt_lib.report`): queries, planned
@@ -15,8 +18,6 @@ One module per notebook, each named after what it draws:
   beside the learned costmap layers, predicted against measured cost;
 - :mod:`~dgt_lib.viz.common`: colours and helpers several of them share, among them
   :func:`source_markdown` to show an implementation next to its paper equation.
-
-Notebook 04 draws its costmaps inline and has no module here.
 
 Every plotting function returns the matplotlib ``Figure`` (or draws into a given
 ``ax``), so notebooks stay one call per picture; the few functions that compute
@@ -41,7 +42,25 @@ from dgt_lib.viz.accuracy import (
     plot_predicted_vs_measured,
     plot_truth_dots,
 )
-from dgt_lib.viz.common import METHOD_COLORS, ROUTE_COLORS, VEHICLE_COLORS, source_markdown
+from dgt_lib.viz.common import (
+    COST_CMAP,
+    COST_LABEL,
+    METHOD_COLORS,
+    ROUTE_COLORS,
+    VEHICLE_COLORS,
+    source_markdown,
+)
+from dgt_lib.viz.costmaps import (
+    OCCUPANCY_COLORS,
+    plot_cost_layer,
+    plot_heading_explained,
+    plot_heading_layers,
+    plot_layer_panels,
+    plot_method_layers,
+    plot_occupancy,
+    plot_uphill_downhill,
+    plot_vehicle_layers,
+)
 from dgt_lib.viz.experiments import (
     FAILURE_MARKERS,
     end_position,
@@ -113,7 +132,8 @@ from dgt_lib.viz.training import (
 
 __all__ = [
     # common
-    "METHOD_COLORS", "ROUTE_COLORS", "VEHICLE_COLORS", "source_markdown",
+    "COST_CMAP", "COST_LABEL", "METHOD_COLORS", "ROUTE_COLORS", "VEHICLE_COLORS",
+    "source_markdown",
     # terrain (notebook 01)
     "chase_view", "height_errors", "plot_backprojection", "plot_bev", "plot_bev_error",
     "plot_images", "plot_rgbd", "plot_slope_histogram", "plot_speed_vs_distance",
@@ -124,6 +144,10 @@ __all__ = [
     "plot_dataset_counts",
     "plot_head_init", "plot_label_histograms", "plot_label_vs_slope",
     "plot_locomotion_curve", "plot_patch_gallery", "plot_run_labels",
+    # costmaps and occupancy (notebook 04)
+    "OCCUPANCY_COLORS", "plot_cost_layer", "plot_heading_explained", "plot_heading_layers",
+    "plot_layer_panels", "plot_method_layers", "plot_occupancy", "plot_uphill_downhill",
+    "plot_vehicle_layers",
     # training (notebook 03) and the width trade-off (dgt_lib.learning.tradeoff)
     "METRIC_NAMES", "TRAINING_COLORS", "comparison_table", "head_gradient_norms",
     "inference_rate", "own_head_predictions", "parameter_table", "plot_learning_curves",

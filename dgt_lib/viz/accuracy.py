@@ -17,10 +17,8 @@ from dgt_lib.evaluation.accuracy import cost_at
 from dgt_lib.evaluation.ground_truth import GroundTruth
 from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.viz.common import METHOD_COLORS
+from dgt_lib.viz.common import COST_CMAP, METHOD_COLORS
 from dgt_lib.world.worlds import World
-
-COST_CMAP = "magma"
 
 
 def _heading_name(theta: float) -> str:

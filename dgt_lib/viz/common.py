@@ -3,8 +3,10 @@
 - :data:`VEHICLE_COLORS`: one colour per vehicle (notebooks 02 and 03);
 - :data:`METHOD_COLORS`: one colour per compared method (notebooks 03 and 06–08, the
   results report);
+- :data:`COST_CMAP` and :data:`COST_LABEL`: the costmaps' colour scale and its label
+  (notebooks 04 and 09, the results report);
 - :data:`ROUTE_COLORS` and the routes, trees and landmarks drawn over a world figure
-  (notebooks 01 and 05);
+  (notebooks 01, 04 and 05);
 - unobserved BEV cells masked out of a map layer (notebook 01);
 - :func:`source_markdown`: an implementation shown next to its paper equation
   (notebooks 01, 02, 03 and 05).
@@ -29,7 +31,15 @@ METHOD_COLORS = {"dgt": "tab:blue", "isotropic": "tab:cyan", "single-task": "tab
 slope-based)."""
 
 
-def _overlay(ax, world: World, trees: bool = True, labels: bool = True) -> None:
+COST_CMAP = "magma"
+"""Colour scale of every costmap figure: 0 = free (black) … 1 = impassable (white)."""
+
+COST_LABEL = "cost C = 1 − L̂"
+"""Colourbar label of every costmap figure."""
+
+
+def _overlay(ax, world: World, trees: bool = True, labels: bool = True,
+             label_color: str = "black") -> None:
     for i, (name, line) in enumerate(world.routes.items()):
         ax.plot(line[:, 0], line[:, 1], "--", lw=1.5, color=ROUTE_COLORS[i % len(ROUTE_COLORS)],
                 label=f"route {name}")
@@ -39,7 +49,8 @@ def _overlay(ax, world: World, trees: bool = True, labels: bool = True) -> None:
     for name, (x, y) in world.landmarks.items():
         ax.plot(x, y, "o", ms=5, mfc="white", mec="black")
         if labels:
-            ax.annotate(name, (x, y), xytext=(3, 3), textcoords="offset points", fontsize=7)
+            ax.annotate(name, (x, y), xytext=(3, 3), textcoords="offset points", fontsize=7,
+                        color=label_color)
     ax.set_xlim(world.extent[:2])
     ax.set_ylim(world.extent[2:])
     ax.set_aspect("equal")
