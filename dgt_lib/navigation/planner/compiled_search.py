@@ -6,7 +6,6 @@ reference search returns."""
 
 from __future__ import annotations
 
-import heapq
 import math
 import time
 from typing import TYPE_CHECKING
@@ -30,16 +29,6 @@ from dgt_lib.navigation.planner.result import (
     success,
 )
 from dgt_lib.navigation.planner.shots import shot_poses
-
-BLOCKING_CELLS = {1: "occupied cells (steeper than τ_s: a slope, a step or a tree)",
-                  2: "unobserved cells (terrain the BEV map did not see)"}
-"""How a rejected query names the occupancy values that block it."""
-
-BACKENDS: tuple[str, ...] = ("compiled", "python")
-"""The ways :class:`HybridAStar` can run its search (all return the same plans)."""
-
-heappush = heapq.heappush
-_new_node = tuple.__new__  # _new_node(Node, fields): Node(*fields) at a plain tuple's cost
 
 if TYPE_CHECKING:  # an annotation only: search imports this module
     from dgt_lib.navigation.planner.search import HybridAStar
