@@ -89,6 +89,8 @@ class CollectConfig:
 
 HEAD_INITS: tuple[str, ...] = ("prior", "default")
 LABEL_WEIGHTINGS: tuple[str, ...] = ("none", "inverse_frequency")
+LR_SCHEDULES: tuple[str, ...] = ("constant", "cosine")
+SELECTIONS: tuple[str, ...] = ("best_val", "last")
 """Valid ``TrainConfig.head_init`` values (checked by ``train_model``)."""
 
 
@@ -120,6 +122,14 @@ class TrainConfig:
     label_weighting: str = "none"
     label_bins: int = 5
     max_label_weight: float = 10.0
+    # "constant": Adam at learning_rate throughout; "cosine": the rate falls from
+    # learning_rate to 0 along a half cosine over the whole run, step by step (ours). One of
+    # LR_SCHEDULES.
+    lr_schedule: str = "constant"
+    # Which epoch's weights are kept: "best_val", the lowest validation loss (stops early
+    # after `patience` epochs without a better one); "last", the final epoch (patience
+    # ignored: with a cosine schedule the weights have settled there). One of SELECTIONS.
+    selection: str = "best_val"
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ each model by what determines it (dataset, settings, seed) and stores it under
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,7 @@ from typing import Any
 import torch
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import VEHICLES, Profile
+from dgt_lib.core.config import VEHICLES, Profile, TrainConfig
 from dgt_lib.learning.checkpoints import (
     CHECKPOINT_VERSION,
     TrainResult,
@@ -68,6 +69,20 @@ def default_rgb_weights() -> Path | None:
     return next((p for p in candidates if p.is_file()), None)
 
 
+LATER_TRAIN_FIELDS: dict[str, object] = {"lr_schedule": "constant", "selection": "best_val"}
+"""TrainConfig fields added after models were cached, with the value that trains exactly as
+before they existed. :func:`train_key` leaves a field out while it has that value, so the
+models already trained (hours for ``paper``) stay valid; any other value is in the key."""
+
+
+def train_key(cfg: TrainConfig) -> dict[str, object]:
+    """``cfg`` as the model cache key sees it (see :data:`LATER_TRAIN_FIELDS`)."""
+    fields = dataclasses.asdict(cfg)
+    return {"__type__": type(cfg).__name__,
+            **{k: v for k, v in fields.items()
+               if not (k in LATER_TRAIN_FIELDS and v == LATER_TRAIN_FIELDS[k])}}
+
+
 def ensure_model(
     profile: Profile,
     dataset: PatchDataset,
@@ -108,7 +123,7 @@ def ensure_model(
         rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
     relpath = model_relpath(kind)
     config = {"stage": "train", "kind": kind, "vehicles": list(vehicles),
-              "dataset": dataset_hash or dataset_fingerprint(dataset), "train": cfg,
+              "dataset": dataset_hash or dataset_fingerprint(dataset), "train": train_key(cfg),
               "seed": seed, "rgb_weights": rgb, "checkpoint_version": CHECKPOINT_VERSION}
 
     def build() -> dict[str, Any]:

@@ -1,0 +1,172 @@
+"""Which training recipe gives models whose conclusions hold in every seed? Per recipe:
+
+    .venv/bin/python benchmarks/training_recipes.py --profile demo --train-seeds 0 100
+
+For every run seed of the profile (its cached dataset, BEV maps, τ_s and ground truth — run
+``dgt reproduce`` first) and every training seed, trains the multi-task model and the four
+single-task models with each recipe (a few ``TrainConfig`` fields changed from the
+profile's), then, without the closed loop:
+
+1. collapse: each head's std(L̂) / std(L) on the test split (flagged below 0.1);
+2. Experiment 1 and 2 plans: Hybrid A* on the DGT and single-task costmaps of the hill
+   (carla_cola: which route up, which down) and the ridge (mercedes_van: where it crosses),
+   for ``--queries`` queries each drawn as the experiments draw them;
+3. accuracy against the ground truth (MAE and Spearman ρ of C = 1 − L̂ against the measured
+   C*, on free cells) on the hill, ridge and eval worlds.
+
+Training seed ``t`` seeds the weights and batch order only (the dataset is the run seed's),
+so the spread over training seeds is what luck in the learning alone does. Nothing is
+written to the cache; the tables go to stdout (and ``--out`` as JSON).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections import Counter
+
+import numpy as np
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.evaluation import accuracy
+from dgt_lib.evaluation.queries import classify_route, hill_queries, ridge_queries
+from dgt_lib.learning.training import COLLAPSE_RATIO, predict, train_model
+from dgt_lib.mapping.costmap import directional_costmap
+from dgt_lib.mapping.occupancy import occupancy_map
+from dgt_lib.navigation.planner import HybridAStar
+from dgt_lib.perception.dataset import PatchDataset
+from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_tau_s, world_bev
+from dgt_lib.stages.dataset import DATASET_RELPATH
+from dgt_lib.stages.ground_truth import GROUND_TRUTH_WORLDS, ensure_ground_truths
+from dgt_lib.stages.paths import data_dir
+from dgt_lib.world.terrain import get_world
+
+RECIPES: dict[str, dict[str, object]] = {
+    "current": {},
+    "cosine-last": {"lr_schedule": "cosine", "selection": "last", "patience": None},
+    "cosine-best": {"lr_schedule": "cosine", "selection": "best_val", "patience": None},
+}
+"""Recipe name → the TrainConfig fields it changes from the profile's."""
+
+
+def _costmaps(models: dict, bev, prof) -> dict[tuple[str, str], np.ndarray]:
+    """{(method, vehicle): (K, H, W)} of the multi-task (dgt) and single-task models."""
+    k, kw = prof.costmap.n_headings, {"stride": prof.costmap.stride, "progress": False,
+                                      "batch_size": prof.costmap.batch_size}
+    multi = models["multitask"]
+    cost = directional_costmap(bev, lambda p: predict(multi, p), k, **kw)
+    out = {("dgt", v): cost[multi.head_index(v)] for v in multi.vehicles}
+    for v in VEHICLES:
+        single = models[f"single:{v}"]
+        out[("single-task", v)] = directional_costmap(bev, lambda p, m=single: predict(m, p),
+                                                      k, **kw)[0]
+    return out
+
+
+def _routes(world, queries, maps, occupancy, grid, vehicle, prof) -> dict[str, Counter]:
+    """{method: Counter("label:route")} of the plans on each method's costmap."""
+    out = {}
+    for method in ("dgt", "single-task"):
+        planner = HybridAStar.for_vehicle(maps[(method, vehicle)], occupancy, grid, vehicle,
+                                          prof.planner)
+        counts = Counter()
+        for q in queries:
+            plan = planner.plan(q.start, q.goal)
+            route = classify_route(world, plan.path) if plan.success else "no_path"
+            counts[f"{q.label}:{route}"] += 1
+        out[method] = counts
+    return out
+
+
+def evaluate_run(prof, recipe: dict, train_seed: int, n_queries: int, truths) -> dict:
+    """Train the five models of one (run seed, training seed, recipe) and measure them."""
+    ds = PatchDataset.from_arrays(artifacts.load(data_dir(prof) / DATASET_RELPATH))
+    cfg = prof.train.__class__(**{**prof.train.__dict__, **recipe})
+    t0 = time.perf_counter()
+    models, collapse, epochs = {}, {}, {}
+    for kind, vehicles in [("multitask", None)] + [(f"single:{v}", (v,)) for v in VEHICLES]:
+        result = train_model(ds, cfg, vehicles=vehicles, seed=train_seed, progress=False)
+        models[kind] = result.model
+        epochs[kind] = result.best_epoch
+        for v, m in result.metrics.items():
+            collapse[f"{kind}/{v}"] = m["pred_std"] / max(m["label_std"], 1e-9)
+    train_s = time.perf_counter() - t0
+    tau_s = ensure_tau_s(prof)
+    out = {"train_s": train_s, "epochs": epochs, "collapse": collapse, "routes": {},
+           "accuracy": {}}
+    for w in GROUND_TRUTH_WORLDS:
+        world = get_world(w, prof)
+        bev, _ = world_bev(w, prof, progress=False)
+        occupancy = occupancy_map(bev, tau_s)
+        maps = _costmaps(models, bev, prof)
+        for v in EXPERIMENT_VEHICLES[w]:
+            gt = truths[(w, v)]
+            valid = gt.measured & accuracy.free_cells(occupancy, bev.grid, gt.cells)[:, None]
+            for method in ("dgt", "single-task"):
+                cost = accuracy.cost_at(maps[(method, v)], bev.grid, gt.cells,
+                                        prof.costmap.n_headings)
+                acc = accuracy.costmap_accuracy(gt.cost, cost, valid,
+                                                prof.ground_truth.contrast_threshold)
+                out["accuracy"][f"{w}/{v}/{method}"] = {"mae": acc["mae"],
+                                                         "spearman": acc["spearman"]}
+        ex = prof.experiments
+        if w == "hill":
+            qs = hill_queries(world, n_queries, ex, prof.seed)
+            out["routes"]["hill"] = _routes(world, qs, maps, occupancy, bev.grid,
+                                            "carla_cola", prof)
+        elif w == "ridge":
+            qs = ridge_queries(world, n_queries, ex, prof.seed)
+            out["routes"]["ridge"] = _routes(world, qs, maps, occupancy, bev.grid,
+                                             "mercedes_van", prof)
+    return out
+
+
+def _summary_line(name: str, seed: int, t: int, r: dict) -> str:
+    worst = min(r["collapse"].items(), key=lambda kv: kv[1])
+    hill, ridge = r["routes"]["hill"]["dgt"], r["routes"]["ridge"]["dgt"]
+    up = sum(c for k, c in hill.items() if k.startswith("ascent"))
+    down = sum(c for k, c in hill.items() if k.startswith("descent"))
+    ridge_n = sum(ridge.values())
+    smooth = sum(c for k, c in ridge.items() if k.endswith(":smooth"))
+    st_smooth = sum(c for k, c in r["routes"]["ridge"]["single-task"].items()
+                    if k.endswith(":smooth"))
+    acc = r["accuracy"]
+    mae = np.mean([a["mae"] for k, a in acc.items() if k.endswith("/dgt")])
+    rho = np.mean([a["spearman"] for k, a in acc.items() if k.endswith("/dgt")])
+    return (f"{name:<12} seed {seed} train {t:>3} | worst std ratio {worst[1]:.2f} ({worst[0]})"
+            f"{' COLLAPSED' if worst[1] < COLLAPSE_RATIO else ''} | hill up A "
+            f"{hill.get('ascent:A', 0)}/{up}, down B {hill.get('descent:B', 0)}/{down} | "
+            f"ridge smooth DGT {smooth}/{ridge_n}, ST {st_smooth}/{ridge_n} | DGT MAE "
+            f"{mae:.3f} ρ {rho:.2f} | epochs {r['epochs']['multitask']} | {r['train_s']:.0f} s")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--profile", default="demo")
+    parser.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
+    parser.add_argument("--train-seeds", nargs="+", type=int, default=[0],
+                        help="offsets added to the run seed for weights and batch order")
+    parser.add_argument("--queries", type=int, default=12)
+    parser.add_argument("--out", default=None, help="JSON file for every measurement")
+    args = parser.parse_args()
+    prof = get_profile(args.profile)
+    truths = ensure_ground_truths(None, prof, progress=False)
+    results = []
+    for run in prof.seed_profiles():
+        for t in args.train_seeds:
+            for name in args.recipes:
+                r = evaluate_run(run, RECIPES[name], run.seed + t, args.queries, truths)
+                print(_summary_line(name, run.seed, run.seed + t, r), flush=True)
+                results.append({"recipe": name, "seed": run.seed, "train_seed": run.seed + t,
+                                **{k: (v if k != "routes" else
+                                       {w: {m: dict(c) for m, c in d.items()}
+                                        for w, d in v.items()}) for k, v in r.items()}})
+                if args.out:
+                    with open(args.out, "w") as f:
+                        json.dump(results, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
