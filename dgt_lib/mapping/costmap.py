@@ -167,16 +167,40 @@ def _interpolate_lattice(values: np.ndarray, a: np.ndarray, b: np.ndarray,
     window position that is centred on the map. Lattice points that were skipped
     (covering no observed cell) take the value of their nearest evaluated
     neighbours (normalised convolution), which only affects unobserved cells."""
+    coarse, weight = lattice_arrays(values, a, b, stride, shape)
+    filled, filled_w = fill_lattice(coarse, weight)
+    field, known = lattice_to_windows(filled, filled_w, stride, slice(0, shape[0]),
+                                      slice(0, shape[1]))
+    return field, on_map & known
+
+
+def lattice_arrays(values: np.ndarray, a: np.ndarray, b: np.ndarray, stride: tuple[int, int],
+                   shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """The predictions (N, V) of the evaluated windows with top-left (a, b) on the coarse
+    lattice: values (V, ⌈n_a/s_a⌉, ⌈n_b/s_b⌉) float32 (0 where not evaluated) and weight
+    (same shape without V) 1 where evaluated, for window positions of ``shape`` (n_a, n_b)."""
     n_v = values.shape[1]
     la, lb = -(-shape[0] // stride[0]), -(-shape[1] // stride[1])
     coarse = np.zeros((n_v, la, lb), np.float32)
     weight = np.zeros((la, lb), np.float32)
     coarse[:, a // stride[0], b // stride[1]] = values.T
     weight[a // stride[0], b // stride[1]] = 1.0
-    # fill skipped lattice points from evaluated neighbours (normalised 3×3 blur, repeated)
+    return coarse, weight
+
+
+LATTICE_FILL_STEPS = 3
+"""Normalised 3 × 3 blurs that fill skipped lattice points: a filled value depends on
+evaluated points up to this many lattice steps away."""
+
+
+def fill_lattice(coarse: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fill skipped lattice points (weight 0) from evaluated neighbours by a normalised
+    3 × 3 blur, :data:`LATTICE_FILL_STEPS` times. Returns (filled (V, la, lb), weight
+    (la, lb): 1 where a value is known)."""
+    n_v = coarse.shape[0]
     filled_w = weight.copy()
     filled = coarse.copy()
-    for _ in range(3):
+    for _ in range(LATTICE_FILL_STEPS):
         missing = filled_w == 0
         if not missing.any():
             break
@@ -186,15 +210,24 @@ def _interpolate_lattice(values: np.ndarray, a: np.ndarray, b: np.ndarray,
             filled[j] = np.where(missing & (w_blur > 0), v_blur / np.maximum(w_blur, 1e-9),
                                  filled[j])
         filled_w = np.where(missing & (w_blur > 0), 1.0, filled_w).astype(np.float32)
-    # fine position p lies at coarse coordinate p / stride
-    rows = (np.arange(shape[0]) / stride[0]).astype(np.float32)
-    cols = (np.arange(shape[1]) / stride[1]).astype(np.float32)
-    map_c, map_r = np.meshgrid(cols, rows)
+    return filled, filled_w
+
+
+def lattice_to_windows(filled: np.ndarray, filled_w: np.ndarray, stride: tuple[int, int],
+                       rows: slice, cols: slice) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear interpolation of the filled lattice at the window positions
+    ``[rows, cols]`` (unit-step slices of top-left pixels): fine position p lies at coarse
+    coordinate p / stride. Returns field (V, r, c) and known (r, c) bool (every
+    interpolation weight on a known lattice point); a part equals the part of the whole."""
+    r_idx = (np.arange(rows.start, rows.stop) / stride[0]).astype(np.float32)
+    c_idx = (np.arange(cols.start, cols.stop) / stride[1]).astype(np.float32)
+    map_c, map_r = np.meshgrid(c_idx, r_idx)
     field = np.stack([cv2.remap(filled[j], map_c, map_r, cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_REPLICATE) for j in range(n_v)])
+                                borderMode=cv2.BORDER_REPLICATE)
+                      for j in range(filled.shape[0])])
     known = cv2.remap(filled_w, map_c, map_r, cv2.INTER_LINEAR,
                       borderMode=cv2.BORDER_CONSTANT) > 0.999
-    return field, on_map & known
+    return field, known
 
 
 def _costmap(bev: BEVMap, heading_layer: Callable[[float], np.ndarray], n_headings: int,

@@ -231,6 +231,25 @@ def rotated_size(grid: GridSpec) -> tuple[int, int]:
     return 2 * center + 1, center
 
 
+def rotation_transform(grid: GridSpec, theta: float) -> RotationTransform:
+    """The :class:`RotationTransform` of :func:`rotate_map` for ``grid`` and heading θ [rad]:
+    a D × D image (:func:`rotated_size`) pivoted on the centre of cell (H // 2, W // 2)."""
+    d, center = rotated_size(grid)
+    h, w = grid.shape
+    pivot = tuple(float(v) for v in grid.cell_to_xy(h // 2, w // 2))
+    return RotationTransform(grid, float(theta), pivot, center, (d, d))
+
+
+def rotated_pixels(bev: BEVMap, transform: RotationTransform, rows: slice,
+                   cols: slice) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels ``[rows, cols]`` (unit-step slices) of the rotated map, sampled from
+    ``bev``: channels (6, r, c) float32 and observed (r, c) bool, equal to the same
+    pixels of :func:`rotate_map` (used to refresh only part of a rotated map)."""
+    r, c = np.mgrid[rows, cols]
+    x, y = transform.rotated_to_xy(r, c)
+    return sample_bev(bev, x, y)
+
+
 def rotate_map(bev: BEVMap, theta: float) -> RotatedMap:
     """Resample the whole BEV so that heading θ [rad] points up (toward row 0).
 
@@ -244,13 +263,9 @@ def rotate_map(bev: BEVMap, theta: float) -> RotatedMap:
     if bev.grid.resolution != PATCH_RES:
         raise ValueError(f"patches are defined on a {PATCH_RES} m BEV grid, "
                          f"got {bev.grid.resolution} m")
-    d, center = rotated_size(bev.grid)
-    h, w = bev.grid.shape
-    pivot = tuple(float(v) for v in bev.grid.cell_to_xy(h // 2, w // 2))
-    transform = RotationTransform(bev.grid, float(theta), pivot, center, (d, d))
-    rows, cols = np.mgrid[0:d, 0:d]
-    x, y = transform.rotated_to_xy(rows, cols)
-    channels, observed = sample_bev(bev, x, y)
+    transform = rotation_transform(bev.grid, theta)
+    d = transform.shape[0]
+    channels, observed = rotated_pixels(bev, transform, slice(0, d), slice(0, d))
     return RotatedMap(channels, observed, transform)
 
 
@@ -265,13 +280,16 @@ def sliding_windows(rotated: np.ndarray) -> np.ndarray:
 
 
 def unrotate_map(layers: np.ndarray, transform: RotationTransform,
-                 nearest: bool = False) -> np.ndarray:
+                 nearest: bool = False,
+                 cells: tuple[slice, slice] | None = None) -> np.ndarray:
     """Bring per-pixel values of the rotated frame back onto the BEV grid.
 
     layers: (C, D, D) or (D, D) in rotated pixel coordinates. Each BEV cell
     centre is looked up at its rotated position (bilinear, or nearest for
     labels). Returns (C, H, W) or (H, W) float32; cells that fall outside the
     rotated image get 0 (cannot happen for maps rotated by :func:`rotate_map`).
+    cells: only the BEV cells ``[rows, cols]`` (unit-step slices): returns (C, r, c),
+    equal to that part of the whole map's result.
     """
     layers = np.asarray(layers, dtype=np.float32)
     squeeze = layers.ndim == 2
@@ -280,10 +298,13 @@ def unrotate_map(layers: np.ndarray, transform: RotationTransform,
     if layers.shape[-2:] != transform.shape:
         raise ValueError(f"layers must be (C, {transform.shape[0]}, {transform.shape[1]}), "
                          f"got {layers.shape}")
-    x, y = transform.grid.cell_centers()
+    if cells is None:
+        x, y = transform.grid.cell_centers()
+    else:
+        x, y = transform.grid.cell_to_xy(*np.mgrid[cells[0], cells[1]])
     row, col = transform.xy_to_rotated(x, y)
     interp = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
-    out = np.empty((layers.shape[0], *transform.grid.shape), dtype=np.float32)
+    out = np.empty((layers.shape[0], *x.shape), dtype=np.float32)
     for k, layer in enumerate(layers):
         out[k] = cv2.remap(np.ascontiguousarray(layer), col.astype(np.float32),
                            row.astype(np.float32), interpolation=interp,

@@ -1,0 +1,300 @@
+"""Directional costmaps that update while the map grows (the paper's Conclusion names
+incremental updates as future work; this is ours).
+
+A vehicle exploring an unknown world adds one RGB-D frame at a time to its BEV map; a
+frame changes a few thousand cells. :class:`IncrementalCostmap` keeps the K heading
+layers of :func:`~dgt_lib.mapping.costmap.directional_costmap` (the lattice fast path,
+``skip_unobserved=True``) and, given the box of BEV cells that changed, recomputes only
+what depends on them, heading by heading. In the frame rotated by −θ_k (θ_k up):
+
+1. rotated pixels whose bilinear support touches a changed cell are resampled;
+2. lattice windows (window centres every ``stride`` cells) whose 22 × 7 footprint holds
+   such a pixel are evaluated by the network again — the only costly step;
+3. the lattice is filled and interpolated again (cheap, whole lattice), and the window
+   positions whose interpolated prediction changed are found by comparison;
+4. the average over covering windows,
+
+       L(p, θ_k) = Σ_{w ∋ p} L̂_w / |{w ∋ p}|,   C(i, j, θ_k) = 1 − L(i, j, θ_k),
+
+   is recomputed on the rotated pixels those windows cover (22 × 7 further), and
+5. rotated back onto the BEV cells that read those pixels.
+
+Every step reads the same arrays as a full recompute and works on exactly the pixels,
+windows and cells that can change, so the layers equal ``directional_costmap`` of the
+same map (to float rounding of the box sums; ``tests/test_incremental.py``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from dgt_lib.core.geometry import heading_bins
+from dgt_lib.mapping.costmap import (
+    Predictor,
+    _average_over_covering_windows,
+    _window_lattice,
+    fill_lattice,
+    lattice_to_windows,
+)
+from dgt_lib.perception.bev import N_CHANNELS, BEVMap
+from dgt_lib.perception.patches import (
+    PATCH_COLS,
+    PATCH_ROWS,
+    RotationTransform,
+    rotated_pixels,
+    rotation_transform,
+    sliding_windows,
+    unrotate_map,
+)
+
+Box = tuple[slice, slice]
+"""(rows, cols) unit-step slices of a rectangle of cells or pixels."""
+
+_SUPPORT_MARGIN = 0.5
+"""Slack [cells] around a bilinear support (cv2 rounds coordinates to 1/32 cell)."""
+
+
+def changed_cells(old: BEVMap | None, new: BEVMap) -> Box | None:
+    """The bounding box of the cells whose channels or observed flag differ between two
+    BEV maps of one grid (every observed cell of ``new`` when ``old`` is None), or None
+    when nothing changed."""
+    if old is None:
+        diff = new.observed.copy()
+    else:
+        if old.grid != new.grid:
+            raise ValueError(f"BEV maps of different grids: {old.grid} vs {new.grid}")
+        diff = (old.observed != new.observed) | np.any(old.channels != new.channels, axis=0)
+    return _bbox(diff)
+
+
+def _bbox(mask: np.ndarray, offset: tuple[int, int] = (0, 0)) -> Box | None:
+    """Bounding box of the True cells of a 2-D mask (shifted by ``offset``), or None."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if not len(rows):
+        return None
+    return (slice(int(rows[0]) + offset[0], int(rows[-1]) + 1 + offset[0]),
+            slice(int(cols[0]) + offset[1], int(cols[-1]) + 1 + offset[1]))
+
+
+def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
+    r0, r1 = max(box[0].start, 0), min(box[0].stop, shape[0])
+    c0, c1 = max(box[1].start, 0), min(box[1].stop, shape[1])
+    return (slice(r0, r1), slice(c0, c1)) if r1 > r0 and c1 > c0 else None
+
+
+def _touching(row: np.ndarray, col: np.ndarray, box: Box) -> np.ndarray:
+    """Which continuous positions (row, col) (integers at pixel centres) have a bilinear
+    support — pixels ⌊·⌋ and ⌊·⌋ + 1 — inside ``box``."""
+    m = _SUPPORT_MARGIN
+    return ((row > box[0].start - 1 - m) & (row < box[0].stop + m)
+            & (col > box[1].start - 1 - m) & (col < box[1].stop + m))
+
+
+def _window_counts(mask: np.ndarray) -> np.ndarray:
+    """(n_a, n_b) number of True pixels under each 22 × 7 window of a (D, D) mask."""
+    s = cv2.integral(mask.astype(np.uint8))  # (D + 1, D + 1) int32
+    return (s[PATCH_ROWS:, PATCH_COLS:] - s[:-PATCH_ROWS, PATCH_COLS:]
+            - s[PATCH_ROWS:, :-PATCH_COLS] + s[:-PATCH_ROWS, :-PATCH_COLS])
+
+
+@dataclass
+class _HeadingLayer:
+    """Everything one heading keeps between updates (rotated frame of θ_k)."""
+
+    transform: RotationTransform
+    bev_row: np.ndarray  # (D, D) float32 BEV row of each rotated pixel
+    bev_col: np.ndarray  # (D, D) float32 BEV column of each rotated pixel
+    inside: np.ndarray  # (n_a, n_b) bool, windows the lattice may evaluate
+    on_map: np.ndarray  # (n_a, n_b) bool, windows centred on the map
+    channels: np.ndarray  # (6, D, D) the rotated BEV
+    observed: np.ndarray  # (D, D) bool
+    coarse: np.ndarray  # (V, la, lb) raw lattice predictions (0 where not evaluated)
+    weight: np.ndarray  # (la, lb) 1 where evaluated
+    filled: np.ndarray  # (V, la, lb) after fill_lattice
+    filled_w: np.ndarray  # (la, lb)
+    field: np.ndarray  # (V, n_a, n_b) interpolated window predictions
+    valid: np.ndarray  # (n_a, n_b) bool
+    averaged: np.ndarray  # (V, D, D) mean over covering windows, 0 where none
+    world: np.ndarray  # (V, H, W) locomotion L back on the BEV grid
+
+
+@dataclass
+class UpdateStats:
+    """What one :meth:`IncrementalCostmap.update` recomputed: windows evaluated by the
+    network (all headings), BEV cells rewritten (summed over headings), and the wall and
+    CPU time [s] of the update."""
+
+    windows: int = 0
+    cells: int = 0
+    wall_s: float = 0.0
+    cpu_s: float = 0.0
+
+
+class IncrementalCostmap:
+    """K directional heading layers of a growing BEV map, updated where it changed.
+
+    Equal to ``directional_costmap(bev, predict, n_headings, stride=stride,
+    skip_unobserved=True)`` of the latest map passed to :meth:`update`. Starts from an
+    empty map (every cell unobserved: cost 1). ``predict`` maps patches (N, 6, 22, 7) to
+    locomotion (N, V); give it one column for one vehicle (fastest).
+    """
+
+    def __init__(self, grid, predict: Predictor, n_vehicles: int, n_headings: int = 8, *,
+                 stride: tuple[int, int] = (6, 3), batch_size: int = 2048):
+        self.stride = (int(stride[0]), int(stride[1]))
+        if self.stride == (1, 1) or min(self.stride) < 1:
+            raise ValueError(f"the incremental costmap follows the lattice path: stride "
+                             f"must be ≥ 1 and not (1, 1), got {stride}")
+        self.grid, self.predict, self.batch_size = grid, predict, batch_size
+        self.n_vehicles, self.n_headings = int(n_vehicles), int(n_headings)
+        self.observed = np.zeros(grid.shape, bool)
+        self._cost = np.ones((self.n_vehicles, self.n_headings, *grid.shape), np.float32)
+        self._layers = [self._empty_layer(float(t)) for t in heading_bins(self.n_headings)]
+
+    def _empty_layer(self, theta: float) -> _HeadingLayer:
+        transform = rotation_transform(self.grid, theta)
+        d = transform.shape[0]
+        rows, cols = np.mgrid[0:d, 0:d]
+        bev_row, bev_col = self.grid.xy_to_rc(*transform.rotated_to_xy(rows, cols))
+        inside, on_map = _window_lattice(transform, self.grid, self.stride)
+        n_a, n_b = inside.shape
+        la, lb = -(-n_a // self.stride[0]), -(-n_b // self.stride[1])
+        v, (h, w) = self.n_vehicles, self.grid.shape
+        return _HeadingLayer(
+            transform, bev_row.astype(np.float32), bev_col.astype(np.float32), inside,
+            on_map, np.zeros((N_CHANNELS, d, d), np.float32), np.zeros((d, d), bool),
+            np.zeros((v, la, lb), np.float32), np.zeros((la, lb), np.float32),
+            np.zeros((v, la, lb), np.float32), np.zeros((la, lb), np.float32),
+            np.zeros((v, n_a, n_b), np.float32), np.zeros((n_a, n_b), bool),
+            np.zeros((v, d, d), np.float32), np.zeros((v, h, w), np.float32))
+
+    @property
+    def cost(self) -> np.ndarray:
+        """Cost (V, K, H, W) float32 in [0, 1]: C = 1 − L, 1 on unobserved cells (a view:
+        copy it to keep a snapshot)."""
+        return self._cost
+
+    def update(self, bev: BEVMap, changed: Box | None) -> UpdateStats:
+        """Bring the layers up to date with ``bev``, whose cells outside ``changed``
+        ((rows, cols) slices, e.g. :func:`changed_cells`) equal the previous map's."""
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        stats = UpdateStats()
+        if bev.grid != self.grid:
+            raise ValueError(f"BEV grid {bev.grid} is not the costmap's {self.grid}")
+        changed = None if changed is None else _clip(changed, self.grid.shape)
+        if changed is not None:
+            # 1–2: resample touched pixels, find the lattice windows that read them
+            todo = [self._resample(layer, bev, changed) for layer in self._layers]
+            patches = [sliding_windows(layer.channels)[:, a, b] for layer, (a, b, _) in
+                       zip(self._layers, todo, strict=True)]
+            n = [len(a) for a, _, _ in todo]
+            stats.windows = int(sum(n))
+            pred = (self._predict(np.concatenate([np.moveaxis(p, 0, 1) for p in patches]))
+                    if stats.windows else np.zeros((0, self.n_vehicles), np.float32))
+            splits = np.split(pred, np.cumsum(n)[:-1])
+            # 3–5: lattice, interpolation, averaging and rotation back, where they change
+            for k, (layer, (a, b, dirty), p) in enumerate(
+                    zip(self._layers, todo, splits, strict=True)):
+                cells = self._refresh(layer, a, b, dirty, p)
+                if cells is not None:
+                    stats.cells += (cells[0].stop - cells[0].start) * (
+                        cells[1].stop - cells[1].start)
+                    self._write_cost(k, cells, bev)
+            self._write_cost(None, changed, bev)
+            self.observed[changed] = bev.observed[changed]
+        stats.wall_s = time.perf_counter() - wall0
+        stats.cpu_s = time.process_time() - cpu0
+        return stats
+
+    def _predict(self, patches: np.ndarray) -> np.ndarray:
+        outs = [np.asarray(self.predict(np.ascontiguousarray(patches[i:i + self.batch_size],
+                                                             dtype=np.float32)), np.float32)
+                for i in range(0, len(patches), self.batch_size)]
+        return np.concatenate(outs).reshape(len(patches), self.n_vehicles)
+
+    def _resample(self, layer: _HeadingLayer, bev: BEVMap, changed: Box):
+        """Step 1–2 for one heading: resample the rotated pixels touching ``changed`` and
+        return the lattice windows to evaluate (top-left rows a, cols b) and the mask of
+        lattice windows whose content changed (n_a, n_b)."""
+        touched = _touching(layer.bev_row, layer.bev_col, changed)
+        box = _bbox(touched)
+        dirty = np.zeros(layer.inside.shape, bool)
+        if box is None:
+            return np.zeros(0, int), np.zeros(0, int), dirty
+        # (untouched pixels of the box resample to what they were)
+        layer.channels[(slice(None), *box)], layer.observed[box] = rotated_pixels(
+            bev, layer.transform, *box)
+        # windows whose footprint holds a touched pixel, on the lattice
+        s0, s1 = self.stride
+        w_box = _clip((slice(box[0].start - PATCH_ROWS + 1, box[0].stop),
+                       slice(box[1].start - PATCH_COLS + 1, box[1].stop)), dirty.shape)
+        pix = (slice(w_box[0].start, w_box[0].stop + PATCH_ROWS - 1),
+               slice(w_box[1].start, w_box[1].stop + PATCH_COLS - 1))
+        dirty[w_box] = _window_counts(touched[pix]) > 0
+        lattice = np.zeros_like(dirty)
+        lattice[::s0, ::s1] = True
+        dirty &= lattice
+        covers = np.zeros_like(dirty)
+        covers[w_box] = _window_counts(layer.observed[pix]) > 0
+        a, b = np.nonzero(dirty & layer.inside & covers)
+        return a, b, dirty
+
+    def _refresh(self, layer: _HeadingLayer, a: np.ndarray, b: np.ndarray,
+                 dirty: np.ndarray, pred: np.ndarray) -> Box | None:
+        """Steps 3–5 for one heading; returns the box of BEV cells rewritten (or None)."""
+        s0, s1 = self.stride
+        da, db = np.nonzero(dirty)
+        layer.coarse[:, da // s0, db // s1] = 0.0
+        layer.weight[da // s0, db // s1] = 0.0
+        layer.coarse[:, a // s0, b // s1] = pred.T
+        layer.weight[a // s0, b // s1] = 1.0
+        filled, filled_w = fill_lattice(layer.coarse, layer.weight)
+        moved = _bbox(np.any(filled != layer.filled, axis=0) | (filled_w != layer.filled_w))
+        layer.filled, layer.filled_w = filled, filled_w
+        if moved is None:
+            return None
+        # window positions interpolated from a moved lattice point: p / s ∈ (c − 1, c + 1)
+        n_a, n_b = layer.valid.shape
+        win = _clip((slice((moved[0].start - 1) * s0, moved[0].stop * s0 + 1),
+                     slice((moved[1].start - 1) * s1, moved[1].stop * s1 + 1)), (n_a, n_b))
+        field, known = lattice_to_windows(filled, filled_w, self.stride, *win)
+        layer.field[(slice(None), *win)] = field
+        layer.valid[win] = layer.on_map[win] & known
+        # rotated pixels covered by those windows, averaged from every window covering them
+        d = layer.averaged.shape[-1]
+        pix = (slice(win[0].start, win[0].stop + PATCH_ROWS - 1),
+               slice(win[1].start, win[1].stop + PATCH_COLS - 1))
+        src = (slice(max(pix[0].start - PATCH_ROWS + 1, 0), min(pix[0].stop, n_a)),
+               slice(max(pix[1].start - PATCH_COLS + 1, 0), min(pix[1].stop, n_b)))
+        averaged = _average_over_covering_windows(layer.field[(slice(None), *src)],
+                                                  layer.valid[src])
+        sub = (slice(None), slice(pix[0].start - src[0].start, pix[0].stop - src[0].start),
+               slice(pix[1].start - src[1].start, pix[1].stop - src[1].start))
+        layer.averaged[(slice(None), *pix)] = np.nan_to_num(averaged[sub], nan=0.0)
+        # BEV cells that read those pixels
+        pix = _clip(pix, (d, d))
+        rows, cols = self.grid.xy_to_rc(*layer.transform.rotated_to_xy(
+            np.array([pix[0].start - 1, pix[0].start - 1, pix[0].stop, pix[0].stop]),
+            np.array([pix[1].start - 1, pix[1].stop, pix[1].start - 1, pix[1].stop])))
+        cells = _clip((slice(int(np.floor(rows.min())) - 1, int(np.ceil(rows.max())) + 2),
+                       slice(int(np.floor(cols.min())) - 1, int(np.ceil(cols.max())) + 2)),
+                      self.grid.shape)
+        if cells is None:
+            return None
+        layer.world[(slice(None), *cells)] = unrotate_map(layer.averaged, layer.transform,
+                                                          cells=cells)
+        return cells
+
+    def _write_cost(self, k: int | None, cells: Box, bev: BEVMap) -> None:
+        """C = 1 − clip(L, 0, 1) on ``cells`` of heading k (all headings when None),
+        1 where unobserved."""
+        ks = range(self.n_headings) if k is None else (k,)
+        observed = bev.observed[cells]
+        for j in ks:
+            cost = 1.0 - np.clip(self._layers[j].world[(slice(None), *cells)], 0.0, 1.0)
+            cost[:, ~observed] = 1.0
+            self._cost[(slice(None), j, *cells)] = cost

@@ -1,0 +1,111 @@
+"""The incremental costmap equals a full recompute of the same map after every update."""
+
+import copy
+
+import cv2
+import numpy as np
+import pytest
+
+from dgt_lib.core.geometry import heading_bins
+from dgt_lib.mapping.costmap import directional_costmap, explain_heading_layer
+from dgt_lib.mapping.incremental import IncrementalCostmap, changed_cells
+from tests.test_costmap import synthetic_bev
+
+STRIDE = (4, 2)
+K = 8
+TOL = 1e-5  # the box sums of a part run over other partial sums than the whole's
+
+
+def every_pixel_predictor(seed: int = 0):
+    """Two 'vehicles' whose L depends on every value of the patch (random weights), so a
+    window left stale anywhere shows up in the costmap."""
+    w = np.random.default_rng(seed).normal(size=(2, 6 * 22 * 7)).astype(np.float32) / 20.0
+
+    def predict(patches: np.ndarray) -> np.ndarray:
+        z = patches.reshape(len(patches), -1) @ w.T
+        return 1.0 / (1.0 + np.exp(-z))
+
+    return predict
+
+
+def terrain(shape=(56, 48), seed=1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return cv2.GaussianBlur(rng.normal(size=shape).astype(np.float32), (0, 0), 2) * 3.0
+
+
+def full(bev, predict):
+    return directional_costmap(bev, predict, K, stride=STRIDE, skip_unobserved=True,
+                               progress=False)
+
+
+def explore(heights: np.ndarray, observed: np.ndarray, box) -> tuple:
+    """Observe ``box`` too and raise a bump inside it: the map after one more frame."""
+    observed = observed.copy()
+    observed[box] = True
+    heights = heights.copy()
+    heights[box] += 0.8
+    return heights, observed
+
+
+@pytest.fixture()
+def grown():
+    """An incremental costmap of a map whose south-west was observed, and that map."""
+    heights = terrain()
+    observed = np.zeros(heights.shape, bool)
+    observed[:30, :26] = True
+    bev = synthetic_bev(heights, observed)
+    predict = every_pixel_predictor()
+    inc = IncrementalCostmap(bev.grid, predict, 2, K, stride=STRIDE)
+    inc.update(bev, changed_cells(None, bev))
+    return inc, bev, heights, observed, predict
+
+
+def test_from_empty_the_first_update_is_the_full_costmap(grown):
+    inc, bev, *_, predict = grown
+    assert np.abs(inc.cost - full(bev, predict)).max() < TOL
+
+
+def test_after_a_new_frame_only_part_is_recomputed_and_it_equals_a_full_recompute(grown):
+    inc, bev, heights, observed, predict = grown
+    new = synthetic_bev(*explore(heights, observed, (slice(24, 36), slice(20, 30))))
+    box = changed_cells(bev, new)
+    stats = inc.update(new, box)
+    expected = full(new, predict)
+    assert np.abs(inc.cost - expected).max() < TOL
+    assert np.abs(expected - full(bev, predict)).max() > 0.1  # the frame changed costs
+    evaluated_by_full = sum(
+        int(explain_heading_layer(new, theta, predict, stride=STRIDE,
+                                  skip_unobserved=True)["evaluated"].sum())
+        for theta in heading_bins(K))
+    assert 0 < stats.windows < evaluated_by_full
+    # a second frame elsewhere, on top of the first
+    newer = synthetic_bev(*explore(new.mean_height, new.observed,
+                                   (slice(40, 50), slice(2, 12))))
+    inc.update(newer, changed_cells(new, newer))
+    assert np.abs(inc.cost - full(newer, predict)).max() < TOL
+
+
+def test_a_dirty_region_too_small_is_caught(grown):
+    """The equality above has teeth: leaving changed rows out of the box breaks it (the
+    update's own margins absorb a row or two of slack; 4 rows show)."""
+    inc, bev, heights, observed, predict = grown
+    new = synthetic_bev(*explore(heights, observed, (slice(24, 36), slice(20, 30))))
+    rows, cols = changed_cells(bev, new)
+    wrong = copy.deepcopy(inc)
+    wrong.update(new, (slice(rows.start, rows.stop - 4), cols))
+    assert np.abs(wrong.cost - full(new, predict)).max() > 1e-3
+
+
+def test_nothing_changed_means_nothing_evaluated(grown):
+    inc, bev, *_ = grown
+    before = inc.cost.copy()
+    assert changed_cells(bev, bev) is None
+    stats = inc.update(bev, None)
+    assert stats.windows == 0 and np.array_equal(inc.cost, before)
+
+
+def test_unobserved_cells_cost_one_and_the_lattice_path_is_required(grown):
+    inc, bev, *_ = grown
+    assert np.all(inc.cost[:, :, ~bev.observed] == 1.0)
+    with pytest.raises(ValueError, match="stride"):
+        IncrementalCostmap(bev.grid, every_pixel_predictor(), 2, K, stride=(1, 1))
