@@ -53,6 +53,7 @@ from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED
 from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.navigation.explore import ExploreResult
 from dgt_lib.world.worlds import World
 
 WORLD = "world"
@@ -266,6 +267,16 @@ class Recording:
         self.layout.entities.add(path)
         self.stream.log(path, *archetypes, static=static)
 
+    def _log_at(self, path: str, time_s: float | None, *archetypes) -> None:
+        """Log static (time_s None) or at ``time_s`` [s] on ``sim_time`` and ``elapsed``
+        (a recording of one run, which starts at 0 on both)."""
+        if time_s is None:
+            self._log(path, *archetypes)
+            return
+        self.stream.set_time("sim_time", duration=float(time_s))
+        self.stream.set_time("elapsed", duration=float(time_s))
+        self._log(path, *archetypes, static=False)
+
     def _send(self, path: str, indexes, columns) -> None:
         self.layout.entities.add(path)
         self.stream.send_columns(path, indexes=indexes, columns=columns)
@@ -323,10 +334,11 @@ class Recording:
 
 
     def log_costmap(self, costmap: np.ndarray, grid: GridSpec, vehicle: str,
-                    method: str = "dgt") -> None:
+                    method: str = "dgt", *, time_s: float | None = None) -> None:
         """A directional costmap (K, H, W) in [0, 1]: one grid map per heading
         θ_k = 2πk/K, in metres on ``grid``, viridis (0 dark, 1 yellow), lying flat
-        ``COSTMAP_ABOVE_TERRAIN_M`` above the terrain's highest point."""
+        ``COSTMAP_ABOVE_TERRAIN_M`` above the terrain's highest point. With ``time_s``
+        [s] it is the costmap from that time on (a map growing during a run)."""
         base = f"{COSTMAPS}/{vehicle}/{method}"
         h, w = grid.shape
         fmt = rr.components.ImageFormat(width=w, height=h, color_model="L",
@@ -334,7 +346,7 @@ class Recording:
         z = self._terrain_top_m + COSTMAP_ABOVE_TERRAIN_M
         for k, layer in enumerate(costmap):
             data = _map_image(np.clip(np.asarray(layer, np.float32), 0.0, 1.0))
-            self._log(f"{base}/heading_{k}", rr.GridMap(
+            self._log_at(f"{base}/heading_{k}", time_s, rr.GridMap(
                 data=data.tobytes(), format=fmt, cell_size=grid.resolution,
                 translation=[*grid.origin_xy, z], colormap="viridis", opacity=0.85))
         self.layout.costmaps[(vehicle, method)] = len(costmap)
@@ -345,9 +357,10 @@ class Recording:
 
     # -- paths and trajectories -------------------------------------------
     def log_path(self, name: str, xyz: np.ndarray, color=(0.1, 0.3, 1.0),
-                 radius_m: float = 0.3) -> None:
-        """A planned path (N, 3) world points [m] (z already on the terrain, plus clearance)."""
-        self._log(f"{PATHS}/{name}", rr.LineStrips3D(
+                 radius_m: float = 0.3, *, time_s: float | None = None) -> None:
+        """A planned path (N, 3) world points [m] (z already on the terrain, plus
+        clearance); with ``time_s`` [s] the path followed from that time on (replanning)."""
+        self._log_at(f"{PATHS}/{name}", time_s, rr.LineStrips3D(
             [np.asarray(xyz, dtype=np.float32)], colors=[_rgba(color)], radii=radius_m))
 
     def log_trajectory(self, name: str, times_s: np.ndarray, xyz: np.ndarray,
@@ -461,3 +474,36 @@ def log_experiment(result: ExperimentResult, world: World, maps: WorldMaps,
                                    {"speed_mps": r.speed}, color, vehicle=r.task.vehicle)
         rec.log_text("results", result.markdown(PAPER.get(result.name)))
     return rec.layout
+
+
+def write_exploration(path: str | Path, world: World, result: ExploreResult, vehicle: str,
+                      profile: Profile, *, max_snapshots: int = 20) -> Path:
+    """The recording of a :func:`~dgt_lib.navigation.explore.explore` run: the terrain,
+    the vehicle's costmap growing over ``sim_time`` (at most ``max_snapshots`` mapping
+    steps, evenly spaced, the last included), the path followed after each replan, the
+    track, the final BEV and a note with the update times. Returns the file's path."""
+    frames = result.frames
+    keep = sorted(set(np.linspace(0, len(frames) - 1, min(max_snapshots, len(frames)))
+                      .round().astype(int).tolist())) if frames else []
+    grid = result.bev.grid if result.bev is not None else world.grid
+    with Recording(path, "exploration", profile) as rec:
+        rec.log_terrain(world.heights, world.colors, world.grid)
+        for i in keep:
+            rec.log_costmap(frames[i].cost, grid, vehicle, time_s=frames[i].time_s)
+        replans = [f for i, f in enumerate(frames)
+                   if i == 0 or not np.array_equal(f.path, frames[i - 1].path)]
+        for f in replans:
+            xy = f.path[:, :2]
+            z = world.height_at(xy[:, 0], xy[:, 1]) + 0.5
+            rec.log_path("planned", np.column_stack([xy, z]), time_s=f.time_s)
+        traj = result.trajectory
+        rec.log_trajectory(vehicle, traj[:, 0], traj[:, 1:4], vehicle=vehicle, yaw=traj[:, 4])
+        if result.bev is not None:
+            rec.log_bev(result.bev.channels, result.bev.observed)
+        ms = np.array([f.update.wall_s for f in frames]) * 1e3
+        rec.log_text("exploration", (
+            f"**{result.outcome.reason}** after {result.outcome.duration_s:.1f} s, "
+            f"{len(frames)} frames, {len(result.replans)} plans. Costmap update per frame: "
+            f"median {np.median(ms):.0f} ms, p90 {np.percentile(ms, 90):.0f} ms (wall)."
+            if frames else f"**{result.outcome.reason}**, no frames"))
+    return Path(path)
