@@ -15,6 +15,7 @@ occupied. MPPI tracks the latest path at 20 Hz; the paper's rule judges the run.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -103,11 +104,14 @@ def path_cost_rose(path: np.ndarray, before: np.ndarray, after: np.ndarray,
 
 
 def explore(world: World, vehicle: str, predict: Predictor, start, goal, tau_s: float, *,
-            cfg: ExploreConfig | None = None, planner: PlannerConfig | None = None
+            cfg: ExploreConfig | None = None, planner: PlannerConfig | None = None,
+            on_update: Callable[[BEVMap, IncrementalCostmap], None] | None = None
             ) -> ExploreResult:
     """Drive ``vehicle`` from ``start`` (x, y, θ) toward ``goal`` (x, y) [m, m, rad] on
     ``world`` knowing nothing of it beforehand; ``predict`` gives this vehicle's
-    locomotion (N, 1) for patches (N, 6, 22, 7). See the module docstring."""
+    locomotion (N, 1) for patches (N, 6, 22, 7). ``on_update(bev, costmap)`` sees the map
+    and the costmap after every update (e.g. to compare with a full recompute). See the
+    module docstring."""
     cfg = cfg or ExploreConfig()
     planner = planner or PlannerConfig()
     spec = get_vehicle(vehicle)
@@ -144,6 +148,8 @@ def explore(world: World, vehicle: str, predict: Predictor, start, goal, tau_s: 
                 bev_s = time.perf_counter() - wall
                 stats = costmap.update(new, changed_cells(bev, new))
                 bev = new
+                if on_update is not None:
+                    on_update(bev, costmap)
                 cost, occ = planning_maps(costmap.cost[0], bev, tau_s, cfg.unknown_cost)
                 if path is not None and path_cost_rose(path, planned_cost, cost, occ, grid,
                                                        cfg.replan_cost_rise):

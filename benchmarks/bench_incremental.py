@@ -1,0 +1,101 @@
+"""Incremental costmap: per-frame update time against a full recompute (issue 20, item 3).
+
+Target: an update after one new RGB-D frame ≤ 100 ms for one vehicle on 2 cores.
+
+A jeep explores the profile's eval world from nothing observed
+(:func:`dgt_lib.navigation.explore.explore`: a frame a second, Hybrid A* replanning, MPPI).
+After every frame the incremental update's wall and CPU time (``time.process_time``) are
+recorded, the K = 8 layers are recomputed from scratch with ``directional_costmap`` on
+the same BEV (same lattice stride, ``skip_unobserved``; timed the same way), and the
+largest |ΔC| between the two is kept. Prints median and p90 of both, the equality error
+and the machine's load average (the numbers mean little on a loaded machine).
+
+    .venv/bin/python benchmarks/bench_incremental.py [--profile smoke]
+        [--model data/demo/seed-0/models/multitask.pt]
+
+Without ``--model`` it uses the profile's trained multitask model (smoke: width 8);
+a checkpoint (e.g. the demo's width-64 ResNet-18) times the paper's network.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+
+import dgt_lib as dgt  # noqa: E402
+from dgt_lib.core.config import VEHICLES  # noqa: E402
+from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
+from dgt_lib.learning.training import predict  # noqa: E402
+from dgt_lib.mapping.costmap import directional_costmap  # noqa: E402
+from dgt_lib.navigation.explore import ExploreConfig, explore  # noqa: E402
+from dgt_lib.stages.costmaps import ensure_tau_s, load_model  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default="smoke")
+    ap.add_argument("--model", default=None, help="a checkpoint (default: the profile's)")
+    ap.add_argument("--vehicle", default="jeep")
+    args = ap.parse_args()
+    profile = dgt.get_profile(args.profile)
+    world = dgt.get_world("eval", profile)
+    model = (load_checkpoint(args.model).model if args.model
+             else load_model(profile, progress=False))
+    head = VEHICLES.index(args.vehicle)
+
+    def locomotion(patches: np.ndarray) -> np.ndarray:
+        return predict(model, patches)[:, [head]]
+
+    cfg = ExploreConfig(stride=profile.costmap.stride, time_limit_s=60.0,
+                        mppi_batch_size=profile.experiments.mppi_batch_size)
+    full_wall, full_cpu, error = [], [], []
+
+    def compare(bev, costmap) -> None:
+        wall, cpu = time.perf_counter(), time.process_time()
+        full = directional_costmap(bev, locomotion, cfg.n_headings, stride=cfg.stride,
+                                   skip_unobserved=True, progress=False)
+        full_wall.append(time.perf_counter() - wall)
+        full_cpu.append(time.process_time() - cpu)
+        error.append(float(np.abs(full - costmap.cost).max()))
+
+    x0, x1, y0, y1 = world.interior
+    load_before = os.getloadavg()
+    result = explore(world, args.vehicle, locomotion, (x0 + 10, y0 + 10, np.pi / 4),
+                     (x1 - 10, y1 - 10), ensure_tau_s(profile), cfg=cfg,
+                     planner=profile.planner, on_update=compare)
+    load_after = os.getloadavg()
+    frames = result.frames
+    rows = {
+        "incremental update, wall": [f.update.wall_s for f in frames],
+        "incremental update, CPU": [f.update.cpu_s for f in frames],
+        "full recompute, wall": full_wall,
+        "full recompute, CPU": full_cpu,
+        "BEV aggregation (whole grid), wall": [f.bev_s for f in frames],
+    }
+    h, w = result.bev.grid.shape
+    width = getattr(model, "width", None) or "?"
+    print(f"eval world {world.grid.extent[1]:.0f} m, BEV {h}×{w} cells, K = {cfg.n_headings}, "
+          f"stride {cfg.stride}, vehicle {args.vehicle}, model width {width}, "
+          f"torch threads {os.environ.get('OMP_NUM_THREADS', 'default')}; "
+          f"{len(frames)} frames, outcome {result.outcome.reason}")
+    print(f"load average (1, 5, 15 min) before {tuple(round(v, 2) for v in load_before)}, "
+          f"after {tuple(round(v, 2) for v in load_after)} on {os.cpu_count()} cores")
+    print("| per frame | median [ms] | p90 [ms] |\n|---|---|---|")
+    for name, values in rows.items():
+        ms = np.asarray(values) * 1e3
+        print(f"| {name} | {np.median(ms):.0f} | {np.percentile(ms, 90):.0f} |")
+    windows = [f.update.windows for f in frames]
+    print(f"| windows re-evaluated (8 headings) | {np.median(windows):.0f} | "
+          f"{np.percentile(windows, 90):.0f} |")
+    speedup = np.median(full_wall) / np.median(rows["incremental update, wall"])
+    print(f"speed-up (median wall) {speedup:.1f}×; max |C_incremental − C_full| over all "
+          f"frames {max(error):.1e}")
+
+
+if __name__ == "__main__":
+    main()
