@@ -362,3 +362,40 @@ def test_label_weighting_trains_and_is_validated(dataset):
     assert math.isfinite(result.history[0]["val_loss"])
     with pytest.raises(ValueError, match="label_weighting"):
         train_model(dataset, replace(TINY, label_weighting="focal"), progress=False)
+
+
+def test_the_cosine_schedule_falls_from_the_learning_rate_to_zero():
+    cfg = replace(TINY, learning_rate=1e-3, lr_schedule="cosine")
+    rates = [train.learning_rate_at(cfg, t, 100) for t in range(101)]
+    assert rates[0] == pytest.approx(1e-3) and rates[50] == pytest.approx(5e-4)
+    assert rates[100] == pytest.approx(0.0, abs=1e-12)
+    assert all(a >= b for a, b in zip(rates, rates[1:]))  # never rises again
+    assert train.learning_rate_at(replace(TINY, learning_rate=1e-3), 99, 100) == 1e-3
+
+
+def test_selection_last_keeps_the_final_epoch_even_when_an_earlier_one_validated_better(
+        dataset):
+    cfg = replace(TINY, epochs=4, learning_rate=2e-2, selection="last", patience=1)
+    result = train_model(dataset, cfg, progress=False, device=CPU)
+    assert len(result.history) == 4 and result.best_epoch == 4  # patience ignored
+    best_val = replace(cfg, selection="best_val", patience=None)
+    reference = train_model(dataset, best_val, progress=False, device=CPU)
+    val = [h["val_loss"] for h in reference.history]
+    assert [h["val_loss"] for h in result.history] == val  # the same run, another pick
+    assert reference.best_epoch == 1 + int(np.argmin(val))
+    if reference.best_epoch != 4:  # the two picks differ: so must the weights
+        assert not np.array_equal(predict(result.model, dataset.patches[:32]),
+                                  predict(reference.model, dataset.patches[:32]))
+    with pytest.raises(ValueError, match="selection"):
+        train_model(dataset, replace(TINY, selection="median"), progress=False)
+    with pytest.raises(ValueError, match="lr_schedule"):
+        train_model(dataset, replace(TINY, lr_schedule="step"), progress=False)
+
+
+def test_recipe_fields_at_their_old_behaviour_keep_the_cached_models_valid():
+    old = {k: v for k, v in artifacts._jsonable(TINY).items()
+           if k not in train_stage.LATER_TRAIN_FIELDS}  # the key before the fields existed
+    assert artifacts._jsonable(train_stage.train_key(TINY)) == old
+    cosine = train_stage.train_key(replace(TINY, lr_schedule="cosine"))
+    assert cosine["lr_schedule"] == "cosine"
+    assert artifacts.config_hash(cosine) != artifacts.config_hash(train_stage.train_key(TINY))

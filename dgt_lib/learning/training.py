@@ -17,9 +17,11 @@ Typical use::
     # cached per profile and seed: dgt_lib.stages.train.ensure_model(profile, dataset, kind)
     L_hat = predict(result.model, patches)                            # (N, n_heads)
 
-Training keeps the weights of the epoch with the lowest validation loss; Ctrl-C
+Training keeps the weights of the epoch with the lowest validation loss
+(``TrainConfig.selection="best_val"``) or of the last epoch (``"last"``, with the cosine
+learning-rate schedule ``TrainConfig.lr_schedule="cosine"``); Ctrl-C
 (KeyboardInterrupt) stops it cleanly and returns (and, with ``checkpoint_path``,
-has saved) that best model — or, with ``keep_best_on_interrupt=False`` (the cached
+has saved) that model — or, with ``keep_best_on_interrupt=False`` (the cached
 pipeline), lets the interrupt through so that nothing half-trained is kept.
 """
 
@@ -316,7 +318,7 @@ def train_model(
     on_batch_end: Callable[[int, int, float], None] | None = None,
     keep_best_on_interrupt: bool = True,
 ) -> TrainResult:
-    """Train a DGTNet with Adam and the masked loss; keep the best validation epoch.
+    """Train a DGTNet with Adam and the masked loss; keep the epoch ``cfg.selection`` picks.
 
     Args:
         dataset: all patches with their ``split``; only TRAIN updates weights, VAL
