@@ -44,11 +44,12 @@ from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import get_world
 
 RECIPES: dict[str, dict[str, object]] = {
-    "current": {},
+    "constant-best": {"lr_schedule": "constant", "selection": "best_val", "patience": 5},
     "cosine-last": {"lr_schedule": "cosine", "selection": "last", "patience": None},
     "cosine-best": {"lr_schedule": "cosine", "selection": "best_val", "patience": None},
 }
-"""Recipe name → the TrainConfig fields it changes from the profile's."""
+"""Recipe name → the TrainConfig fields it sets (the rest are the profile's). constant-best
+is ``demo``'s recipe before the cosine schedule, cosine-last its recipe now."""
 
 
 def _costmaps(models: dict, bev, prof) -> dict[tuple[str, str], np.ndarray]:
@@ -148,13 +149,17 @@ def main() -> None:
     parser.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     parser.add_argument("--train-seeds", nargs="+", type=int, default=[0],
                         help="offsets added to the run seed for weights and batch order")
+    parser.add_argument("--run-seeds", nargs="+", type=int, default=None,
+                        help="run seeds to measure (default: the profile's)")
     parser.add_argument("--queries", type=int, default=12)
     parser.add_argument("--out", default=None, help="JSON file for every measurement")
     args = parser.parse_args()
     prof = get_profile(args.profile)
     truths = ensure_ground_truths(None, prof, progress=False)
     results = []
-    for run in prof.seed_profiles():
+    runs = [r for r in prof.seed_profiles()
+            if args.run_seeds is None or r.seed in args.run_seeds]
+    for run in runs:
         for t in args.train_seeds:
             for name in args.recipes:
                 r = evaluate_run(run, RECIPES[name], run.seed + t, args.queries, truths)
