@@ -14,7 +14,8 @@ and the machine's load average (the numbers mean little on a loaded machine).
         [--model data/demo/seed-0/models/multitask.pt]
 
 Without ``--model`` it uses the profile's trained multitask model (smoke: width 8);
-a checkpoint (e.g. the `paper` profile's width-64 `data/paper/seed-0/models/multitask.pt`) times the paper's network.
+a checkpoint (e.g. the `paper` profile's width-64
+``data/paper/seed-0/models/multitask.pt``) times the paper's network.
 """
 
 from __future__ import annotations

@@ -369,7 +369,7 @@ def test_the_cosine_schedule_falls_from_the_learning_rate_to_zero():
     rates = [train.learning_rate_at(cfg, t, 100) for t in range(101)]
     assert rates[0] == pytest.approx(1e-3) and rates[50] == pytest.approx(5e-4)
     assert rates[100] == pytest.approx(0.0, abs=1e-12)
-    assert all(a >= b for a, b in zip(rates, rates[1:]))  # never rises again
+    assert all(a >= b for a, b in zip(rates[:-1], rates[1:], strict=True))  # never rises
     assert train.learning_rate_at(replace(TINY, learning_rate=1e-3), 99, 100) == 1e-3
 
 
