@@ -91,7 +91,8 @@ HEAD_INITS: tuple[str, ...] = ("prior", "default")
 LABEL_WEIGHTINGS: tuple[str, ...] = ("none", "inverse_frequency")
 LR_SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 SELECTIONS: tuple[str, ...] = ("best_val", "last")
-"""Valid ``TrainConfig.head_init`` values (checked by ``train_model``)."""
+"""Valid ``TrainConfig.head_init``, ``label_weighting``, ``lr_schedule`` and ``selection``
+values (checked by ``train_model``)."""
 
 
 @dataclass(frozen=True)
