@@ -109,3 +109,24 @@ def test_unobserved_cells_cost_one_and_the_lattice_path_is_required(grown):
     assert np.all(inc.cost[:, :, ~bev.observed] == 1.0)
     with pytest.raises(ValueError, match="stride"):
         IncrementalCostmap(bev.grid, every_pixel_predictor(), 2, K, stride=(1, 1))
+
+
+def test_a_plan_is_redone_only_when_its_own_cells_got_costlier_in_its_own_direction():
+    from dgt_lib.mapping.occupancy import FREE, OCCUPIED
+    from dgt_lib.navigation.explore import path_cost_rose
+
+    grid = synthetic_bev(np.zeros((40, 40), np.float32)).grid
+    path = np.array([[2.0 + 0.4 * i, 8.0, 0.0] for i in range(20)])  # eastbound, row 20
+    before = np.full((8, 40, 40), 0.2, np.float32)
+    occupancy = np.full((40, 40), FREE, np.uint8)
+    r, c = grid.xy_to_cell(6.0, 8.0)
+    after = before.copy()
+    after[4, r, c] = 0.9  # westbound layer: not the direction the path drives
+    after[0, r + 10, c] = 0.9  # eastbound, but off the path
+    assert not path_cost_rose(path, before, after, occupancy, grid, rise=0.3)
+    after[0, r, c] = 0.45  # on the path, its direction, but a small rise
+    assert not path_cost_rose(path, before, after, occupancy, grid, rise=0.3)
+    after[0, r, c] = 0.9
+    assert path_cost_rose(path, before, after, occupancy, grid, rise=0.3)
+    occupancy[r, c] = OCCUPIED
+    assert path_cost_rose(path, before, before, occupancy, grid, rise=0.3)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.costmap import Predictor
 from dgt_lib.mapping.incremental import IncrementalCostmap, UpdateStats, changed_cells
@@ -96,8 +97,7 @@ def path_cost_rose(path: np.ndarray, before: np.ndarray, after: np.ndarray,
     (both (K, H, W))."""
     r, c = grid.xy_to_cell(path[:, 0], path[:, 1])
     ok = (r >= 0) & (r < grid.height) & (c >= 0) & (c < grid.width)
-    k_count = before.shape[0]
-    k = np.rint(np.mod(path[:, 2], 2 * np.pi) / (2 * np.pi / k_count)).astype(int) % k_count
+    k = nearest_heading_bin(path[:, 2], before.shape[0])
     r, c, k = r[ok], c[ok], k[ok]
     return bool(np.any(occupancy[r, c] == OCCUPIED)
                 or np.any(after[k, r, c] - before[k, r, c] > rise))
