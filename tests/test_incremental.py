@@ -8,7 +8,7 @@ import pytest
 
 from dgt_lib.core.geometry import heading_bins
 from dgt_lib.mapping.costmap import directional_costmap, explain_heading_layer
-from dgt_lib.mapping.incremental import IncrementalCostmap, changed_cells
+from dgt_lib.mapping.incremental import IncrementalCostmap, changed_cells, changed_mask
 from tests.test_costmap import synthetic_bev
 
 STRIDE = (4, 2)
@@ -83,6 +83,50 @@ def test_after_a_new_frame_only_part_is_recomputed_and_it_equals_a_full_recomput
                                    (slice(40, 50), slice(2, 12))))
     inc.update(newer, changed_cells(new, newer))
     assert np.abs(inc.cost - full(newer, predict)).max() < TOL
+
+
+def test_a_mask_of_two_distant_changes_evaluates_fewer_windows_than_their_box(grown):
+    """Two small changes at opposite corners: their bounding box spans the map, the mask
+    does not — fewer windows, the same costmap as a full recompute."""
+    inc, bev, heights, observed, predict = grown
+    h1, o1 = explore(heights, observed, (slice(2, 8), slice(2, 8)))
+    new = synthetic_bev(*explore(h1, o1, (slice(22, 28), slice(20, 26))))
+    by_box = copy.deepcopy(inc)
+    stats_box = by_box.update(new, changed_cells(bev, new))
+    stats_mask = inc.update(new, changed_mask(bev, new))
+    expected = full(new, predict)
+    assert np.abs(inc.cost - expected).max() < TOL
+    assert np.abs(by_box.cost - expected).max() < TOL
+    assert 0 < stats_mask.windows < 0.8 * stats_box.windows
+
+
+def test_refresh_finds_the_changes_itself_and_skips_those_below_its_tolerance():
+    """``refresh`` with tolerance 0 is the exact update; with a tolerance, a re-observed
+    cell whose values moved by less than it is not evaluated again (what a frame does to
+    most cells it sees again), one that moved by more is, and the costmap stays within
+    what the skipped change can do."""
+    heights = terrain()
+    observed = np.zeros(heights.shape, bool)
+    observed[:30, :26] = True
+    bev = synthetic_bev(heights, observed)
+    predict = every_pixel_predictor()
+    exact = IncrementalCostmap(bev.grid, predict, 2, K, stride=STRIDE)
+    loose = IncrementalCostmap(bev.grid, predict, 2, K, stride=STRIDE, tolerance=0.05)
+    for inc in (exact, loose):
+        inc.refresh(bev)
+    jitter = heights.copy()
+    jitter[10:20, 10:20] += 0.01  # a centimetre: re-observation noise
+    small = synthetic_bev(jitter, observed)
+    assert exact.refresh(small).windows > 0
+    assert np.abs(exact.cost - full(small, predict)).max() < TOL
+    assert loose.refresh(small).windows == 0
+    assert np.abs(loose.cost - full(small, predict)).max() < 0.05
+    jitter[10:20, 10:20] += 0.5  # a real change
+    large = synthetic_bev(jitter, observed)
+    assert loose.refresh(large).windows > 0
+    assert np.abs(loose.cost - full(large, predict)).max() < TOL
+    with pytest.raises(ValueError, match="tolerance"):
+        IncrementalCostmap(bev.grid, predict, 2, K, stride=STRIDE, tolerance=-1.0)
 
 
 def test_a_dirty_region_too_small_is_caught(grown):

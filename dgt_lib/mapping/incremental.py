@@ -4,8 +4,9 @@ incremental updates as future work; this is ours).
 A vehicle exploring an unknown world adds one RGB-D frame at a time to its BEV map; a
 frame changes a few thousand cells. :class:`IncrementalCostmap` keeps the K heading
 layers of :func:`~dgt_lib.mapping.costmap.directional_costmap` (the lattice fast path,
-``skip_unobserved=True``) and, given the box of BEV cells that changed, recomputes only
-what depends on them, heading by heading. In the frame rotated by −θ_k (θ_k up):
+``skip_unobserved=True``) and, given the BEV cells that changed (a mask, or a box),
+recomputes only what depends on them, heading by heading. In the frame rotated by −θ_k
+(θ_k up):
 
 1. rotated pixels whose bilinear support touches a changed cell are resampled;
 2. lattice windows (window centres every ``stride`` cells) whose 22 × 7 footprint holds
@@ -58,17 +59,24 @@ _SUPPORT_MARGIN = 0.5
 """Slack [cells] around a bilinear support (cv2 rounds coordinates to 1/32 cell)."""
 
 
-def changed_cells(old: BEVMap | None, new: BEVMap) -> Box | None:
-    """The bounding box of the cells whose channels or observed flag differ between two
-    BEV maps of one grid (every observed cell of ``new`` when ``old`` is None), or None
-    when nothing changed."""
+def changed_mask(old: BEVMap | None, new: BEVMap) -> np.ndarray | None:
+    """(H, W) bool: the cells whose channels or observed flag differ between two BEV maps
+    of one grid (every observed cell of ``new`` when ``old`` is None); None when nothing
+    changed. What :meth:`IncrementalCostmap.update` wants: with the mask instead of its
+    bounding box it re-evaluates only windows that read a changed cell."""
     if old is None:
         diff = new.observed.copy()
     else:
         if old.grid != new.grid:
             raise ValueError(f"BEV maps of different grids: {old.grid} vs {new.grid}")
         diff = (old.observed != new.observed) | np.any(old.channels != new.channels, axis=0)
-    return _bbox(diff)
+    return diff if diff.any() else None
+
+
+def changed_cells(old: BEVMap | None, new: BEVMap) -> Box | None:
+    """The bounding box of :func:`changed_mask`, or None when nothing changed."""
+    mask = changed_mask(old, new)
+    return None if mask is None else _bbox(mask)
 
 
 def _bbox(mask: np.ndarray, offset: tuple[int, int] = (0, 0)) -> Box | None:
@@ -86,12 +94,30 @@ def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
     return (slice(r0, r1), slice(c0, c1)) if r1 > r0 and c1 > c0 else None
 
 
-def _touching(row: np.ndarray, col: np.ndarray, box: Box) -> np.ndarray:
+def _touching(row: np.ndarray, col: np.ndarray, box: Box,
+              near: np.ndarray | None = None) -> np.ndarray:
     """Which continuous positions (row, col) (integers at pixel centres) have a bilinear
-    support — pixels ⌊·⌋ and ⌊·⌋ + 1 — inside ``box``."""
+    support — pixels ⌊·⌋ and ⌊·⌋ + 1 — inside ``box`` and, when ``near`` is given, at a
+    cell of the changed mask: ``near`` is that mask dilated by ``_NEAR_RADIUS`` cells, read
+    at the nearest cell (every support cell is within 1 + the margin of it)."""
     m = _SUPPORT_MARGIN
-    return ((row > box[0].start - 1 - m) & (row < box[0].stop + m)
-            & (col > box[1].start - 1 - m) & (col < box[1].stop + m))
+    inside = ((row > box[0].start - 1 - m) & (row < box[0].stop + m)
+              & (col > box[1].start - 1 - m) & (col < box[1].stop + m))
+    if near is not None and inside.any():
+        h, w = near.shape
+        r = np.clip(np.rint(row[inside]).astype(np.intp), 0, h - 1)
+        c = np.clip(np.rint(col[inside]).astype(np.intp), 0, w - 1)
+        inside[inside] = near[r, c]
+    return inside
+
+
+_NEAR_RADIUS = 2
+"""Cells: a bilinear support lies within ⌈0.5 + 1 + _SUPPORT_MARGIN⌉ of the nearest cell."""
+
+
+def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    size = 2 * radius + 1
+    return cv2.dilate(mask.astype(np.uint8), np.ones((size, size), np.uint8)).astype(bool)
 
 
 def _window_counts(mask: np.ndarray) -> np.ndarray:
@@ -144,14 +170,20 @@ class IncrementalCostmap:
     """
 
     def __init__(self, grid, predict: Predictor, n_vehicles: int, n_headings: int = 8, *,
-                 stride: tuple[int, int] = (6, 3), batch_size: int = 2048):
+                 stride: tuple[int, int] = (6, 3), batch_size: int = 2048,
+                 tolerance: float = 0.0):
         self.stride = (int(stride[0]), int(stride[1]))
         if self.stride == (1, 1) or min(self.stride) < 1:
             raise ValueError(f"the incremental costmap follows the lattice path: stride "
                              f"must be ≥ 1 and not (1, 1), got {stride}")
+        if tolerance < 0:
+            raise ValueError(f"tolerance must be ≥ 0, got {tolerance}")
         self.grid, self.predict, self.batch_size = grid, predict, batch_size
         self.n_vehicles, self.n_headings = int(n_vehicles), int(n_headings)
+        self.tolerance = float(tolerance)
         self.observed = np.zeros(grid.shape, bool)
+        # the BEV as :meth:`refresh` last passed it on, cell by cell
+        self._basis = np.zeros((N_CHANNELS, *grid.shape), np.float32)
         self._cost = np.ones((self.n_vehicles, self.n_headings, *grid.shape), np.float32)
         self._layers = [self._empty_layer(float(t)) for t in heading_bins(self.n_headings)]
 
@@ -178,17 +210,46 @@ class IncrementalCostmap:
         copy it to keep a snapshot)."""
         return self._cost
 
-    def update(self, bev: BEVMap, changed: Box | None) -> UpdateStats:
-        """Bring the layers up to date with ``bev``, whose cells outside ``changed``
-        ((rows, cols) slices, e.g. :func:`changed_cells`) equal the previous map's."""
+    def refresh(self, bev: BEVMap) -> UpdateStats:
+        """Bring the layers up to date with ``bev``, finding what changed by itself: the
+        cells whose observed flag changed or one of whose channels moved by more than
+        ``tolerance`` (channel units: RGB 0..1, H̄ and σ_H [m], ‖∇H̄‖ [m/m]) since this
+        method last passed the cell on to :meth:`update`.
+
+        ``tolerance = 0`` is exact (the layers equal ``directional_costmap(bev, …)``). A
+        re-observed cell's mean height moves by millimetres from frame to frame, so most
+        of a frame's cells change a little; with ``tolerance > 0`` only the new and the
+        clearly changed ones are evaluated again, and every cell the network last read is
+        within 2 × tolerance of ``bev`` (what :meth:`update` resamples around a changed
+        cell is read from ``bev``, so a skipped cell may be one step newer than its basis).
+        """
+        if bev.grid != self.grid:
+            raise ValueError(f"BEV grid {bev.grid} is not the costmap's {self.grid}")
+        moved = np.abs(bev.channels - self._basis).max(axis=0) > self.tolerance
+        changed = moved | (bev.observed != self.observed)
+        self._basis[:, changed] = bev.channels[:, changed]
+        return self.update(bev, changed if changed.any() else None)
+
+    def update(self, bev: BEVMap, changed: np.ndarray | Box | None) -> UpdateStats:
+        """Bring the layers up to date with ``bev``, whose cells outside ``changed`` equal
+        the previous map's: an (H, W) bool mask (:func:`changed_mask`; only windows that
+        read a changed cell are evaluated again) or a box of (rows, cols) slices
+        (:func:`changed_cells`; every window reading the box), None when nothing changed."""
         wall0, cpu0 = time.perf_counter(), time.process_time()
         stats = UpdateStats()
         if bev.grid != self.grid:
             raise ValueError(f"BEV grid {bev.grid} is not the costmap's {self.grid}")
+        near = None
+        if isinstance(changed, np.ndarray):
+            if changed.shape != self.grid.shape:
+                raise ValueError(f"changed mask {changed.shape} ≠ grid {self.grid.shape}")
+            box = _bbox(changed)
+            near = None if box is None else _dilate(changed, _NEAR_RADIUS)
+            changed = box
         changed = None if changed is None else _clip(changed, self.grid.shape)
         if changed is not None:
             # 1–2: resample touched pixels, find the lattice windows that read them
-            todo = [self._resample(layer, bev, changed) for layer in self._layers]
+            todo = [self._resample(layer, bev, changed, near) for layer in self._layers]
             patches = [sliding_windows(layer.channels)[:, a, b] for layer, (a, b, _) in
                        zip(self._layers, todo, strict=True)]
             n = [len(a) for a, _, _ in todo]
@@ -216,11 +277,13 @@ class IncrementalCostmap:
                 for i in range(0, len(patches), self.batch_size)]
         return np.concatenate(outs).reshape(len(patches), self.n_vehicles)
 
-    def _resample(self, layer: _HeadingLayer, bev: BEVMap, changed: Box):
-        """Step 1–2 for one heading: resample the rotated pixels touching ``changed`` and
-        return the lattice windows to evaluate (top-left rows a, cols b) and the mask of
-        lattice windows whose content changed (n_a, n_b)."""
-        touched = _touching(layer.bev_row, layer.bev_col, changed)
+    def _resample(self, layer: _HeadingLayer, bev: BEVMap, changed: Box,
+                  near: np.ndarray | None):
+        """Step 1–2 for one heading: resample the rotated pixels touching ``changed`` (and
+        ``near``, the dilated changed mask, if given) and return the lattice windows to
+        evaluate (top-left rows a, cols b) and the mask of lattice windows whose content
+        changed (n_a, n_b)."""
+        touched = _touching(layer.bev_row, layer.bev_col, changed, near)
         box = _bbox(touched)
         dirty = np.zeros(layer.inside.shape, bool)
         if box is None:

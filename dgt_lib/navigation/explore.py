@@ -24,7 +24,7 @@ from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.costmap import Predictor
-from dgt_lib.mapping.incremental import IncrementalCostmap, UpdateStats, changed_cells
+from dgt_lib.mapping.incremental import IncrementalCostmap, UpdateStats
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED, occupancy_map
 from dgt_lib.navigation.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.drive import MPPI_DT_S
@@ -49,6 +49,9 @@ class ExploreConfig:
     unknown_cost: float = 0.3  # C the planner assumes on unobserved cells (optimistic)
     n_headings: int = 8  # K
     stride: tuple[int, int] = (6, 3)  # lattice stride of the costmap [cells]
+    # a re-observed cell is evaluated again only when a channel moved by more than this
+    # (IncrementalCostmap.refresh; 0 = exact, every change)
+    change_tolerance: float = 0.0
     time_limit_s: float = 60.0  # the run's time limit [s]
     mppi_batch_size: int = 256  # sampled control sequences
     seed: int = 0
@@ -119,7 +122,8 @@ def explore(world: World, vehicle: str, predict: Predictor, start, goal, tau_s: 
     acc = BEVAccumulator(grid)
     renderer = terrain_renderer(world, cfg.frame_max_depth_m)
     renderer.restart()
-    costmap = IncrementalCostmap(grid, predict, 1, cfg.n_headings, stride=cfg.stride)
+    costmap = IncrementalCostmap(grid, predict, 1, cfg.n_headings, stride=cfg.stride,
+                                 tolerance=cfg.change_tolerance)
     mppi = replace(MPPIConfig(batch_size=cfg.mppi_batch_size), **vehicle_footprint(spec))
     ctrl = MPPIController.from_vehicle(spec, mppi, seed=cfg.seed)
     rule = OutcomeRule(time_limit_s=cfg.time_limit_s)
@@ -146,7 +150,7 @@ def explore(world: World, vehicle: str, predict: Predictor, start, goal, tau_s: 
                               max_depth_m=cfg.frame_max_depth_m)
                 new = acc.result()
                 bev_s = time.perf_counter() - wall
-                stats = costmap.update(new, changed_cells(bev, new))
+                stats = costmap.refresh(new)
                 bev = new
                 if on_update is not None:
                     on_update(bev, costmap)
