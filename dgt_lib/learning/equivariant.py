@@ -14,12 +14,12 @@ channel k the same function of the map rotated by −θ_k — the costmap's "rot
 evaluate, rotate back" — without rotating anything at inference.
 
 How it is built (our own small group convolution, no dependency): a *rotated filter
-bank*. A lifting layer correlates the 6 input channels (R, G, B, H̄′, σ_H, ‖∇H̄‖, all
-scalars under rotation) with 8 rotated copies ψ_r = L_{g^r} ψ of each learned filter ψ;
-a group layer's filter ψ(q, s) also carries a heading index s, and its copies are
-ψ_r(q, s) = ψ(g^−r q, s − r) (rotate, then shift the heading axis cyclically). Spatial
-rotation by a multiple of 90° is an exact permutation of the k × k filter's cells
-(:func:`rot90_world`); by 45° it is a fixed bilinear resampling matrix
+bank*. A lifting layer correlates the scalar input channels (R, G, B, σ_H, ‖∇H̄‖:
+unchanged by a rotation; H̄ enters as slopes, below) with 8 rotated copies ψ_r = L_{g^r} ψ
+of each learned filter ψ; a group layer's filter ψ(q, s) also carries a heading index s,
+and its copies are ψ_r(q, s) = ψ(g^−r q, s − r) (rotate, then shift the heading axis
+cyclically). Spatial rotation by a multiple of 90° is an exact permutation of the k × k
+filter's cells (:func:`rot90_world`); by 45° it is a fixed bilinear resampling matrix
 (:func:`rotation_matrix_45`), and ψ_{2m+1} = rot90^m(R₄₅ ψ). So 90° rotations of the map
 permute the output exactly (up to float rounding), 45° rotations only approximately:
 the map itself cannot be rotated by 45° on a square grid without interpolation either.
@@ -27,17 +27,23 @@ Filters are masked to a disk. ReLU is pointwise and BatchNorm shares its statist
 over the 8 headings of a field, so both commute with the group action.
 
 Heights: :class:`~dgt_lib.learning.model.DGTNet` sees H̄ minus the mean of its 22 × 7
-patch, which depends on the heading and does not exist at a cell. Here H̄′ = H̄ minus
-the mean of the observed cells within :data:`HEIGHT_MEAN_RADIUS_CELLS` (a disk: the same
-for every heading), computed once on the whole map before anything is cropped, at
-training and at inference alike (:func:`centre_heights_locally`).
+patch, which depends on the heading and does not exist at a cell. A moving mean (H̄
+minus the mean of a disk about each cell) is no substitute: on a plane it is 0
+everywhere, so the direction of a slope — what makes uphill cost more than downhill —
+would be lost (our first attempt; the trained maps had almost no directional contrast).
+Here H̄ enters only through its gradient, as the 8 directional slopes
+∂H̄/∂θ_k = ∇H̄ · (cos θ_k, sin θ_k) (central differences,
+:func:`~dgt_lib.perception.bev.height_gradient_components`): altitude-free, the same at
+training and inference, and itself a regular field (rotating the map by g shifts k by
+one), so it enters the first layer through a group convolution beside the lifting of the
+five scalar channels R, G, B, σ_H, ‖∇H̄‖ (:data:`INPUT_CHANNELS`).
 
 Training is dense-ready (unlike :mod:`dgt_lib.learning.dense`): each sample is a square
 crop of the real map, of the network's receptive field, around the patch pose, so the
 network sees at training exactly the context it sees at inference; convolutions are
 "valid" and the crop's single output cell is the sample's prediction. Off-map and
 unobserved cells are 0 after normalisation, and inference pads the map with such zeros,
-so borders agree too. See ``scripts``-free use in ``benchmarks/eval_equivariant.py``.
+so borders agree too. Measured against DGTNet by ``benchmarks/eval_equivariant.py``.
 """
 
 from __future__ import annotations
@@ -47,24 +53,23 @@ import math
 import time
 from dataclasses import asdict, dataclass
 
-import cv2
 import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
 
 from dgt_lib.core.config import VEHICLES
-from dgt_lib.core.geometry import heading_bins
+from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.training import head_prior, masked_loss, regression_metrics
-from dgt_lib.perception.bev import BEVMap
+from dgt_lib.perception.bev import GRADIENT, HEIGHT_STD, B, BEVMap, R, height_gradient_components
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
-from dgt_lib.perception.patches import sample_bev
+from dgt_lib.perception.patches import sample_channels
 
 N_ROTATIONS = 8
 """|C8|: the K = 8 heading bins of the paper, 45° apart."""
-HEIGHT_CHANNEL = 3
-HEIGHT_MEAN_RADIUS_CELLS = 11
-"""Radius [cells] (4.4 m, half the patch length) of the disk whose mean H̄′ subtracts."""
+INPUT_CHANNELS = ("R", "G", "B", "sigma_H", "grad_H", "dH_dx", "dH_dy")
+"""The network's input map (:func:`input_map`): five scalars, then ∇H̄ [m/m] (a vector)."""
+N_SCALARS = 5
 
 
 # ----------------------------------------------------------------------------- the group action
@@ -168,38 +173,44 @@ class GroupBatchNorm(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         b, c, h, w = x.shape
-        return self.bn(x.view(b, c // N_ROTATIONS, N_ROTATIONS * h, w)).view(b, c, h, w)
+        return self.bn(x.reshape(b, c // N_ROTATIONS, N_ROTATIONS * h, w)).reshape(b, c, h, w)
 
 
 # ----------------------------------------------------------------------------- the network
 
 
 class C8Net(nn.Module):
-    """Lifting conv, ``depth`` group convs (each after BatchNorm + ReLU), a 1 × 1 group conv
-    to one regular field per vehicle, sigmoid::
+    """Lifting conv of the scalars plus a group conv of the slopes, ``depth`` group convs
+    (each after BatchNorm + ReLU), a 1 × 1 group conv to one regular field per vehicle::
 
-        x (B, 6, H, W) raw ─ normalise, 0 where unobserved ─ lift k×k ─ (B, 8F, ·, ·)
+        x (B, 7, H, W) raw input map ─ prepare: scalars normalised, ∇H̄ → 8 slopes,
+          0 where unobserved ─ lift k×k (scalars) + group conv k×k (slopes) ─ (B, 8F, ·, ·)
           ─ [GBN, ReLU, group conv k×k] × depth ─ GBN, ReLU ─ head 1×1 ─ sigmoid
           ─ L̂ (B, V, 8, H − RF + 1, W − RF + 1),   RF = 1 + (depth + 1)(k − 1)
 
     Output [b, v, k, i, j]: vehicle ``vehicles[v]`` heading θ_k at the cell whose
-    receptive field starts at (i, j). The input's H̄ must already be H̄′
-    (:func:`centre_heights_locally`). Normalisation buffers as in DGTNet.
+    receptive field starts at (i, j) ("valid" convolutions). Normalisation buffers
+    (scalar mean and std, one slope scale, no mean: a mean would break the symmetry) are
+    set from the training map and saved in the state dict, as in DGTNet.
     """
 
     def __init__(self, vehicles: tuple[str, ...] | list[str] = VEHICLES, fields: int = 8,
-                 depth: int = 4, kernel: int = 5, in_channels: int = 6) -> None:
+                 depth: int = 4, kernel: int = 5) -> None:
         super().__init__()
         self.vehicles = tuple(vehicles)
         self.fields, self.depth, self.kernel = int(fields), int(depth), int(kernel)
-        self.lift = LiftingConv(in_channels, fields, kernel)
+        self.lift = LiftingConv(N_SCALARS, fields, kernel)
+        self.lift_slopes = GroupConv(1, fields, kernel)
         self.blocks = nn.ModuleList(
             nn.Sequential(GroupBatchNorm(fields), nn.ReLU(), GroupConv(fields, fields, kernel))
             for _ in range(depth))
         self.norm = GroupBatchNorm(fields)
         self.head = GroupConv(fields, len(self.vehicles), 1, bias=True)
-        self.register_buffer("input_mean", torch.zeros(in_channels))
-        self.register_buffer("input_std", torch.ones(in_channels))
+        self.register_buffer("input_mean", torch.zeros(N_SCALARS))
+        self.register_buffer("input_std", torch.ones(N_SCALARS))
+        self.register_buffer("slope_scale", torch.ones(()))
+        thetas = torch.tensor(heading_bins(N_ROTATIONS), dtype=torch.float32)
+        self.register_buffer("directions", torch.stack([torch.cos(thetas), torch.sin(thetas)]))
 
     @property
     def receptive_field(self) -> int:
@@ -211,14 +222,19 @@ class C8Net(nn.Module):
                 "depth": self.depth, "kernel": self.kernel}
 
     def prepare(self, x: torch.Tensor, observed: torch.Tensor) -> torch.Tensor:
-        """Raw (B, 6, H, W) and observed (B, H, W) → normalised input, 0 where unobserved."""
-        x = (x - self.input_mean[:, None, None]) / self.input_std[:, None, None]
-        x = torch.where(observed[:, None], x, torch.zeros((), dtype=x.dtype))
-        return torch.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
+        """Raw input maps (B, 7, H, W) (:data:`INPUT_CHANNELS`) and observed (B, H, W) →
+        (B, 5 + 8, H, W): normalised scalars and the slopes ∂H̄/∂θ_k / scale, 0 where
+        unobserved."""
+        mean, std = self.input_mean[:, None, None], self.input_std[:, None, None]
+        scalars = (x[:, :N_SCALARS] - mean) / std
+        slopes = torch.einsum("bchw,ck->bkhw", x[:, N_SCALARS:], self.directions)
+        out = torch.cat([scalars, slopes / self.slope_scale], dim=1)
+        out = torch.where(observed[:, None], out, torch.zeros((), dtype=out.dtype))
+        return torch.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
 
     def logits(self, x: torch.Tensor) -> torch.Tensor:
-        """Prepared input (B, 6, H, W) → logits (B, V, 8, H − RF + 1, W − RF + 1)."""
-        h = self.lift(x)
+        """Prepared input (B, 13, H, W) → logits (B, V, 8, H − RF + 1, W − RF + 1)."""
+        h = self.lift(x[:, :N_SCALARS]) + self.lift_slopes(x[:, N_SCALARS:])
         for block in self.blocks:
             h = block(h)
         out = self.head(F.relu(self.norm(h)))
@@ -239,51 +255,75 @@ class C8Net(nn.Module):
 # ----------------------------------------------------------------------------- inputs
 
 
-def centre_heights_locally(bev: BEVMap,
-                           radius: int = HEIGHT_MEAN_RADIUS_CELLS) -> BEVMap:
-    """A copy of ``bev`` with H̄′ = H̄ − (mean H̄ of the observed cells within ``radius``
-    cells) [m]: rotation-invariant, the same at training and inference."""
-    h = bev.channels[HEIGHT_CHANNEL].astype(np.float64)
-    obs = bev.observed.astype(np.float64)
-    size = 2 * radius + 1
-    yy, xx = np.mgrid[-radius : radius + 1, -radius : radius + 1]
-    disk = (np.hypot(yy, xx) <= radius).astype(np.float64)
-    total = cv2.filter2D(h * obs, -1, disk, borderType=cv2.BORDER_CONSTANT)
-    count = cv2.filter2D(obs, -1, disk, borderType=cv2.BORDER_CONSTANT)
-    assert disk.shape == (size, size)
-    channels = bev.channels.copy()
-    channels[HEIGHT_CHANNEL] = np.where(
-        bev.observed, h - total / np.maximum(count, 1.0), 0.0).astype(np.float32)
-    return BEVMap(bev.grid, channels, bev.observed, bev.counts)
+def input_map(bev: BEVMap) -> np.ndarray:
+    """The network's input map (7, H, W) float32 of a BEV (:data:`INPUT_CHANNELS`):
+    R, G, B, σ_H, ‖∇H̄‖ as they are, then ∂H̄/∂x and ∂H̄/∂y [m/m]; 0 where unobserved."""
+    d_dy, d_dx = height_gradient_components(bev.mean_height, bev.observed, bev.grid.resolution)
+    scalars = bev.channels[[R, R + 1, B, HEIGHT_STD, GRADIENT]]
+    return np.concatenate([scalars, np.stack([d_dx, d_dy])]).astype(np.float32)
 
 
-def heading_crops(bev: BEVMap, poses: np.ndarray, size: int,
-                  bins: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Square crops (N, 6, size, size) and observed (N, size, size) of ``bev`` around each
-    pose (x, y, θ), rotated so that the pose's heading θ lies at θ_k for the crop's
-    ``bins[n]`` = k (default 0): crop pixel (r, c) is the world point
-    (x, y) + R(θ − θ_k)·((c − m)·res, (r − m)·res), m = (size − 1)/2, sampled bilinearly
-    (:func:`~dgt_lib.perception.patches.sample_bev`). Channel k of the network at the
-    crop's centre is then the locomotion of that pose."""
+def heading_crops(channels: np.ndarray, observed: np.ndarray, grid: GridSpec,
+                  poses: np.ndarray, size: int, bins: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Square crops (N, 7, size, size) and observed (N, size, size) of an :func:`input_map`
+    (7, H, W) on ``grid`` around each pose (x, y, θ), rotated so that the pose's heading θ
+    lies at θ_k for the crop's ``bins[n]`` = k (default 0): crop pixel (r, c) is the world
+    point (x, y) + R(φ)·((c − m)·res, (r − m)·res), φ = θ − θ_k, m = (size − 1)/2, sampled
+    bilinearly (:func:`~dgt_lib.perception.patches.sample_channels`), and ∇H̄ is turned by
+    −φ into the crop's frame. Channel k of the network at the crop's centre is then the
+    locomotion of that pose."""
     poses = np.asarray(poses, np.float64)
     bins = np.zeros(len(poses), np.int64) if bins is None else np.asarray(bins)
-    m, res = (size - 1) / 2.0, bev.grid.resolution
+    m, res = (size - 1) / 2.0, grid.resolution
     r, c = np.mgrid[0:size, 0:size].astype(np.float64)
     dx, dy = ((c - m) * res).ravel(), ((r - m) * res).ravel()
     phi = poses[:, 2] - heading_bins(N_ROTATIONS)[bins]
     cos, sin = np.cos(phi)[:, None], np.sin(phi)[:, None]
     x = poses[:, :1] + cos * dx - sin * dy  # (N, size²)
     y = poses[:, 1:2] + sin * dx + cos * dy
-    channels, observed = sample_bev(bev, x, y)  # (6, N, size²), (N, size²)
-    return (np.moveaxis(channels, 0, 1).reshape(len(poses), -1, size, size),
-            observed.reshape(len(poses), size, size))
+    values, seen = sample_channels(channels, observed, grid, x, y)  # (7, N, size²)
+    gx, gy = values[N_SCALARS].copy(), values[N_SCALARS + 1].copy()
+    values[N_SCALARS], values[N_SCALARS + 1] = cos * gx + sin * gy, -sin * gx + cos * gy
+    crops = np.ascontiguousarray(np.moveaxis(values, 0, 1))
+    return crops.reshape(len(poses), -1, size, size), seen.reshape(len(poses), size, size)
 
 
-def channel_statistics(bev: BEVMap) -> tuple[np.ndarray, np.ndarray]:
-    """Per-channel mean and std (6,) over the observed cells of a (height-centred) map."""
-    values = bev.channels[:, bev.observed].astype(np.float64)
-    std = values.std(axis=1)
-    return values.mean(axis=1).astype(np.float32), np.where(std > 1e-6, std, 1).astype(np.float32)
+def input_statistics(channels: np.ndarray, observed: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Scalar mean and std (5,) and the slope scale (RMS of ∇H̄'s components) over the
+    observed cells of an :func:`input_map`."""
+    values = channels[:, observed].astype(np.float64)
+    std = values[:N_SCALARS].std(axis=1)
+    slope = float(np.sqrt(np.mean(values[N_SCALARS:] ** 2)))
+    return (values[:N_SCALARS].mean(axis=1).astype(np.float32),
+            np.where(std > 1e-6, std, 1).astype(np.float32), max(slope, 1e-6))
+
+
+def equivariance_error(model: C8Net, bev: BEVMap, n: int = 512, seed: int = 0
+                       ) -> dict[str, float]:
+    """How far a network is from equivariant on a real map: mean and max
+    |L̂(L_{g^k} map)_{j+k} − L̂(map)_j| over ``n`` random observed cells, every vehicle and
+    heading j, for k = 1 (45°) and k = 2 (90°), from :func:`heading_crops` about each
+    cell (θ = 0) rotated to bin k."""
+    channels = input_map(bev)
+    rng = np.random.default_rng(seed)
+    rows, cols = np.nonzero(bev.observed)
+    pick = rng.choice(len(rows), min(n, len(rows)), replace=False)
+    x, y = bev.grid.cell_to_xy(rows[pick], cols[pick])
+    poses = np.stack([x, y, np.zeros(len(pick))], axis=1)
+    model.eval()
+    outs = []
+    with torch.no_grad():
+        for k in range(3):
+            crops, obs = heading_crops(channels, bev.observed, bev.grid, poses,
+                                       model.receptive_field, np.full(len(pick), k))
+            outs.append(model(torch.from_numpy(crops), torch.from_numpy(obs))[..., 0, 0].numpy())
+    out = {}
+    for k, name in ((1, "45"), (2, "90")):
+        d = np.abs(outs[k] - np.roll(outs[0], k, axis=2))
+        out[f"mean_{name}"], out[f"max_{name}"] = float(d.mean()), float(d.max())
+    return out
 
 
 # ----------------------------------------------------------------------------- training
@@ -329,9 +369,11 @@ class EquivariantResult:
                    EquivariantConfig(**d["config"]), d["seed"])
 
 
-def _batch(model: C8Net, bev: BEVMap, poses: np.ndarray, bins: np.ndarray) -> torch.Tensor:
+def _batch(model: C8Net, channels: np.ndarray, bev: BEVMap, poses: np.ndarray,
+           bins: np.ndarray) -> torch.Tensor:
     """L̂ (B, V, 8) at the centres of the crops of ``poses`` rotated to ``bins``."""
-    crops, observed = heading_crops(bev, poses, model.receptive_field, bins)
+    crops, observed = heading_crops(channels, bev.observed, bev.grid, poses,
+                                    model.receptive_field, bins)
     out = model(torch.from_numpy(crops), torch.from_numpy(observed))
     return out[:, :, :, 0, 0]
 
@@ -340,13 +382,14 @@ def _batch(model: C8Net, bev: BEVMap, poses: np.ndarray, bins: np.ndarray) -> to
 def predict_samples(model: C8Net, bev: BEVMap, poses: np.ndarray,
                     bins: np.ndarray | None = None, batch_size: int = 512) -> np.ndarray:
     """L̂ (N, V) of each pose's own heading: the crop rotated to ``bins[n]`` (default 0),
-    channel ``bins[n]``. ``bev`` height-centred (:func:`centre_heights_locally`)."""
+    channel ``bins[n]``."""
     model.eval()
+    channels = input_map(bev)
     bins = np.zeros(len(poses), np.int64) if bins is None else np.asarray(bins)
     out = []
     for s in range(0, len(poses), batch_size):
         b = bins[s : s + batch_size]
-        pred = _batch(model, bev, poses[s : s + batch_size], b)  # (n, V, 8)
+        pred = _batch(model, channels, bev, poses[s : s + batch_size], b)  # (n, V, 8)
         out.append(pred[torch.arange(len(b)), :, torch.from_numpy(b)].numpy())
     return np.concatenate(out) if out else np.zeros((0, len(model.vehicles)), np.float32)
 
@@ -372,11 +415,12 @@ def train_equivariant(dataset: PatchDataset, bev: BEVMap, cfg: EquivariantConfig
     rotated to a random heading bin k (``rotate_augment``) whose channel is trained."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    prepared = centre_heights_locally(bev)
+    channels = input_map(bev)
     model = C8Net(VEHICLES, cfg.fields, cfg.depth, cfg.kernel)
-    mean, std = channel_statistics(prepared)
+    mean, std, slope = input_statistics(channels, bev.observed)
     model.input_mean.copy_(torch.from_numpy(mean))
     model.input_std.copy_(torch.from_numpy(std))
+    model.slope_scale.fill_(slope)
     train_idx = np.flatnonzero(dataset.split == TRAIN)
     val_idx = np.flatnonzero(dataset.split == VAL)
     model.init_heads(head_prior(dataset, train_idx, VEHICLES))
@@ -396,7 +440,7 @@ def train_equivariant(dataset: PatchDataset, bev: BEVMap, cfg: EquivariantConfig
             idx = order[b * cfg.batch_size : (b + 1) * cfg.batch_size]
             bins = (rng.integers(0, N_ROTATIONS, len(idx)) if cfg.rotate_augment
                     else np.zeros(len(idx), np.int64))
-            pred = _batch(model, prepared, dataset.pose[idx], bins)  # (B, V, 8)
+            pred = _batch(model, channels, bev, dataset.pose[idx], bins)  # (B, V, 8)
             pred = pred[torch.arange(len(idx)), :, torch.from_numpy(bins)]  # (B, V)
             loss = masked_loss(pred, labels[idx], heads[idx])
             opt.zero_grad(set_to_none=True)
@@ -404,7 +448,7 @@ def train_equivariant(dataset: PatchDataset, bev: BEVMap, cfg: EquivariantConfig
             opt.step()
             sched.step()
             total += loss.item()
-        val_pred = predict_samples(model, prepared, dataset.pose[val_idx])
+        val_pred = predict_samples(model, bev, dataset.pose[val_idx])
         val = masked_loss(torch.from_numpy(val_pred), labels[val_idx], heads[val_idx]).item()
         history.append({"epoch": epoch, "train_loss": total / n_batches, "val_loss": val,
                         "seconds": time.perf_counter() - t0})
@@ -416,7 +460,7 @@ def train_equivariant(dataset: PatchDataset, bev: BEVMap, cfg: EquivariantConfig
             best_state = copy.deepcopy(model.state_dict())
     model.load_state_dict(best_state)
     model.eval()
-    metrics = evaluate(model, prepared, dataset.subset(dataset.split == TEST))
+    metrics = evaluate(model, bev, dataset.subset(dataset.split == TEST))
     return EquivariantResult(model, history, best_epoch, metrics, cfg, seed)
 
 
@@ -425,14 +469,13 @@ def train_equivariant(dataset: PatchDataset, bev: BEVMap, cfg: EquivariantConfig
 
 @torch.no_grad()
 def equivariant_locomotion(model: C8Net, bev: BEVMap, tile: int = 256) -> np.ndarray:
-    """L̂ (V, 8, H, W) of every cell and heading θ_k in one pass over the raw ``bev``
-    (height-centred here), zero-padded by RF // 2 so that every cell is an output cell;
+    """L̂ (V, 8, H, W) of every cell and heading θ_k in one pass over ``bev``'s
+    :func:`input_map`, zero-padded by RF // 2 so that every cell is an output cell;
     evaluated in tiles of ``tile`` output rows (same result, bounded memory)."""
     model.eval()
-    prepared = centre_heights_locally(bev)
     pad = model.receptive_field // 2
-    x = model.prepare(torch.from_numpy(prepared.channels)[None],
-                      torch.from_numpy(prepared.observed)[None])
+    x = model.prepare(torch.from_numpy(input_map(bev))[None],
+                      torch.from_numpy(bev.observed)[None])
     x = F.pad(x, (pad, pad, pad, pad))  # zeros = unobserved, as off-map crops in training
     h = bev.grid.height
     out = [model.logits(x[:, :, s : s + tile + 2 * pad])[0] for s in range(0, h, tile)]

@@ -1,0 +1,131 @@
+"""The C8-equivariant network against DGT-Map's multi-task DGTNet, on a profile's cached data.
+
+For each run seed: train :class:`~dgt_lib.learning.equivariant.C8Net` on the seed's dataset
+and training-world BEV (the dataset's own train/val/test split), then report
+
+- test MSE / Spearman ρ per vehicle beside the seed's cached multi-task DGTNet (same test
+  samples; the C8Net reads each pose's exact heading: crop rotated to bin 0, channel 0);
+- the equivariance error on the eval world: |L̂(map rotated by k·45°)_j+k − L̂(map)_j| at
+  the centres of 512 random observed cells, k = 1 (45°) and k = 2 (90°);
+- the accuracy against the measured ground truth on hill / ridge / eval (the scoring of
+  ``stages.ground_truth.score_world``: MAE, Spearman ρ, directional contrast), beside the
+  cached DGT-Map costmaps; and the one-pass costmap time of each world.
+
+Nothing of the profile is rebuilt: every cached artifact must be fresh, or the script stops
+(it never writes under ``data/<profile>/``). Results go to ``data/equivariant/``.
+
+    DGT_DATA_DIR=... python benchmarks/eval_equivariant.py --profile demo --seeds 0 1 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import torch  # noqa: E402
+
+from dgt_lib.core import artifacts  # noqa: E402
+from dgt_lib.core.config import VEHICLES, as_profile  # noqa: E402
+from dgt_lib.evaluation import accuracy  # noqa: E402
+from dgt_lib.learning import equivariant as eq  # noqa: E402
+from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
+from dgt_lib.learning.training import evaluate  # noqa: E402
+from dgt_lib.perception.dataset import TEST  # noqa: E402
+from dgt_lib.stages.collect import ensure_bev  # noqa: E402
+from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_world_costmaps  # noqa: E402
+from dgt_lib.stages.dataset import ensure_dataset  # noqa: E402
+from dgt_lib.stages.ground_truth import (  # noqa: E402
+    GROUND_TRUTH_WORLDS,
+    ensure_ground_truths,
+    ground_truth_config,
+    ground_truth_pairs,
+    ground_truth_relpath,
+)
+from dgt_lib.stages.paths import data_dir  # noqa: E402
+from dgt_lib.stages.train import model_relpath  # noqa: E402
+
+_ensure = artifacts.ensure
+
+
+def _load_only(relpath, config, build, *, profile, **kwargs):
+    """``artifacts.ensure`` that refuses to build: this script only reads the cache."""
+    why = artifacts.staleness(relpath, config, profile=profile)
+    if why is not None:
+        raise RuntimeError(f"{profile}/{relpath} is not cached fresh ({why}): build it first")
+    return _ensure(relpath, config, build, profile=profile, **kwargs)
+
+
+def run_seed(prof, args) -> dict:
+    ds = ensure_dataset(prof, progress=False)
+    bev = ensure_bev("training", prof, progress=False)
+    cfg = eq.EquivariantConfig(fields=args.fields, depth=args.depth, epochs=args.epochs)
+    t0, c0 = time.perf_counter(), time.process_time()
+    result = eq.train_equivariant(ds, bev, cfg, seed=prof.seed)
+    train_s, train_cpu = time.perf_counter() - t0, time.process_time() - c0
+    out_dir = artifacts.data_root() / "equivariant"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    torch.save(result.to_dict(), out_dir / f"c8net_{prof.name}_seed{prof.seed}.pt")
+    dgt = load_checkpoint(data_dir(prof) / model_relpath("multitask")).model
+    dgt_metrics = evaluate(dgt, ds.subset(ds.split == TEST))
+    record = {"seed": prof.seed, "config": cfg.__dict__, "train_s": train_s,
+              "train_cpu_s": train_cpu, "history": result.history,
+              "best_epoch": result.best_epoch, "test": {"c8net": result.metrics,
+                                                        "dgt": dgt_metrics},
+              "params": sum(p.numel() for p in result.model.parameters())}
+    print(f"[seed {prof.seed}] trained in {train_s:.0f} s; test MSE "
+          + ", ".join(f"{v} {result.metrics[v]['mse']:.4f} (DGTNet {dgt_metrics[v]['mse']:.4f})"
+                      for v in result.metrics), flush=True)
+    for w, v in ground_truth_pairs():  # measured drives are never started here
+        if not artifacts.is_fresh(ground_truth_relpath(w, v), ground_truth_config(w, v, prof),
+                                  profile=prof.name):
+            raise RuntimeError(f"the ground truth of {v} on {w} is not cached fresh")
+    truths = ensure_ground_truths(None, prof, progress=False)
+    rows = []
+    for world in GROUND_TRUTH_WORLDS:
+        vehicles = EXPERIMENT_VEHICLES[world]
+        maps = ensure_world_costmaps(world, vehicles, prof, methods=("dgt",), progress=False)
+        t0, c0 = time.perf_counter(), time.process_time()
+        cost = eq.equivariant_costmap(maps.bev, result.model)  # (V, 8, H, W)
+        secs, cpu = time.perf_counter() - t0, time.process_time() - c0
+        if world == "eval":
+            record["equivariance"] = eq.equivariance_error(result.model, maps.bev)
+        for v in vehicles:
+            gt = truths[(world, v)]
+            valid = gt.measured & accuracy.free_cells(maps.occupancy, maps.grid, gt.cells)[:, None]
+            for method, layers in (("dgt", maps.costmap("dgt", v)),
+                                   ("c8net", cost[VEHICLES.index(v)])):
+                c = accuracy.cost_at(layers, maps.grid, gt.cells, gt.cost.shape[1])
+                rows.append({"world": world, "vehicle": v, "method": method,
+                             "shape": list(maps.grid.shape), "onepass_s": secs,
+                             "onepass_cpu_s": cpu,
+                             **accuracy.costmap_accuracy(gt.cost, c, valid)})
+    record["accuracy"] = rows
+    return record
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--profile", default="demo")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--fields", type=int, default=8)
+    parser.add_argument("--depth", type=int, default=4)
+    parser.add_argument("--epochs", type=int, default=8)
+    args = parser.parse_args()
+    artifacts.ensure = _load_only
+    torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
+    base = as_profile(args.profile)
+    out_dir = artifacts.data_root() / "equivariant"
+    for seed in args.seeds:
+        record = run_seed(base.with_(seed=seed), args)
+        record["uptime"] = open("/proc/loadavg").read().split()[:3]
+        path = out_dir / f"results_{base.name}_seed{seed}.json"
+        path.write_text(json.dumps(record, indent=1))
+        print(f"wrote {path}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
