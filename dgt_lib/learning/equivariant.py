@@ -455,7 +455,7 @@ def train_equivariant(dataset: PatchDataset, bev: BEVMap, cfg: EquivariantConfig
         if progress:
             print(f"[equivariant] epoch {epoch}: train {total / n_batches:.4f} val {val:.4f} "
                   f"({history[-1]['seconds']:.0f} s)", flush=True)
-        if val < best_val:
+        if val < best_val or best_state is None:  # (NaN without validation samples)
             best_val, best_epoch = val, epoch
             best_state = copy.deepcopy(model.state_dict())
     model.load_state_dict(best_state)
