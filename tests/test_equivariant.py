@@ -135,3 +135,16 @@ def test_training_runs_and_keeps_the_split():
     again = eq.EquivariantResult.from_dict(result.to_dict())
     np.testing.assert_array_equal(eq.equivariant_locomotion(again.model, bev),
                                   eq.equivariant_locomotion(result.model, bev))
+
+
+def test_footprint_kernel_is_the_patch_turned_to_the_heading():
+    k0 = eq.footprint_kernel(0.0)
+    assert k0.sum() == pytest.approx(22 * 7)
+    c = k0.shape[0] // 2
+    assert k0[c, c - 10 : c + 11].min() == 1 and k0[c, c + 11] == 0.5  # 22 cells along +x
+    assert k0[c - 3 : c + 4, c].min() == 1 and k0[c + 4, c] == 0  # 7 cells across
+    np.testing.assert_allclose(eq.footprint_kernel(np.pi / 2), k0.T, atol=1e-12)
+    assert eq.footprint_kernel(np.pi / 4).sum() == pytest.approx(154, rel=0.03)
+    field = np.full((1, 8, 30, 30), 0.7, np.float32)
+    np.testing.assert_allclose(eq.footprint_average(field, np.ones((30, 30), bool)), field,
+                               rtol=1e-6)

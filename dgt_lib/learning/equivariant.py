@@ -53,6 +53,7 @@ import math
 import time
 from dataclasses import asdict, dataclass
 
+import cv2
 import numpy as np
 import torch
 from torch import nn
@@ -63,7 +64,7 @@ from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.training import head_prior, masked_loss, regression_metrics
 from dgt_lib.perception.bev import GRADIENT, HEIGHT_STD, B, BEVMap, R, height_gradient_components
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
-from dgt_lib.perception.patches import sample_channels
+from dgt_lib.perception.patches import PATCH_COLS, PATCH_RES, PATCH_ROWS, sample_channels
 
 N_ROTATIONS = 8
 """|C8|: the K = 8 heading bins of the paper, 45° apart."""
@@ -482,10 +483,51 @@ def equivariant_locomotion(model: C8Net, bev: BEVMap, tile: int = 256) -> np.nda
     return torch.sigmoid(torch.cat(out, dim=-2)).numpy()
 
 
-def equivariant_costmap(bev: BEVMap, model: C8Net) -> np.ndarray:
+def footprint_kernel(theta: float, resolution: float = PATCH_RES,
+                     supersample: int = 4) -> np.ndarray:
+    """(S, S) weights [cells] of the 8.8 m × 2.8 m patch footprint turned to heading θ [rad],
+    centred: the fraction of each cell (``supersample``² points) inside the rectangle
+    |forward| ≤ 4.4 m, |left| ≤ 1.4 m. Rows = y, columns = x, as on a GridSpec. At θ = 0
+    it sums to 22 × 7 = 154."""
+    half_f, half_l = PATCH_ROWS * resolution / 2, PATCH_COLS * resolution / 2
+    radius = int(np.ceil(np.hypot(half_f, half_l) / resolution))
+    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
+    off = np.arange(-radius, radius + 1)
+    dy = (off[:, None, None, None] + sub[None, None, :, None]) * resolution  # (S, 1, s, 1)
+    dx = (off[None, :, None, None] + sub[None, None, None, :]) * resolution  # (1, S, 1, s)
+    forward = dx * np.cos(theta) + dy * np.sin(theta)
+    left = -dx * np.sin(theta) + dy * np.cos(theta)
+    inside = (np.abs(forward) <= half_f) & (np.abs(left) <= half_l)
+    return inside.mean(axis=(2, 3))
+
+
+def footprint_average(locomotion: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The literal procedure's last step on a one-pass field: each cell takes the mean of
+    the predictions of every footprint covering it (``valid`` windows, centred on (H, W)
+    cells), layer k with the footprint turned to θ_k (:func:`footprint_kernel`):
+    (V, 8, H, W) → (V, 8, H, W) float32. The rectangle is symmetric about its centre, so
+    "windows covering a cell" is a correlation with the same kernel."""
+    out = np.empty(locomotion.shape, np.float32)
+    w = valid.astype(np.float64)
+    for k, theta in enumerate(heading_bins(N_ROTATIONS)):
+        kernel = footprint_kernel(float(theta))
+        count = cv2.filter2D(w, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+        for v in range(locomotion.shape[0]):
+            total = cv2.filter2D(locomotion[v, k] * w, -1, kernel,
+                                 borderType=cv2.BORDER_CONSTANT)
+            out[v, k] = total / np.maximum(count, 1e-9)
+    return out
+
+
+def equivariant_costmap(bev: BEVMap, model: C8Net, average: bool = True) -> np.ndarray:
     """The directional costmap (V, 8, H, W) float32, C = 1 − L̂, from one pass: layer k =
     heading θ_k = 2πk/8 as in :func:`~dgt_lib.mapping.costmap.directional_costmap`;
-    1 on unobserved cells."""
-    cost = 1.0 - np.clip(equivariant_locomotion(model, bev), 0.0, 1.0)
+    1 on unobserved cells. ``average``: each cell's L̂ is the mean over the footprints
+    covering it, as in the paper's procedure (:func:`footprint_average`); else the
+    prediction at the cell itself."""
+    locomotion = equivariant_locomotion(model, bev)
+    if average:
+        locomotion = footprint_average(locomotion, np.ones(bev.grid.shape, bool))
+    cost = 1.0 - np.clip(locomotion, 0.0, 1.0)
     cost[:, :, ~bev.observed] = 1.0
     return cost.astype(np.float32)
