@@ -23,6 +23,7 @@ import argparse
 import json
 import os
 import time
+from dataclasses import asdict
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -63,15 +64,22 @@ def run_seed(prof, args) -> dict:
     ds = ensure_dataset(prof, progress=False)
     bev = ensure_bev("training", prof, progress=False)
     cfg = eq.EquivariantConfig(fields=args.fields, depth=args.depth, epochs=args.epochs)
-    t0, c0 = time.perf_counter(), time.process_time()
-    result = eq.train_equivariant(ds, bev, cfg, seed=prof.seed)
-    train_s, train_cpu = time.perf_counter() - t0, time.process_time() - c0
     out_dir = artifacts.data_root() / "equivariant"
     out_dir.mkdir(parents=True, exist_ok=True)
-    torch.save(result.to_dict(), out_dir / f"c8net_{prof.name}_seed{prof.seed}.pt")
+    model_path = out_dir / f"c8net_{prof.name}_seed{prof.seed}.pt"
+    previous = out_dir / f"results_{prof.name}_seed{prof.seed}.json"
+    if args.reuse:  # the trained network and its training record, evaluated again
+        result = eq.EquivariantResult.from_dict(torch.load(model_path, weights_only=False))
+        old = json.loads(previous.read_text())
+        train_s, train_cpu = old["train_s"], old["train_cpu_s"]
+    else:
+        t0, c0 = time.perf_counter(), time.process_time()
+        result = eq.train_equivariant(ds, bev, cfg, seed=prof.seed)
+        train_s, train_cpu = time.perf_counter() - t0, time.process_time() - c0
+        torch.save(result.to_dict(), model_path)
     dgt = load_checkpoint(data_dir(prof) / model_relpath("multitask")).model
     dgt_metrics = evaluate(dgt, ds.subset(ds.split == TEST))
-    record = {"seed": prof.seed, "config": cfg.__dict__, "train_s": train_s,
+    record = {"seed": prof.seed, "config": asdict(result.config), "train_s": train_s,
               "train_cpu_s": train_cpu, "history": result.history,
               "best_epoch": result.best_epoch, "test": {"c8net": result.metrics,
                                                         "dgt": dgt_metrics},
@@ -89,19 +97,23 @@ def run_seed(prof, args) -> dict:
         vehicles = EXPERIMENT_VEHICLES[world]
         maps = ensure_world_costmaps(world, vehicles, prof, methods=("dgt",), progress=False)
         t0, c0 = time.perf_counter(), time.process_time()
-        cost = eq.equivariant_costmap(maps.bev, result.model)  # (V, 8, H, W)
+        point = eq.equivariant_costmap(maps.bev, result.model, average=False)  # (V, 8, H, W)
         secs, cpu = time.perf_counter() - t0, time.process_time() - c0
+        t0 = time.perf_counter()
+        cost = eq.equivariant_costmap(maps.bev, result.model)  # footprint-averaged
+        secs_avg = time.perf_counter() - t0
         if world == "eval":
             record["equivariance"] = eq.equivariance_error(result.model, maps.bev)
         for v in vehicles:
             gt = truths[(world, v)]
             valid = gt.measured & accuracy.free_cells(maps.occupancy, maps.grid, gt.cells)[:, None]
             for method, layers in (("dgt", maps.costmap("dgt", v)),
-                                   ("c8net", cost[VEHICLES.index(v)])):
+                                   ("c8net", cost[VEHICLES.index(v)]),
+                                   ("c8net-point", point[VEHICLES.index(v)])):
                 c = accuracy.cost_at(layers, maps.grid, gt.cells, gt.cost.shape[1])
                 rows.append({"world": world, "vehicle": v, "method": method,
                              "shape": list(maps.grid.shape), "onepass_s": secs,
-                             "onepass_cpu_s": cpu,
+                             "onepass_cpu_s": cpu, "averaged_s": secs_avg,
                              **accuracy.costmap_accuracy(gt.cost, c, valid)})
     record["accuracy"] = rows
     return record
@@ -113,7 +125,9 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--fields", type=int, default=8)
     parser.add_argument("--depth", type=int, default=4)
-    parser.add_argument("--epochs", type=int, default=8)
+    parser.add_argument("--epochs", type=int, default=10)
+    parser.add_argument("--reuse", action="store_true",
+                        help="evaluate the networks a previous run saved, without training")
     args = parser.parse_args()
     artifacts.ensure = _load_only
     torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
