@@ -27,6 +27,7 @@ from dataclasses import asdict
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from dgt_lib.core import artifacts  # noqa: E402
@@ -119,6 +120,55 @@ def run_seed(prof, args) -> dict:
     return record
 
 
+def _mean(values) -> float:
+    values = [v for v in values if v is not None and np.isfinite(v)]
+    return float(np.mean(values)) if values else float("nan")
+
+
+def report(records: list[dict]) -> str:
+    """Markdown tables over the seeds' records: test MSE, ground-truth accuracy,
+    equivariance error, training and one-pass times."""
+    seeds = [r["seed"] for r in records]
+    lines = [f"Seeds {seeds}; {records[0]['params']:,} parameters; trained "
+             + ", ".join(f"{r['train_s']:.0f} s" for r in records)
+             + f" (best epochs {[r['best_epoch'] for r in records]}).", "",
+             "| vehicle | test MSE C8Net (seeds) | test MSE DGTNet (seeds) | ρ C8Net | ρ DGTNet |",
+             "|---|---|---|---|---|"]
+    for v in VEHICLES:
+        c = [r["test"]["c8net"][v] for r in records if v in r["test"]["c8net"]]
+        d = [r["test"]["dgt"][v] for r in records if v in r["test"]["dgt"]]
+        mse_c = ", ".join(f"{m['mse']:.4f}" for m in c)
+        mse_d = ", ".join(f"{m['mse']:.4f}" for m in d)
+        lines.append(f"| {v} | {mse_c} | {mse_d} | "
+                     f"{_mean(m['spearman'] for m in c):.2f} | "
+                     f"{_mean(m['spearman'] for m in d):.2f} |")
+    lines += ["", "| world, vehicle | method | MAE (mean over seeds) | ρ | contrast: truth / "
+              "method | same sign |", "|---|---|---|---|---|---|"]
+    keys = list(dict.fromkeys((a["world"], a["vehicle"], a["method"])
+                              for a in records[0]["accuracy"]))
+    for w, v, m in keys:
+        rows = [a for r in records for a in r["accuracy"]
+                if (a["world"], a["vehicle"], a["method"]) == (w, v, m)]
+        lines.append(f"| {w}, {v} | {m} | {_mean(a['mae'] for a in rows):.3f} | "
+                     f"{_mean(a['spearman'] for a in rows):.2f} | "
+                     f"{_mean(a['contrast_true'] for a in rows):.2f} / "
+                     f"{_mean(a['contrast'] for a in rows):.2f} | "
+                     f"{100 * _mean(a['sign_agreement'] for a in rows):.0f} % |")
+    lines += ["", "| seed | 90°: mean / max abs ΔL̂ | 45°: mean / max abs ΔL̂ |", "|---|---|---|"]
+    for r in records:
+        e = r["equivariance"]
+        lines.append(f"| {r['seed']} | {e['mean_90']:.1e} / {e['max_90']:.1e} | "
+                     f"{e['mean_45']:.4f} / {e['max_45']:.3f} |")
+    lines += ["", "One pass (all 8 headings, 4 vehicles; point / footprint-averaged) [s]: "
+              + "; ".join(f"{w} {a['shape'][0]}×{a['shape'][1]}: {a['onepass_s']:.1f} / "
+                          f"{a['averaged_s']:.1f}"
+                          for w, a in {a["world"]: a for a in records[0]["accuracy"]}.items()
+                          if "averaged_s" in a),
+              "load average at the end of each seed: "
+              + "; ".join(" ".join(r["uptime"]) for r in records)]
+    return "\n".join(lines) + "\n"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--profile", default="demo")
@@ -128,11 +178,17 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=10)
     parser.add_argument("--reuse", action="store_true",
                         help="evaluate the networks a previous run saved, without training")
+    parser.add_argument("--report", action="store_true",
+                        help="only print the tables of the saved results of --seeds")
     args = parser.parse_args()
+    out_dir = artifacts.data_root() / "equivariant"
+    if args.report:
+        print(report([json.loads((out_dir / f"results_{args.profile}_seed{s}.json").read_text())
+                      for s in args.seeds]))
+        return
     artifacts.ensure = _load_only
     torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
     base = as_profile(args.profile)
-    out_dir = artifacts.data_root() / "equivariant"
     for seed in args.seeds:
         record = run_seed(base.with_(seed=seed), args)
         record["uptime"] = open("/proc/loadavg").read().split()[:3]
