@@ -148,3 +148,16 @@ def test_footprint_kernel_is_the_patch_turned_to_the_heading():
     field = np.full((1, 8, 30, 30), 0.7, np.float32)
     np.testing.assert_allclose(eq.footprint_average(field, np.ones((30, 30), bool)), field,
                                rtol=1e-6)
+
+
+def test_training_crops_see_the_slope_of_the_pose_heading():
+    # the crops training and evaluation use turn ∇H̄ with the map: any θ, not only the bins
+    grid = GridSpec((0.0, 0.0), 0.4, (50, 50))
+    x, y = grid.cell_centers()
+    alpha, slope = np.radians(60), 0.2
+    bev = synthetic_bev((slope * (np.cos(alpha) * x + np.sin(alpha) * y)).astype(np.float32))
+    theta = np.radians([0, 30, 60, 100, 240, 300])
+    poses = np.stack([np.full(6, 10.0), np.full(6, 10.0), theta], 1)
+    pred = eq.predict_samples(slope_model(), bev, poses)[:, 0]
+    expected = 1 / (1 + np.exp(-(0.5 - 4.0 * slope * np.cos(theta - alpha))))
+    np.testing.assert_allclose(pred, expected, atol=1e-5)
