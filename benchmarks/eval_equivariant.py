@@ -67,8 +67,8 @@ def run_seed(prof, args) -> dict:
     cfg = eq.EquivariantConfig(fields=args.fields, depth=args.depth, epochs=args.epochs)
     out_dir = artifacts.data_root() / "equivariant"
     out_dir.mkdir(parents=True, exist_ok=True)
-    model_path = out_dir / f"c8net_{prof.name}_seed{prof.seed}.pt"
-    previous = out_dir / f"results_{prof.name}_seed{prof.seed}.json"
+    model_path = out_dir / f"c8net{args.tag}_{prof.name}_seed{prof.seed}.pt"
+    previous = out_dir / f"results{args.tag}_{prof.name}_seed{prof.seed}.json"
     if args.reuse:  # the trained network and its training record, evaluated again
         result = eq.EquivariantResult.from_dict(torch.load(model_path, weights_only=False))
         old = json.loads(previous.read_text())
@@ -178,13 +178,14 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=10)
     parser.add_argument("--reuse", action="store_true",
                         help="evaluate the networks a previous run saved, without training")
+    parser.add_argument("--tag", default="", help="suffix of the output files (variants)")
     parser.add_argument("--report", action="store_true",
                         help="only print the tables of the saved results of --seeds")
     args = parser.parse_args()
     out_dir = artifacts.data_root() / "equivariant"
     if args.report:
-        print(report([json.loads((out_dir / f"results_{args.profile}_seed{s}.json").read_text())
-                      for s in args.seeds]))
+        print(report([json.loads((out_dir / f"results{args.tag}_{args.profile}_seed{s}.json")
+                                 .read_text()) for s in args.seeds]))
         return
     artifacts.ensure = _load_only
     torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
@@ -192,7 +193,7 @@ def main() -> None:
     for seed in args.seeds:
         record = run_seed(base.with_(seed=seed), args)
         record["uptime"] = open("/proc/loadavg").read().split()[:3]
-        path = out_dir / f"results_{base.name}_seed{seed}.json"
+        path = out_dir / f"results{args.tag}_{base.name}_seed{seed}.json"
         path.write_text(json.dumps(record, indent=1))
         print(f"wrote {path}", flush=True)
 
