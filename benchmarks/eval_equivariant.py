@@ -64,7 +64,8 @@ def _load_only(relpath, config, build, *, profile, **kwargs):
 def run_seed(prof, args) -> dict:
     ds = ensure_dataset(prof, progress=False)
     bev = ensure_bev("training", prof, progress=False)
-    cfg = eq.EquivariantConfig(fields=args.fields, depth=args.depth, epochs=args.epochs)
+    cfg = eq.EquivariantConfig(fields=args.fields, depth=args.depth, epochs=args.epochs,
+                               rgb=not args.no_rgb)
     out_dir = artifacts.data_root() / "equivariant"
     out_dir.mkdir(parents=True, exist_ok=True)
     model_path = out_dir / f"c8net{args.tag}_{prof.name}_seed{prof.seed}.pt"
@@ -179,6 +180,7 @@ def main() -> None:
     parser.add_argument("--reuse", action="store_true",
                         help="evaluate the networks a previous run saved, without training")
     parser.add_argument("--tag", default="", help="suffix of the output files (variants)")
+    parser.add_argument("--no-rgb", action="store_true", help="ablation: colour zeroed")
     parser.add_argument("--report", action="store_true",
                         help="only print the tables of the saved results of --seeds")
     args = parser.parse_args()

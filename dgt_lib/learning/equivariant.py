@@ -196,10 +196,11 @@ class C8Net(nn.Module):
     """
 
     def __init__(self, vehicles: tuple[str, ...] | list[str] = VEHICLES, fields: int = 8,
-                 depth: int = 4, kernel: int = 5) -> None:
+                 depth: int = 4, kernel: int = 5, rgb: bool = True) -> None:
         super().__init__()
         self.vehicles = tuple(vehicles)
         self.fields, self.depth, self.kernel = int(fields), int(depth), int(kernel)
+        self.rgb = bool(rgb)  # False: R, G, B are zeroed (an ablation: geometry only)
         self.lift = LiftingConv(N_SCALARS, fields, kernel)
         self.lift_slopes = GroupConv(1, fields, kernel)
         self.blocks = nn.ModuleList(
@@ -220,7 +221,7 @@ class C8Net(nn.Module):
 
     def architecture(self) -> dict[str, object]:
         return {"name": "C8Net", "vehicles": list(self.vehicles), "fields": self.fields,
-                "depth": self.depth, "kernel": self.kernel}
+                "depth": self.depth, "kernel": self.kernel, "rgb": self.rgb}
 
     def prepare(self, x: torch.Tensor, observed: torch.Tensor) -> torch.Tensor:
         """Raw input maps (B, 7, H, W) (:data:`INPUT_CHANNELS`) and observed (B, H, W) →
@@ -228,6 +229,8 @@ class C8Net(nn.Module):
         unobserved."""
         mean, std = self.input_mean[:, None, None], self.input_std[:, None, None]
         scalars = (x[:, :N_SCALARS] - mean) / std
+        if not self.rgb:
+            scalars = torch.cat([torch.zeros_like(scalars[:, :3]), scalars[:, 3:]], dim=1)
         slopes = torch.einsum("bchw,ck->bkhw", x[:, N_SCALARS:], self.directions)
         out = torch.cat([scalars, slopes / self.slope_scale], dim=1)
         out = torch.where(observed[:, None], out, torch.zeros((), dtype=out.dtype))
@@ -341,6 +344,7 @@ class EquivariantConfig:
     batch_size: int = 64
     learning_rate: float = 2e-3  # Adam, cosine schedule to 0
     rotate_augment: bool = True  # random k·45° per sample, channel k trained
+    rgb: bool = True  # False: colour zeroed (ablation)
 
 
 @dataclass
@@ -363,7 +367,8 @@ class EquivariantResult:
     @classmethod
     def from_dict(cls, d: dict) -> EquivariantResult:
         arch = d["architecture"]
-        model = C8Net(arch["vehicles"], arch["fields"], arch["depth"], arch["kernel"])
+        model = C8Net(arch["vehicles"], arch["fields"], arch["depth"], arch["kernel"],
+                      arch.get("rgb", True))
         model.load_state_dict(d["state_dict"])
         model.eval()
         return cls(model, d["history"], d["best_epoch"], d["metrics"],
@@ -417,7 +422,7 @@ def train_equivariant(dataset: PatchDataset, bev: BEVMap, cfg: EquivariantConfig
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     channels = input_map(bev)
-    model = C8Net(VEHICLES, cfg.fields, cfg.depth, cfg.kernel)
+    model = C8Net(VEHICLES, cfg.fields, cfg.depth, cfg.kernel, cfg.rgb)
     mean, std, slope = input_statistics(channels, bev.observed)
     model.input_mean.copy_(torch.from_numpy(mean))
     model.input_std.copy_(torch.from_numpy(std))
