@@ -1,4 +1,5 @@
-"""Directional costmap speed and accuracy: literal stride-1 procedure vs lattice vs dense.
+"""Directional costmap speed and accuracy: literal stride-1 procedure vs lattice vs dense,
+and the one-pass C8-equivariant network (issue 20).
 
 Targets: the lattice path (issue: Directional costmaps) — the K = 8 costmaps of all four
 vehicles for a 400 × 400-cell map in ≤ 30 s on this 2-core machine, ≥ 10× faster than the
@@ -7,7 +8,7 @@ width 64 (≥ 100× literal) at mean |ΔC| ≤ 0.01. Each row reports mean and m
 from the literal procedure over all cells of the measured headings.
 
     .venv/bin/python benchmarks/bench_costmap.py [--size 400] [--literal-headings 8]
-        [--model data/demo/models/multitask.pt]
+        [--model data/demo/models/multitask.pt] [--equivariant data/equivariant/c8net.pt]
 
 Without ``--model`` it trains a small model for a few seconds on synthetic
 patches (``train.synthetic_dataset``) so that predictions depend on the terrain
@@ -15,6 +16,12 @@ the way a trained model's do; with ``--model`` it uses a real checkpoint. The
 literal procedure costs the same for every heading, so ``--literal-headings N``
 (< 8) measures N headings and scales the time to 8 (the difference is measured
 on those N headings) — the table says so.
+
+The "equivariant" row (:mod:`dgt_lib.learning.equivariant`) is another network: one pass
+of a C8Net over the unrotated map gives all 8 headings; its time does not depend on its
+weights (``--equivariant`` loads a trained one, else it is untrained), and its difference
+from the literal map of DGTNet means nothing — its accuracy is measured against the ground
+truth by ``benchmarks/eval_equivariant.py``.
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ import torch  # noqa: E402
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.checkpoints import load_checkpoint
+from dgt_lib.learning.equivariant import C8Net, EquivariantResult, equivariant_costmap
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import predict, train_model
 from dgt_lib.mapping.costmap import (
@@ -75,12 +83,14 @@ def main() -> None:
     parser.add_argument("--widths", type=int, nargs="+", default=[64, 32])
     parser.add_argument("--strides", default="6x3,4x2")
     parser.add_argument("--model", default=None, help="a checkpoint instead of a synthetic model")
+    parser.add_argument("--equivariant", default=None,
+                        help="a trained C8Net (benchmarks/eval_equivariant.py); default: untrained")
     args = parser.parse_args()
     torch.set_num_threads(os.cpu_count() or 2)
     bev = terrain_bev(args.size)
     strides = [tuple(int(v) for v in s.split("x")) for s in args.strides.split(",")]
     print(f"map {args.size}×{args.size} cells, K=8, 4 vehicles, torch threads "
-          f"{torch.get_num_threads()}")
+          f"{torch.get_num_threads()}; load average", open("/proc/loadavg").read().split()[:3])
     rows = []
     for width in ([None] if args.model else args.widths):
         model = make_model(width or 64, args.model)
@@ -107,19 +117,26 @@ def main() -> None:
                 for st in strides]
         runs.append(("dense", lambda m=model: directional_costmap_dense(bev, m, 8,
                                                                         progress=False)))
+        c8 = (EquivariantResult.from_dict(torch.load(args.equivariant, weights_only=False)).model
+              if args.equivariant else C8Net().eval())
+        runs.append(("equivariant (C8Net, one pass)", lambda c8=c8: equivariant_costmap(bev, c8)))
         for proc, run in runs:
             t0, c0 = time.perf_counter(), time.process_time()
             cost = run()
             secs, cpu = time.perf_counter() - t0, time.process_time() - c0
             diff = np.abs(cost[:, :n_lit] - ref)
-            rows.append((label, proc, secs, cpu, literal_cpu / cpu, float(diff.mean()),
-                         float(diff.max()), ""))
+            mad, maxd = float(diff.mean()), float(diff.max())
+            if proc.startswith("equivariant"):  # another network: no meaningful difference
+                mad = maxd = float("nan")
+            rows.append((label, proc, secs, cpu, literal_cpu / cpu, mad, maxd, ""))
     print("\n| model | procedure | wall [s] | CPU [s] | speed-up (CPU) | mean abs diff "
           "| max abs diff |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for label, proc, secs, cpu, speedup, mad, maxd, note in rows:
-        print(f"| {label} | {proc} | {secs:.1f}{note} | {cpu:.1f} | {speedup:.1f}× | {mad:.4f} "
-              f"| {maxd:.3f} |")
+        diffs = (f"{mad:.4f} | {maxd:.3f}" if np.isfinite(mad)
+                 else "— (another network) | —")
+        print(f"| {label} | {proc} | {secs:.1f}{note} | {cpu:.1f} | {speedup:.1f}× | {diffs} |")
+    print("load average (1, 5, 15 min) at the end:", open("/proc/loadavg").read().split()[:3])
 
 if __name__ == "__main__":
     main()

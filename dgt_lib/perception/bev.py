@@ -195,11 +195,18 @@ class BEVMap:
 
 def height_gradient(mean_height: np.ndarray, observed: np.ndarray,
                     resolution: float) -> np.ndarray:
-    """‖∇H̄‖ [m/m] by central differences over the four neighbouring cells.
+    """‖∇H̄‖ [m/m] = √((∂H̄/∂x)² + (∂H̄/∂y)²) of :func:`height_gradient_components`;
+    (H, W) float32, 0 on unobserved cells."""
+    d_dy, d_dx = height_gradient_components(mean_height, observed, resolution)
+    return np.hypot(d_dx, d_dy).astype(np.float32)
+
+
+def height_gradient_components(mean_height: np.ndarray, observed: np.ndarray,
+                               resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """(∂H̄/∂y, ∂H̄/∂x) [m/m] by central differences over the four neighbouring cells.
 
         ∂H̄/∂x ≈ (H̄[r, c+1] − H̄[r, c−1]) / (2·res),
         ∂H̄/∂y ≈ (H̄[r+1, c] − H̄[r−1, c]) / (2·res),
-        ‖∇H̄‖ = √((∂H̄/∂x)² + (∂H̄/∂y)²).
 
     Where one of the two neighbours along an axis is unobserved or off the grid,
     that component is the one-sided difference with the cell itself,
@@ -212,7 +219,7 @@ def height_gradient(mean_height: np.ndarray, observed: np.ndarray,
     cells wide (crowns) are high on every cell of their rim.
 
     mean_height: (H, W) [m]; observed: (H, W) bool; resolution [m/cell].
-    Returns (H, W) float32.
+    Returns two (H, W) float64 arrays, along rows (y) and along columns (x).
     """
     h = np.where(observed, mean_height, 0.0).astype(np.float64)
     obs = np.asarray(observed, dtype=bool)
@@ -235,10 +242,9 @@ def height_gradient(mean_height: np.ndarray, observed: np.ndarray,
         d[only_p] = (hp[only_p] - h[only_p]) / resolution
         only_m = om & ~op
         d[only_m] = (h[only_m] - hm[only_m]) / resolution
+        d[~obs] = 0.0
         components.append(d)
-    grad = np.hypot(components[0], components[1])
-    grad[~obs] = 0.0
-    return grad.astype(np.float32)
+    return components[0], components[1]
 
 
 class BEVAccumulator:
