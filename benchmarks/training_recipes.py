@@ -1,6 +1,8 @@
 """Which training recipe gives models whose conclusions hold in every seed? Per recipe:
 
     .venv/bin/python benchmarks/training_recipes.py --profile demo --train-seeds 0 100
+    .venv/bin/python benchmarks/training_recipes.py --profile paper --run-seeds 0 \
+        --recipes cosine-last --epochs 8          # a shorter paper training budget
 
 For every run seed of the profile (its cached dataset, BEV maps, τ_s and ground truth — run
 ``dgt reproduce`` first) and every training seed, trains the multi-task model and the four
@@ -152,6 +154,8 @@ def main() -> None:
     parser.add_argument("--run-seeds", nargs="+", type=int, default=None,
                         help="run seeds to measure (default: the profile's)")
     parser.add_argument("--queries", type=int, default=12)
+    parser.add_argument("--epochs", type=int, default=None,
+                        help="epochs of every recipe (default: the profile's)")
     parser.add_argument("--out", default=None, help="JSON file for every measurement")
     args = parser.parse_args()
     prof = get_profile(args.profile)
@@ -162,7 +166,9 @@ def main() -> None:
     for run in runs:
         for t in args.train_seeds:
             for name in args.recipes:
-                r = evaluate_run(run, RECIPES[name], run.seed + t, args.queries, truths)
+                recipe = RECIPES[name] if args.epochs is None else {**RECIPES[name],
+                                                                    "epochs": args.epochs}
+                r = evaluate_run(run, recipe, run.seed + t, args.queries, truths)
                 print(_summary_line(name, run.seed, run.seed + t, r), flush=True)
                 results.append({"recipe": name, "seed": run.seed, "train_seed": run.seed + t,
                                 **{k: (v if k != "routes" else
