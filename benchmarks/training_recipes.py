@@ -156,6 +156,8 @@ def main() -> None:
     parser.add_argument("--queries", type=int, default=12)
     parser.add_argument("--epochs", type=int, default=None,
                         help="epochs of every recipe (default: the profile's)")
+    parser.add_argument("--width", type=int, default=None,
+                        help="network width of every recipe (default: the profile's)")
     parser.add_argument("--out", default=None, help="JSON file for every measurement")
     args = parser.parse_args()
     prof = get_profile(args.profile)
@@ -166,8 +168,9 @@ def main() -> None:
     for run in runs:
         for t in args.train_seeds:
             for name in args.recipes:
-                recipe = RECIPES[name] if args.epochs is None else {**RECIPES[name],
-                                                                    "epochs": args.epochs}
+                recipe = {**RECIPES[name], **{k: v for k, v in (("epochs", args.epochs),
+                                                                   ("width", args.width))
+                                                if v is not None}}
                 r = evaluate_run(run, recipe, run.seed + t, args.queries, truths)
                 print(_summary_line(name, run.seed, run.seed + t, r), flush=True)
                 results.append({"recipe": name, "seed": run.seed, "train_seed": run.seed + t,
