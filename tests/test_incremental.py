@@ -100,20 +100,14 @@ def test_a_mask_of_two_distant_changes_evaluates_fewer_windows_than_their_box(gr
     assert 0 < stats_mask.windows < 0.8 * stats_box.windows
 
 
-def test_refresh_finds_the_changes_itself_and_skips_those_below_its_tolerance():
+def test_refresh_finds_the_changes_itself_and_skips_those_below_its_tolerance(grown):
     """``refresh`` with tolerance 0 is the exact update; with a tolerance, a re-observed
     cell whose values moved by less than it is not evaluated again (what a frame does to
     most cells it sees again), one that moved by more is, and the costmap stays within
     what the skipped change can do."""
-    heights = terrain()
-    observed = np.zeros(heights.shape, bool)
-    observed[:30, :26] = True
-    bev = synthetic_bev(heights, observed)
-    predict = every_pixel_predictor()
-    exact = IncrementalCostmap(bev.grid, predict, 2, K, stride=STRIDE)
+    exact, bev, heights, observed, predict = grown
     loose = IncrementalCostmap(bev.grid, predict, 2, K, stride=STRIDE, tolerance=0.05)
-    for inc in (exact, loose):
-        inc.refresh(bev)
+    loose.refresh(bev)
     jitter = heights.copy()
     jitter[10:20, 10:20] += 0.01  # a centimetre: re-observation noise
     small = synthetic_bev(jitter, observed)
