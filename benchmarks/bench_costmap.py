@@ -22,6 +22,12 @@ of a C8Net over the unrotated map gives all 8 headings; its time does not depend
 weights (``--equivariant`` loads a trained one, else it is untrained), and its difference
 from the literal map of DGTNet means nothing — its accuracy is measured against the ground
 truth by ``benchmarks/eval_equivariant.py``.
+
+The "PooledNet" rows (:mod:`dgt_lib.learning.pooled`, ``--pooled``: trained networks saved
+by ``benchmarks/eval_pooled.py``, else an untrained one per ``--pooled-widths``) are a third
+network, built to be evaluated densely: its own literal procedure (every window cut out
+with its context and run on its own, ``--literal-headings`` as above) against its dense
+evaluation, and the speed-up also against DGTNet's literal procedure of the same run.
 """
 
 from __future__ import annotations
@@ -40,12 +46,14 @@ from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.checkpoints import load_checkpoint
 from dgt_lib.learning.equivariant import C8Net, EquivariantResult, equivariant_costmap
+from dgt_lib.learning.pooled import PooledNet
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import predict, train_model
 from dgt_lib.mapping.costmap import (
     _heading_layer,
     directional_costmap,
     directional_costmap_dense,
+    field_heading_layer,
 )
 from dgt_lib.perception.bev import BEVMap, height_gradient
 
@@ -85,6 +93,11 @@ def main() -> None:
     parser.add_argument("--model", default=None, help="a checkpoint instead of a synthetic model")
     parser.add_argument("--equivariant", default=None,
                         help="a trained C8Net (benchmarks/eval_equivariant.py); default: untrained")
+    parser.add_argument("--pooled", nargs="+", default=[],
+                        help="trained PooledNet state dicts (benchmarks/eval_pooled.py)")
+    parser.add_argument("--pooled-widths", type=int, nargs="*", default=[],
+                        help="untrained PooledNets of these widths (timing only); default 32 "
+                             "when no --pooled is given")
     args = parser.parse_args()
     torch.set_num_threads(os.cpu_count() or 2)
     bev = terrain_bev(args.size)
@@ -129,6 +142,31 @@ def main() -> None:
             if proc.startswith("equivariant"):  # another network: no meaningful difference
                 mad = maxd = float("nan")
             rows.append((label, proc, secs, cpu, literal_cpu / cpu, mad, maxd, ""))
+    dgt_literal_cpu = rows[0][3]
+    widths = args.pooled_widths or ([] if args.pooled else [32])
+    pooled = ([(path, PooledNet.from_state_dict(torch.load(path, weights_only=True)))
+               for path in args.pooled]
+              + [("untrained", PooledNet(width=w).eval()) for w in widths])
+    for name, net in pooled:
+        label = f"PooledNet width {net.width}, depth {net.depth} ({name})"
+        n_lit = args.literal_headings
+        t0, c0 = time.perf_counter(), time.process_time()
+        lit = [field_heading_layer(bev, float(theta), lambda r, on, net=net:
+                                   net.literal_window_field(r.channels, r.observed, on))
+               for theta in heading_bins(8)[:n_lit]]
+        literal_s = (time.perf_counter() - t0) * 8 / n_lit
+        literal_cpu = (time.process_time() - c0) * 8 / n_lit
+        ref = 1 - np.clip(np.stack(lit, 1), 0, 1)
+        ref[:, :, ~bev.observed] = 1.0
+        scaled = "" if n_lit == 8 else f" (measured on {n_lit} headings, ×{8 / n_lit:g})"
+        rows.append((label, "its literal, stride 1", literal_s, literal_cpu, 1.0, 0.0, 0.0,
+                     scaled))
+        t0, c0 = time.perf_counter(), time.process_time()
+        cost = directional_costmap_dense(bev, net, 8, progress=False)
+        secs, cpu = time.perf_counter() - t0, time.process_time() - c0
+        diff = np.abs(cost[:, :n_lit] - ref)
+        rows.append((label, "dense (exact)", secs, cpu, literal_cpu / cpu, float(diff.mean()),
+                     float(diff.max()), f"; {dgt_literal_cpu / cpu:.0f}× DGTNet's literal CPU"))
     print("\n| model | procedure | wall [s] | CPU [s] | speed-up (CPU) | mean abs diff "
           "| max abs diff |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
@@ -137,6 +175,7 @@ def main() -> None:
                  else "— (another network) | —")
         print(f"| {label} | {proc} | {secs:.1f}{note} | {cpu:.1f} | {speedup:.1f}× | {diffs} |")
     print("load average (1, 5, 15 min) at the end:", open("/proc/loadavg").read().split()[:3])
+
 
 if __name__ == "__main__":
     main()

@@ -18,7 +18,11 @@ load average (the numbers mean little on a loaded machine).
 
 Without ``--model`` it uses the profile's trained multitask model (smoke: width 8);
 a checkpoint (e.g. the `paper` profile's width-64
-``data/paper/seed-0/models/multitask.pt``) times the paper's network.
+``data/paper/seed-0/models/multitask.pt``) times the paper's network. ``--pooled PATH``
+drives with a :class:`~dgt_lib.learning.pooled.PooledNet` saved by
+``benchmarks/eval_pooled.py`` instead: every window, evaluated densely
+(:class:`~dgt_lib.mapping.incremental.DenseIncrementalCostmap`), compared with
+``directional_costmap_dense`` of the same map (``--stride`` does not apply).
 """
 
 from __future__ import annotations
@@ -31,14 +35,20 @@ from dataclasses import replace
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
+import torch  # noqa: E402
 
 import dgt_lib as dgt  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
+from dgt_lib.learning.pooled import PooledNet  # noqa: E402
 from dgt_lib.learning.training import evaluate, predict, train_model  # noqa: E402
-from dgt_lib.mapping.costmap import directional_costmap  # noqa: E402
-from dgt_lib.mapping.incremental import IncrementalCostmap, changed_cells  # noqa: E402
+from dgt_lib.mapping.costmap import directional_costmap, directional_costmap_dense  # noqa: E402
+from dgt_lib.mapping.incremental import (  # noqa: E402
+    DenseIncrementalCostmap,
+    IncrementalCostmap,
+    changed_cells,
+)
 from dgt_lib.navigation.explore import ExploreConfig, explore  # noqa: E402
 from dgt_lib.perception.bev import bev_grid  # noqa: E402
 from dgt_lib.perception.dataset import PatchDataset  # noqa: E402
@@ -73,6 +83,8 @@ def main() -> None:
                     help="ExploreConfig.change_tolerance (0: exact updates)")
     ap.add_argument("--stride", type=int, nargs=2, default=None,
                     help="lattice stride (default: the profile's costmap stride)")
+    ap.add_argument("--pooled", default=None,
+                    help="a PooledNet state dict (benchmarks/eval_pooled.py): dense updates")
     ap.add_argument("--width", type=int, default=None,
                     help="first train a multi-task model of this width (the profile's recipe "
                          "otherwise) on the profile's cached dataset and drive with it")
@@ -88,20 +100,30 @@ def main() -> None:
     def locomotion(patches: np.ndarray) -> np.ndarray:
         return predict(model, patches)[:, [head]]
 
+    grid = bev_grid(world.grid.extent)
+    if args.pooled:  # drive with the PooledNet, densely; compare with its dense costmap
+        model = PooledNet.from_state_dict(torch.load(args.pooled, weights_only=True))
+        pooled_head = model.head_index(args.vehicle)
+
     stride = tuple(args.stride) if args.stride else profile.costmap.stride
     cfg = ExploreConfig(stride=stride, time_limit_s=60.0, change_tolerance=args.tolerance,
                         mppi_batch_size=profile.experiments.mppi_batch_size)
     full_wall, full_cpu, error, mean_error = [], [], [], []
-    by_box = IncrementalCostmap(bev_grid(world.grid.extent), locomotion, 1, cfg.n_headings,
-                                stride=cfg.stride)
+    by_box = (DenseIncrementalCostmap(grid, model, cfg.n_headings, vehicles=(args.vehicle,))
+              if args.pooled else
+              IncrementalCostmap(grid, locomotion, 1, cfg.n_headings, stride=cfg.stride))
     box_stats, previous = [], [None]
 
     def compare(bev, costmap) -> None:
         box_stats.append(by_box.update(bev, changed_cells(previous[0], bev)))
         previous[0] = bev
         wall, cpu = time.perf_counter(), time.process_time()
-        full = directional_costmap(bev, locomotion, cfg.n_headings, stride=cfg.stride,
-                                   skip_unobserved=True, progress=False)
+        if args.pooled:
+            full = directional_costmap_dense(bev, model, cfg.n_headings,
+                                             progress=False)[[pooled_head]]
+        else:
+            full = directional_costmap(bev, locomotion, cfg.n_headings, stride=cfg.stride,
+                                       skip_unobserved=True, progress=False)
         full_wall.append(time.perf_counter() - wall)
         full_cpu.append(time.process_time() - cpu)
         error.append(float(np.abs(full - costmap.cost).max()))
@@ -109,8 +131,9 @@ def main() -> None:
 
     x0, x1, y0, y1 = world.interior
     load_before = os.getloadavg()
-    result = explore(world, args.vehicle, locomotion, (x0 + 10, y0 + 10, np.pi / 4),
-                     (x1 - 10, y1 - 10), ensure_tau_s(profile), cfg=cfg,
+    result = explore(world, args.vehicle, model if args.pooled else locomotion,
+                     (x0 + 10, y0 + 10, np.pi / 4), (x1 - 10, y1 - 10), ensure_tau_s(profile),
+                     cfg=cfg,
                      planner=profile.planner, on_update=compare)
     load_after = os.getloadavg()
     frames = result.frames
@@ -124,8 +147,9 @@ def main() -> None:
     }
     h, w = result.bev.grid.shape
     width = getattr(model, "width", None) or "?"
+    how = (f"PooledNet depth {model.depth}, dense" if args.pooled else f"stride {cfg.stride}")
     print(f"eval world {world.grid.extent[1]:.0f} m, BEV {h}×{w} cells, K = {cfg.n_headings}, "
-          f"stride {cfg.stride}, change tolerance {cfg.change_tolerance}, "
+          f"{how}, change tolerance {cfg.change_tolerance}, "
           f"vehicle {args.vehicle}, model width {width}, "
           f"torch threads {os.environ.get('OMP_NUM_THREADS', 'default')}; "
           f"{len(frames)} frames, outcome {result.outcome.reason}")

@@ -89,15 +89,8 @@ def run_seed(prof, args) -> dict:
     print(f"[seed {prof.seed}] trained in {train_s:.0f} s; test MSE "
           + ", ".join(f"{v} {result.metrics[v]['mse']:.4f} (DGTNet {dgt_metrics[v]['mse']:.4f})"
                       for v in result.metrics), flush=True)
-    for w, v in ground_truth_pairs():  # measured drives are never started here
-        if not artifacts.is_fresh(ground_truth_relpath(w, v), ground_truth_config(w, v, prof),
-                                  profile=prof.name):
-            raise RuntimeError(f"the ground truth of {v} on {w} is not cached fresh")
-    truths = ensure_ground_truths(None, prof, progress=False)
-    rows = []
-    for world in GROUND_TRUTH_WORLDS:
-        vehicles = EXPERIMENT_VEHICLES[world]
-        maps = ensure_world_costmaps(world, vehicles, prof, methods=("dgt",), progress=False)
+
+    def one_pass(world, maps):
         t0, c0 = time.perf_counter(), time.process_time()
         point = eq.equivariant_costmap(maps.bev, result.model, average=False)  # (V, 8, H, W)
         secs, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -106,19 +99,40 @@ def run_seed(prof, args) -> dict:
         secs_avg = time.perf_counter() - t0
         if world == "eval":
             record["equivariance"] = eq.equivariance_error(result.model, maps.bev)
+        return ({"c8net": cost, "c8net-point": point},
+                {"onepass_s": secs, "onepass_cpu_s": cpu, "averaged_s": secs_avg})
+
+    rows = ground_truth_accuracy(prof, one_pass)
+    record["accuracy"] = rows
+    return record
+
+
+def ground_truth_accuracy(prof, costmaps) -> list[dict]:
+    """Rows of :func:`~dgt_lib.evaluation.accuracy.costmap_accuracy` against the cached
+    ground truths of hill / ridge / eval for the cached DGT-Map costmaps and the methods of
+    ``costmaps(world, maps)`` → ({method: cost (len(VEHICLES), 8, H, W)}, extra fields of
+    the world's rows). Stops when a ground truth is not cached (never drives)."""
+    for w, v in ground_truth_pairs():
+        if not artifacts.is_fresh(ground_truth_relpath(w, v), ground_truth_config(w, v, prof),
+                                  profile=prof.name):
+            raise RuntimeError(f"the ground truth of {v} on {w} is not cached fresh")
+    truths = ensure_ground_truths(None, prof, progress=False)
+    rows = []
+    for world in GROUND_TRUTH_WORLDS:
+        vehicles = EXPERIMENT_VEHICLES[world]
+        maps = ensure_world_costmaps(world, vehicles, prof, methods=("dgt",), progress=False)
+        methods, extra = costmaps(world, maps)
         for v in vehicles:
             gt = truths[(world, v)]
             valid = gt.measured & accuracy.free_cells(maps.occupancy, maps.grid, gt.cells)[:, None]
-            for method, layers in (("dgt", maps.costmap("dgt", v)),
-                                   ("c8net", cost[VEHICLES.index(v)]),
-                                   ("c8net-point", point[VEHICLES.index(v)])):
-                c = accuracy.cost_at(layers, maps.grid, gt.cells, gt.cost.shape[1])
+            layers = {"dgt": maps.costmap("dgt", v),
+                      **{m: cost[VEHICLES.index(v)] for m, cost in methods.items()}}
+            for method, layer in layers.items():
+                c = accuracy.cost_at(layer, maps.grid, gt.cells, gt.cost.shape[1])
                 rows.append({"world": world, "vehicle": v, "method": method,
-                             "shape": list(maps.grid.shape), "onepass_s": secs,
-                             "onepass_cpu_s": cpu, "averaged_s": secs_avg,
+                             "shape": list(maps.grid.shape), **extra,
                              **accuracy.costmap_accuracy(gt.cost, c, valid)})
-    record["accuracy"] = rows
-    return record
+    return rows
 
 
 def _mean(values) -> float:
@@ -126,25 +140,25 @@ def _mean(values) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
-def report(records: list[dict]) -> str:
-    """Markdown tables over the seeds' records: test MSE, ground-truth accuracy,
-    equivariance error, training and one-pass times."""
-    seeds = [r["seed"] for r in records]
-    lines = [f"Seeds {seeds}; {records[0]['params']:,} parameters; trained "
-             + ", ".join(f"{r['train_s']:.0f} s" for r in records)
-             + f" (best epochs {[r['best_epoch'] for r in records]}).", "",
-             "| vehicle | test MSE C8Net (seeds) | test MSE DGTNet (seeds) | ρ C8Net | ρ DGTNet |",
-             "|---|---|---|---|---|"]
+def test_lines(records: list[dict], key: str, name: str) -> list[str]:
+    """A markdown table of test MSE per seed and mean Spearman ρ per vehicle, the network
+    ``records[i]["test"][key]`` beside DGTNet (``["dgt"]``)."""
+    lines = [f"| vehicle | test MSE {name} (seeds) | test MSE DGTNet (seeds) | ρ {name} | "
+             "ρ DGTNet |", "|---|---|---|---|---|"]
     for v in VEHICLES:
-        c = [r["test"]["c8net"][v] for r in records if v in r["test"]["c8net"]]
+        c = [r["test"][key][v] for r in records if v in r["test"][key]]
         d = [r["test"]["dgt"][v] for r in records if v in r["test"]["dgt"]]
         mse_c = ", ".join(f"{m['mse']:.4f}" for m in c)
         mse_d = ", ".join(f"{m['mse']:.4f}" for m in d)
-        lines.append(f"| {v} | {mse_c} | {mse_d} | "
-                     f"{_mean(m['spearman'] for m in c):.2f} | "
+        lines.append(f"| {v} | {mse_c} | {mse_d} | {_mean(m['spearman'] for m in c):.2f} | "
                      f"{_mean(m['spearman'] for m in d):.2f} |")
-    lines += ["", "| world, vehicle | method | MAE (mean over seeds) | ρ | contrast: truth / "
-              "method | same sign |", "|---|---|---|---|---|---|"]
+    return lines
+
+
+def accuracy_lines(records: list[dict]) -> list[str]:
+    """A markdown table of the seeds' ground-truth accuracy rows, means over the seeds."""
+    lines = ["| world, vehicle | method | MAE (mean over seeds) | ρ | contrast: truth / "
+             "method | same sign |", "|---|---|---|---|---|---|"]
     keys = list(dict.fromkeys((a["world"], a["vehicle"], a["method"])
                               for a in records[0]["accuracy"]))
     for w, v, m in keys:
@@ -155,6 +169,18 @@ def report(records: list[dict]) -> str:
                      f"{_mean(a['contrast_true'] for a in rows):.2f} / "
                      f"{_mean(a['contrast'] for a in rows):.2f} | "
                      f"{100 * _mean(a['sign_agreement'] for a in rows):.0f} % |")
+    return lines
+
+
+def report(records: list[dict]) -> str:
+    """Markdown tables over the seeds' records: test MSE, ground-truth accuracy,
+    equivariance error, training and one-pass times."""
+    seeds = [r["seed"] for r in records]
+    lines = [f"Seeds {seeds}; {records[0]['params']:,} parameters; trained "
+             + ", ".join(f"{r['train_s']:.0f} s" for r in records)
+             + f" (best epochs {[r['best_epoch'] for r in records]}).", "",
+             *test_lines(records, "c8net", "C8Net")]
+    lines += ["", *accuracy_lines(records)]
     lines += ["", "| seed | 90°: mean / max abs ΔL̂ | 45°: mean / max abs ΔL̂ |", "|---|---|---|"]
     for r in records:
         e = r["equivariance"]

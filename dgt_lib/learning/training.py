@@ -317,6 +317,7 @@ def train_model(
     checkpoint_path: str | Path | None = None,
     on_batch_end: Callable[[int, int, float], None] | None = None,
     keep_best_on_interrupt: bool = True,
+    model: torch.nn.Module | None = None,
 ) -> TrainResult:
     """Train a DGTNet with Adam and the masked loss; keep the epoch ``cfg.selection`` picks.
 
@@ -344,6 +345,11 @@ def train_model(
             far with ``interrupted=True`` (an interrupt before the first epoch finishes
             has nothing to keep and is re-raised). False: the interrupt is re-raised at
             once (the caller stops; nothing is evaluated or saved).
+        model: a network to train in place of a new DGTNet (e.g.
+            :class:`~dgt_lib.learning.pooled.PooledNet`): it must take batches of
+            ``dataset.patches``, have one head per name of ``vehicles`` and its input
+            normalisation already set; ``width``, ``fc_hidden`` and ``rgb_weights`` are then
+            not used.
     """
     vehicles = _vehicle_tuple(vehicles)
     if cfg.epochs < 1 or cfg.batch_size < 2:
@@ -371,8 +377,14 @@ def train_model(
     device = resolve_device(device)
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    model = DGTNet(vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden, rgb_weights=rgb_weights)
-    model.set_normalization(*channel_statistics(dataset.patches, train_idx))
+    if model is not None and checkpoint_path is not None:
+        raise ValueError("checkpoint_path saves DGTNet checkpoints; save another model yourself")
+    if model is None:
+        model = DGTNet(vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
+                       rgb_weights=rgb_weights)
+        model.set_normalization(*channel_statistics(dataset.patches, train_idx))
+    elif tuple(model.vehicles) != vehicles:
+        raise ValueError(f"the model's heads {model.vehicles} are not the vehicles {vehicles}")
     if cfg.head_init == "prior":
         model.init_heads(head_prior(dataset, train_idx, vehicles))
     model.to(device)

@@ -20,11 +20,13 @@ Two implementations of the same procedure:
   neighbouring windows differ little (the windows overlap by most of their 154
   cells), so interpolation costs little accuracy; the benchmark
   (``benchmarks/bench_costmap.py``) measures speed and the difference.
-* :func:`directional_costmap_dense` — each network branch run once over the rotated
-  map (:mod:`dgt_lib.learning.dense`), every window's prediction read off the dense
-  field, then the same averaging. Fast, but not the per-window network: on 22 × 7
-  windows zero padding dominates every layer (see there), so it is a measured negative
-  result (``benchmarks/bench_costmap.py``, notebook 04), not a pipeline option.
+* :func:`directional_costmap_dense` — the network run once over the rotated map,
+  every window's prediction read off the dense field, then the same averaging. For
+  DGTNet (:mod:`dgt_lib.learning.dense`) fast but not the per-window network: on
+  22 × 7 windows zero padding dominates every layer, a measured negative result. For
+  :class:`~dgt_lib.learning.pooled.PooledNet`, a network built for it (local
+  convolutions, window means), exact: the same numbers as running each window
+  (``benchmarks/bench_costmap.py``, notebook 04).
 
 All vehicles come from one backbone pass: ``predict`` maps patches (N, 6, 22, 7)
 to locomotion (N, V), one column per vehicle head. Unobserved cells cost 1.
@@ -41,10 +43,12 @@ from tqdm.auto import tqdm
 from dgt_lib.core.geometry import heading_bins
 from dgt_lib.learning.dense import dense_window_field
 from dgt_lib.learning.model import DGTNet
+from dgt_lib.learning.pooled import PooledNet
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.patches import (
     PATCH_COLS,
     PATCH_ROWS,
+    RotatedMap,
     rotate_map,
     sliding_windows,
     unrotate_map,
@@ -275,19 +279,40 @@ def directional_costmap(bev: BEVMap, predict: Predictor, n_headings: int = 8, *,
                            progress)
 
 
-def dense_heading_layer(bev: BEVMap, theta: float, model: DGTNet) -> np.ndarray:
-    """Locomotion (V, H, W) for one heading by dense evaluation: rotate → dense window
-    field → average over covering windows → rotate back."""
+WindowField = Callable[[RotatedMap, np.ndarray], np.ndarray]
+"""(rotated map, windows (n_a, n_b) bool centred on the map) → L̂ (V, n_a, n_b) of the
+windows, indexed by their top-left pixel as :func:`sliding_windows`."""
+
+
+def field_heading_layer(bev: BEVMap, theta: float, window_field: WindowField) -> np.ndarray:
+    """Locomotion (V, H, W) for one heading from a whole field of window predictions:
+    rotate → ``window_field`` → average over covering windows → rotate back."""
     rotated = rotate_map(bev, theta)
-    field = dense_window_field(model, rotated.channels)
     _, on_map = _window_lattice(rotated.transform, bev.grid, (1, 1))
-    averaged = _average_over_covering_windows(field, on_map)
+    averaged = _average_over_covering_windows(window_field(rotated, on_map), on_map)
     return unrotate_map(np.nan_to_num(averaged, nan=0.0), rotated.transform)
 
 
-def directional_costmap_dense(bev: BEVMap, model: DGTNet, n_headings: int = 8, *,
-                              progress: bool = True) -> np.ndarray:
-    """The directional costmap (V, K, H, W) by dense evaluation of ``model``
-    (:mod:`dgt_lib.learning.dense`); same layout as the reference."""
-    return _costmap(bev, lambda theta: dense_heading_layer(bev, theta, model), n_headings,
+def directional_costmap_dense(bev: BEVMap, model: DGTNet | PooledNet, n_headings: int = 8, *,
+                              literal: bool = False, progress: bool = True) -> np.ndarray:
+    """The directional costmap (V, K, H, W) with every window's prediction from one dense
+    pass per heading; same layout as the reference.
+
+    A :class:`~dgt_lib.learning.pooled.PooledNet` is evaluated exactly
+    (:meth:`~dgt_lib.learning.pooled.PooledNet.window_field`); ``literal=True`` runs each of
+    its windows on its own instead (the reference the dense pass equals). A DGTNet is
+    evaluated by :mod:`dgt_lib.learning.dense`, which is not the per-window network (a
+    measured negative result)."""
+    if isinstance(model, PooledNet):
+        def field(rotated: RotatedMap, on_map: np.ndarray) -> np.ndarray:
+            if literal:
+                return model.literal_window_field(rotated.channels, rotated.observed, on_map)
+            return model.window_field(rotated.channels, rotated.observed, on_map)
+    elif literal:
+        raise ValueError("literal=True needs a PooledNet; a DGTNet's literal procedure is "
+                         "directional_costmap_reference")
+    else:
+        def field(rotated: RotatedMap, on_map: np.ndarray) -> np.ndarray:
+            return dense_window_field(model, rotated.channels)
+    return _costmap(bev, lambda theta: field_heading_layer(bev, theta, field), n_headings,
                     progress)

@@ -127,6 +127,37 @@ def _window_counts(mask: np.ndarray) -> np.ndarray:
             - s[PATCH_ROWS:, :-PATCH_COLS] + s[:-PATCH_ROWS, :-PATCH_COLS])
 
 
+def _reaverage(grid, layer, win: Box) -> Box | None:
+    """Steps 4–5 after the window predictions ``layer.field[:, win]`` changed: the mean over
+    covering windows on the rotated pixels those windows cover, then the BEV cells that
+    read those pixels, rotated back into ``layer.world``. Returns that box of cells (or
+    None). ``layer`` has ``field``, ``valid``, ``averaged``, ``world`` and ``transform``."""
+    n_a, n_b = layer.valid.shape
+    d = layer.averaged.shape[-1]
+    pix = (slice(win[0].start, win[0].stop + PATCH_ROWS - 1),
+           slice(win[1].start, win[1].stop + PATCH_COLS - 1))
+    src = (slice(max(pix[0].start - PATCH_ROWS + 1, 0), min(pix[0].stop, n_a)),
+           slice(max(pix[1].start - PATCH_COLS + 1, 0), min(pix[1].stop, n_b)))
+    averaged = _average_over_covering_windows(layer.field[(slice(None), *src)],
+                                              layer.valid[src])
+    sub = (slice(None), slice(pix[0].start - src[0].start, pix[0].stop - src[0].start),
+           slice(pix[1].start - src[1].start, pix[1].stop - src[1].start))
+    layer.averaged[(slice(None), *pix)] = np.nan_to_num(averaged[sub], nan=0.0)
+    # BEV cells that read those pixels
+    pix = _clip(pix, (d, d))
+    rows, cols = grid.xy_to_rc(*layer.transform.rotated_to_xy(
+        np.array([pix[0].start - 1, pix[0].start - 1, pix[0].stop, pix[0].stop]),
+        np.array([pix[1].start - 1, pix[1].stop, pix[1].start - 1, pix[1].stop])))
+    cells = _clip((slice(int(np.floor(rows.min())) - 1, int(np.ceil(rows.max())) + 2),
+                   slice(int(np.floor(cols.min())) - 1, int(np.ceil(cols.max())) + 2)),
+                  grid.shape)
+    if cells is None:
+        return None
+    layer.world[(slice(None), *cells)] = unrotate_map(layer.averaged, layer.transform,
+                                                      cells=cells)
+    return cells
+
+
 @dataclass
 class _HeadingLayer:
     """Everything one heading keeps between updates (rotated frame of θ_k)."""
@@ -160,7 +191,78 @@ class UpdateStats:
     cpu_s: float = 0.0
 
 
-class IncrementalCostmap:
+class _GrowingCostmap:
+    """What every incremental costmap shares: the cost layers, the map they were last
+    brought up to date with, :meth:`refresh` (finds the changed cells itself) and the
+    conversion C = 1 − L. Subclasses keep the heading layers (``_layers``, each with a
+    ``world`` (V, H, W) locomotion) and implement :meth:`update`."""
+
+    _layers: list
+
+    def __init__(self, grid, n_vehicles: int, n_headings: int, tolerance: float) -> None:
+        if tolerance < 0:
+            raise ValueError(f"tolerance must be ≥ 0, got {tolerance}")
+        self.grid = grid
+        self.n_vehicles, self.n_headings = int(n_vehicles), int(n_headings)
+        self.tolerance = float(tolerance)
+        self.observed = np.zeros(grid.shape, bool)
+        # the BEV as :meth:`refresh` last passed it on, cell by cell
+        self._basis = np.zeros((N_CHANNELS, *grid.shape), np.float32)
+        self._cost = np.ones((self.n_vehicles, self.n_headings, *grid.shape), np.float32)
+
+    @property
+    def cost(self) -> np.ndarray:
+        """Cost (V, K, H, W) float32 in [0, 1]: C = 1 − L, 1 on unobserved cells (a view:
+        copy it to keep a snapshot)."""
+        return self._cost
+
+    def refresh(self, bev: BEVMap) -> UpdateStats:
+        """Bring the layers up to date with ``bev``, finding what changed by itself: the
+        cells whose observed flag changed or one of whose channels moved by more than
+        ``tolerance`` (channel units: RGB 0..1, H̄ and σ_H [m], ‖∇H̄‖ [m/m]) since this
+        method last passed the cell on to :meth:`update`.
+
+        ``tolerance = 0`` is exact (the layers equal the full costmap of ``bev``). A
+        re-observed cell's mean height moves by millimetres from frame to frame, so most
+        of a frame's cells change a little; with ``tolerance > 0`` only the new and the
+        clearly changed ones are evaluated again, and every cell the network last read is
+        within 2 × tolerance of ``bev`` (what :meth:`update` resamples around a changed
+        cell is read from ``bev``, so a skipped cell may be one step newer than its basis).
+        """
+        if bev.grid != self.grid:
+            raise ValueError(f"BEV grid {bev.grid} is not the costmap's {self.grid}")
+        moved = np.abs(bev.channels - self._basis).max(axis=0) > self.tolerance
+        changed = moved | (bev.observed != self.observed)
+        self._basis[:, changed] = bev.channels[:, changed]
+        return self.update(bev, changed if changed.any() else None)
+
+    def _changed_box(self, bev: BEVMap, changed: np.ndarray | Box | None
+                     ) -> tuple[Box | None, np.ndarray | None]:
+        """The box of ``changed`` (a mask or a box) clipped to the grid, and the mask dilated
+        by ``_NEAR_RADIUS`` (None for a box), after checking ``bev``'s grid."""
+        if bev.grid != self.grid:
+            raise ValueError(f"BEV grid {bev.grid} is not the costmap's {self.grid}")
+        near = None
+        if isinstance(changed, np.ndarray):
+            if changed.shape != self.grid.shape:
+                raise ValueError(f"changed mask {changed.shape} ≠ grid {self.grid.shape}")
+            box = _bbox(changed)
+            near = None if box is None else _dilate(changed, _NEAR_RADIUS)
+            changed = box
+        return (None if changed is None else _clip(changed, self.grid.shape)), near
+
+    def _write_cost(self, k: int | None, cells: Box, bev: BEVMap) -> None:
+        """C = 1 − clip(L, 0, 1) on ``cells`` of heading k (all headings when None),
+        1 where unobserved."""
+        ks = range(self.n_headings) if k is None else (k,)
+        observed = bev.observed[cells]
+        for j in ks:
+            cost = 1.0 - np.clip(self._layers[j].world[(slice(None), *cells)], 0.0, 1.0)
+            cost[:, ~observed] = 1.0
+            self._cost[(slice(None), j, *cells)] = cost
+
+
+class IncrementalCostmap(_GrowingCostmap):
     """K directional heading layers of a growing BEV map, updated where it changed.
 
     Equal to ``directional_costmap(bev, predict, n_headings, stride=stride,
@@ -176,15 +278,8 @@ class IncrementalCostmap:
         if self.stride == (1, 1) or min(self.stride) < 1:
             raise ValueError(f"the incremental costmap follows the lattice path: stride "
                              f"must be ≥ 1 and not (1, 1), got {stride}")
-        if tolerance < 0:
-            raise ValueError(f"tolerance must be ≥ 0, got {tolerance}")
-        self.grid, self.predict, self.batch_size = grid, predict, batch_size
-        self.n_vehicles, self.n_headings = int(n_vehicles), int(n_headings)
-        self.tolerance = float(tolerance)
-        self.observed = np.zeros(grid.shape, bool)
-        # the BEV as :meth:`refresh` last passed it on, cell by cell
-        self._basis = np.zeros((N_CHANNELS, *grid.shape), np.float32)
-        self._cost = np.ones((self.n_vehicles, self.n_headings, *grid.shape), np.float32)
+        super().__init__(grid, n_vehicles, n_headings, tolerance)
+        self.predict, self.batch_size = predict, batch_size
         self._layers = [self._empty_layer(float(t)) for t in heading_bins(self.n_headings)]
 
     def _empty_layer(self, theta: float) -> _HeadingLayer:
@@ -204,32 +299,6 @@ class IncrementalCostmap:
             np.zeros((v, n_a, n_b), np.float32), np.zeros((n_a, n_b), bool),
             np.zeros((v, d, d), np.float32), np.zeros((v, h, w), np.float32))
 
-    @property
-    def cost(self) -> np.ndarray:
-        """Cost (V, K, H, W) float32 in [0, 1]: C = 1 − L, 1 on unobserved cells (a view:
-        copy it to keep a snapshot)."""
-        return self._cost
-
-    def refresh(self, bev: BEVMap) -> UpdateStats:
-        """Bring the layers up to date with ``bev``, finding what changed by itself: the
-        cells whose observed flag changed or one of whose channels moved by more than
-        ``tolerance`` (channel units: RGB 0..1, H̄ and σ_H [m], ‖∇H̄‖ [m/m]) since this
-        method last passed the cell on to :meth:`update`.
-
-        ``tolerance = 0`` is exact (the layers equal ``directional_costmap(bev, …)``). A
-        re-observed cell's mean height moves by millimetres from frame to frame, so most
-        of a frame's cells change a little; with ``tolerance > 0`` only the new and the
-        clearly changed ones are evaluated again, and every cell the network last read is
-        within 2 × tolerance of ``bev`` (what :meth:`update` resamples around a changed
-        cell is read from ``bev``, so a skipped cell may be one step newer than its basis).
-        """
-        if bev.grid != self.grid:
-            raise ValueError(f"BEV grid {bev.grid} is not the costmap's {self.grid}")
-        moved = np.abs(bev.channels - self._basis).max(axis=0) > self.tolerance
-        changed = moved | (bev.observed != self.observed)
-        self._basis[:, changed] = bev.channels[:, changed]
-        return self.update(bev, changed if changed.any() else None)
-
     def update(self, bev: BEVMap, changed: np.ndarray | Box | None) -> UpdateStats:
         """Bring the layers up to date with ``bev``, whose cells outside ``changed`` equal
         the previous map's: an (H, W) bool mask (:func:`changed_mask`; only windows that
@@ -237,16 +306,7 @@ class IncrementalCostmap:
         (:func:`changed_cells`; every window reading the box), None when nothing changed."""
         wall0, cpu0 = time.perf_counter(), time.process_time()
         stats = UpdateStats()
-        if bev.grid != self.grid:
-            raise ValueError(f"BEV grid {bev.grid} is not the costmap's {self.grid}")
-        near = None
-        if isinstance(changed, np.ndarray):
-            if changed.shape != self.grid.shape:
-                raise ValueError(f"changed mask {changed.shape} ≠ grid {self.grid.shape}")
-            box = _bbox(changed)
-            near = None if box is None else _dilate(changed, _NEAR_RADIUS)
-            changed = box
-        changed = None if changed is None else _clip(changed, self.grid.shape)
+        changed, near = self._changed_box(bev, changed)
         if changed is not None:
             # 1–2: resample touched pixels, find the lattice windows that read them
             todo = [self._resample(layer, bev, changed, near) for layer in self._layers]
@@ -327,37 +387,90 @@ class IncrementalCostmap:
         field, known = lattice_to_windows(filled, filled_w, self.stride, *win)
         layer.field[(slice(None), *win)] = field
         layer.valid[win] = layer.on_map[win] & known
-        # rotated pixels covered by those windows, averaged from every window covering them
-        d = layer.averaged.shape[-1]
-        pix = (slice(win[0].start, win[0].stop + PATCH_ROWS - 1),
-               slice(win[1].start, win[1].stop + PATCH_COLS - 1))
-        src = (slice(max(pix[0].start - PATCH_ROWS + 1, 0), min(pix[0].stop, n_a)),
-               slice(max(pix[1].start - PATCH_COLS + 1, 0), min(pix[1].stop, n_b)))
-        averaged = _average_over_covering_windows(layer.field[(slice(None), *src)],
-                                                  layer.valid[src])
-        sub = (slice(None), slice(pix[0].start - src[0].start, pix[0].stop - src[0].start),
-               slice(pix[1].start - src[1].start, pix[1].stop - src[1].start))
-        layer.averaged[(slice(None), *pix)] = np.nan_to_num(averaged[sub], nan=0.0)
-        # BEV cells that read those pixels
-        pix = _clip(pix, (d, d))
-        rows, cols = self.grid.xy_to_rc(*layer.transform.rotated_to_xy(
-            np.array([pix[0].start - 1, pix[0].start - 1, pix[0].stop, pix[0].stop]),
-            np.array([pix[1].start - 1, pix[1].stop, pix[1].start - 1, pix[1].stop])))
-        cells = _clip((slice(int(np.floor(rows.min())) - 1, int(np.ceil(rows.max())) + 2),
-                       slice(int(np.floor(cols.min())) - 1, int(np.ceil(cols.max())) + 2)),
-                      self.grid.shape)
-        if cells is None:
-            return None
-        layer.world[(slice(None), *cells)] = unrotate_map(layer.averaged, layer.transform,
-                                                          cells=cells)
-        return cells
+        return _reaverage(self.grid, layer, win)
 
-    def _write_cost(self, k: int | None, cells: Box, bev: BEVMap) -> None:
-        """C = 1 − clip(L, 0, 1) on ``cells`` of heading k (all headings when None),
-        1 where unobserved."""
-        ks = range(self.n_headings) if k is None else (k,)
-        observed = bev.observed[cells]
-        for j in ks:
-            cost = 1.0 - np.clip(self._layers[j].world[(slice(None), *cells)], 0.0, 1.0)
-            cost[:, ~observed] = 1.0
-            self._cost[(slice(None), j, *cells)] = cost
+
+@dataclass
+class _DenseLayer:
+    """What one heading keeps for :class:`DenseIncrementalCostmap` (rotated frame of θ_k)."""
+
+    transform: RotationTransform
+    bev_row: np.ndarray  # (D, D) float32 BEV row of each rotated pixel
+    bev_col: np.ndarray  # (D, D) float32 BEV column of each rotated pixel
+    valid: np.ndarray  # (n_a, n_b) bool, windows centred on the map
+    padded: np.ndarray  # (7, D + 2m, D + 2m) the rotated BEV and observed, with its margin
+    field: np.ndarray  # (V, n_a, n_b) window predictions
+    averaged: np.ndarray  # (V, D, D) mean over covering windows, 0 where none
+    world: np.ndarray  # (V, H, W) locomotion L back on the BEV grid
+
+
+class DenseIncrementalCostmap(_GrowingCostmap):
+    """:class:`IncrementalCostmap` for a :class:`~dgt_lib.learning.pooled.PooledNet`: equal to
+    ``directional_costmap_dense(bev, model, n_headings)`` of the latest map (exact, every
+    window, no lattice). After a change, each heading resamples the rotated pixels that read
+    a changed cell and runs the network densely over just the windows whose context (the
+    22 × 7 footprint and ``model.margin`` cells around it) holds one of them — one trunk
+    pass over a small region — then averages and rotates back where that changed anything.
+    ``vehicles``: the heads to keep, one cost layer each (default all of the model's).
+    """
+
+    def __init__(self, grid, model, n_headings: int = 8, *,
+                 vehicles: tuple[str, ...] | None = None, tolerance: float = 0.0) -> None:
+        vehicles = tuple(model.vehicles) if vehicles is None else tuple(vehicles)
+        super().__init__(grid, len(vehicles), n_headings, tolerance)
+        self.model = model
+        self._heads = [model.head_index(v) for v in vehicles]  # cost layer j = head _heads[j]
+        empty = model.empty_window()[self._heads]  # what a window seeing nothing predicts
+        self._layers = [self._empty_layer(float(t), empty) for t in heading_bins(n_headings)]
+
+    def _empty_layer(self, theta: float, empty: np.ndarray) -> _DenseLayer:
+        transform = rotation_transform(self.grid, theta)
+        d, m = transform.shape[0], self.model.margin
+        rows, cols = np.mgrid[0:d, 0:d]
+        bev_row, bev_col = self.grid.xy_to_rc(*transform.rotated_to_xy(rows, cols))
+        _, on_map = _window_lattice(transform, self.grid, (1, 1))
+        field = np.where(on_map, empty[:, None, None], 0.0).astype(np.float32)
+        averaged = np.nan_to_num(_average_over_covering_windows(field, on_map), nan=0.0)
+        return _DenseLayer(transform, bev_row.astype(np.float32), bev_col.astype(np.float32),
+                           on_map, np.zeros((N_CHANNELS + 1, d + 2 * m, d + 2 * m), np.float32),
+                           field, averaged, unrotate_map(averaged, transform))
+
+    def update(self, bev: BEVMap, changed: np.ndarray | Box | None) -> UpdateStats:
+        """As :meth:`IncrementalCostmap.update`; ``stats.windows`` counts the windows the
+        network evaluated again (all headings)."""
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        stats = UpdateStats()
+        changed, near = self._changed_box(bev, changed)
+        if changed is not None:
+            m = self.model.margin
+            for k, layer in enumerate(self._layers):
+                box = _bbox(_touching(layer.bev_row, layer.bev_col, changed, near))
+                if box is None:
+                    continue
+                channels, observed = rotated_pixels(bev, layer.transform, *box)
+                inner = (slice(box[0].start + m, box[0].stop + m),
+                         slice(box[1].start + m, box[1].stop + m))
+                layer.padded[(slice(0, N_CHANNELS), *inner)] = channels
+                layer.padded[(N_CHANNELS, *inner)] = observed
+                # windows whose context [a − m, a + 21 + m] × [b − m, b + 6 + m] holds the box
+                win = _clip((slice(box[0].start - PATCH_ROWS + 1 - m, box[0].stop + m),
+                             slice(box[1].start - PATCH_COLS + 1 - m, box[1].stop + m)),
+                            layer.valid.shape)
+                if win is None or not layer.valid[win].any():
+                    continue
+                context = layer.padded[:, win[0].start : win[0].stop + PATCH_ROWS - 1 + 2 * m,
+                                       win[1].start : win[1].stop + PATCH_COLS - 1 + 2 * m]
+                field = self.model.padded_window_field(context, layer.valid[win])[self._heads]
+                layer.field[(slice(None), *win)] = np.where(layer.valid[win], field,
+                                                             layer.field[(slice(None), *win)])
+                stats.windows += int(layer.valid[win].sum())
+                cells = _reaverage(self.grid, layer, win)
+                if cells is not None:
+                    stats.cells += (cells[0].stop - cells[0].start) * (
+                        cells[1].stop - cells[1].start)
+                    self._write_cost(k, cells, bev)
+            self._write_cost(None, changed, bev)
+            self.observed[changed] = bev.observed[changed]
+        stats.wall_s = time.perf_counter() - wall0
+        stats.cpu_s = time.process_time() - cpu0
+        return stats

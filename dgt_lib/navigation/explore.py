@@ -23,8 +23,13 @@ import numpy as np
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.learning.pooled import PooledNet
 from dgt_lib.mapping.costmap import Predictor
-from dgt_lib.mapping.incremental import IncrementalCostmap, UpdateStats
+from dgt_lib.mapping.incremental import (
+    DenseIncrementalCostmap,
+    IncrementalCostmap,
+    UpdateStats,
+)
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED, occupancy_map
 from dgt_lib.navigation.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.drive import MPPI_DT_S
@@ -106,13 +111,17 @@ def path_cost_rose(path: np.ndarray, before: np.ndarray, after: np.ndarray,
                 or np.any(after[k, r, c] - before[k, r, c] > rise))
 
 
-def explore(world: World, vehicle: str, predict: Predictor, start, goal, tau_s: float, *,
+def explore(world: World, vehicle: str, predict: Predictor | PooledNet, start, goal,
+            tau_s: float, *,
             cfg: ExploreConfig | None = None, planner: PlannerConfig | None = None,
             on_update: Callable[[BEVMap, IncrementalCostmap], None] | None = None
             ) -> ExploreResult:
     """Drive ``vehicle`` from ``start`` (x, y, θ) toward ``goal`` (x, y) [m, m, rad] on
     ``world`` knowing nothing of it beforehand; ``predict`` gives this vehicle's
-    locomotion (N, 1) for patches (N, 6, 22, 7). ``on_update(bev, costmap)`` sees the map
+    locomotion (N, 1) for patches (N, 6, 22, 7) (the lattice path,
+    :class:`IncrementalCostmap`), or is a :class:`~dgt_lib.learning.pooled.PooledNet` whose
+    ``vehicle`` head is evaluated densely (:class:`DenseIncrementalCostmap`, every window,
+    ``cfg.stride`` unused). ``on_update(bev, costmap)`` sees the map
     and the costmap after every update (e.g. to compare with a full recompute). See the
     module docstring."""
     cfg = cfg or ExploreConfig()
@@ -122,8 +131,12 @@ def explore(world: World, vehicle: str, predict: Predictor, start, goal, tau_s: 
     acc = BEVAccumulator(grid)
     renderer = terrain_renderer(world, cfg.frame_max_depth_m)
     renderer.restart()
-    costmap = IncrementalCostmap(grid, predict, 1, cfg.n_headings, stride=cfg.stride,
-                                 tolerance=cfg.change_tolerance)
+    if isinstance(predict, PooledNet):
+        costmap = DenseIncrementalCostmap(grid, predict, cfg.n_headings, vehicles=(vehicle,),
+                                          tolerance=cfg.change_tolerance)
+    else:
+        costmap = IncrementalCostmap(grid, predict, 1, cfg.n_headings, stride=cfg.stride,
+                                     tolerance=cfg.change_tolerance)
     mppi = replace(MPPIConfig(batch_size=cfg.mppi_batch_size), **vehicle_footprint(spec))
     ctrl = MPPIController.from_vehicle(spec, mppi, seed=cfg.seed)
     rule = OutcomeRule(time_limit_s=cfg.time_limit_s)

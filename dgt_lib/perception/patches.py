@@ -54,13 +54,18 @@ _OBSERVED_MIN = 1.0 - 1e-4  # interpolated mask ≥ this ⇔ all weighted neighb
 _CHUNK = 4096  # poses per cv2.remap call (cv2 needs image sides < 32767)
 
 
-def patch_offsets(resolution: float = PATCH_RES) -> np.ndarray:
+def patch_offsets(resolution: float = PATCH_RES, margin: int = 0) -> np.ndarray:
     """(22, 7, 2) body-frame offsets (forward, left) [m] of the patch cell centres.
 
     offsets[i, j] = ((10.5 − i)·res, (3 − j)·res): row 0 is 4.2 m ahead, row 21
     4.2 m behind; column 0 is 1.2 m to the left, column 6 1.2 m to the right.
+    ``margin`` > 0: the patch with that many cells of context on every side,
+    (22 + 2m, 7 + 2m, 2), the patch itself at [m : m + 22, m : m + 7].
     """
-    i, j = np.mgrid[0:PATCH_ROWS, 0:PATCH_COLS].astype(np.float64)
+    m = int(margin)
+    if m < 0:
+        raise ValueError(f"margin must be ≥ 0 cells, got {margin}")
+    i, j = np.mgrid[-m : PATCH_ROWS + m, -m : PATCH_COLS + m].astype(np.float64)
     return np.stack([(_ROW_CENTER - i) * resolution, (_COL_CENTER - j) * resolution], axis=-1)
 
 
@@ -137,12 +142,15 @@ def _sample_image(image: np.ndarray, obs: np.ndarray, grid: GridSpec, x: np.ndar
     return np.moveaxis(values, -1, 0), observed
 
 
-def extract_patches(bev: BEVMap, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def extract_patches(bev: BEVMap, poses: np.ndarray,
+                    margin: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Heading-aligned patches of the BEV at vehicle poses.
 
     poses: (N, 3) [x m, y m, θ rad] (or a single (3,) pose).
     Returns patches (N, 6, 22, 7) float32 and observed (N, 22, 7) bool — or
     (6, 22, 7) and (22, 7) for a single pose. Row 0 = ahead, column 0 = left.
+    ``margin``: cells of context on every side (:func:`patch_offsets`), patches
+    (N, 6, 22 + 2m, 7 + 2m).
     """
     poses = np.asarray(poses, dtype=np.float64)
     single = poses.ndim == 1
@@ -157,16 +165,19 @@ def extract_patches(bev: BEVMap, poses: np.ndarray) -> tuple[np.ndarray, np.ndar
                          f"got {bev.grid.resolution} m")
     n = len(poses)
     image, obs = _bev_image(bev)
-    offsets = patch_offsets().reshape(1, PATCH_ROWS * PATCH_COLS, 2)
-    patches = np.empty((n, N_CHANNELS, PATCH_ROWS, PATCH_COLS), dtype=np.float32)
-    observed = np.empty((n, PATCH_ROWS, PATCH_COLS), dtype=bool)
-    for start in range(0, n, _CHUNK):
-        stop = min(start + _CHUNK, n)
-        x, y = body_to_world(poses[start:stop], offsets[0])  # (n_chunk, 154)
-        values, seen = _sample_image(image, obs, bev.grid, x, y)  # (6, n_chunk, 154)
+    offsets = patch_offsets(margin=margin)
+    rows, cols = offsets.shape[:2]
+    offsets = offsets.reshape(rows * cols, 2)
+    patches = np.empty((n, N_CHANNELS, rows, cols), dtype=np.float32)
+    observed = np.empty((n, rows, cols), dtype=bool)
+    chunk = max(_CHUNK * PATCH_ROWS * PATCH_COLS // (rows * cols), 1)  # cv2: sides < 32767
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
+        x, y = body_to_world(poses[start:stop], offsets)  # (n_chunk, rows · cols)
+        values, seen = _sample_image(image, obs, bev.grid, x, y)  # (6, n_chunk, rows · cols)
         patches[start:stop] = np.moveaxis(values, 0, 1).reshape(
-            stop - start, N_CHANNELS, PATCH_ROWS, PATCH_COLS)
-        observed[start:stop] = seen.reshape(stop - start, PATCH_ROWS, PATCH_COLS)
+            stop - start, N_CHANNELS, rows, cols)
+        observed[start:stop] = seen.reshape(stop - start, rows, cols)
     if single:
         return patches[0], observed[0]
     return patches, observed
