@@ -171,8 +171,12 @@ def main() -> None:
           "| max abs diff |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for label, proc, secs, cpu, speedup, mad, maxd, note in rows:
-        diffs = (f"{mad:.4f} | {maxd:.3f}" if np.isfinite(mad)
-                 else "— (another network) | —")
+        if not np.isfinite(mad):
+            diffs = "— (another network) | —"
+        elif 0 < maxd < 1e-3:  # float rounding only: show its size
+            diffs = f"{mad:.1e} | {maxd:.1e}"
+        else:
+            diffs = f"{mad:.4f} | {maxd:.3f}"
         print(f"| {label} | {proc} | {secs:.1f}{note} | {cpu:.1f} | {speedup:.1f}× | {diffs} |")
     print("load average (1, 5, 15 min) at the end:", open("/proc/loadavg").read().split()[:3])
 

@@ -23,6 +23,11 @@ recomputes only what depends on them, heading by heading. In the frame rotated b
 Every step reads the same arrays as a full recompute and works on exactly the pixels,
 windows and cells that can change, so the layers equal ``directional_costmap`` of the
 same map (to float rounding of the box sums; ``tests/test_incremental.py``).
+
+:class:`DenseIncrementalCostmap` does the same for a
+:class:`~dgt_lib.learning.pooled.PooledNet` without a lattice: step 2 is one dense pass of
+the network over the windows whose context reads a changed pixel, and its layers equal
+``directional_costmap_dense`` of the same map (``tests/test_pooled.py``).
 """
 
 from __future__ import annotations
@@ -440,11 +445,13 @@ class DenseIncrementalCostmap(_GrowingCostmap):
         network evaluated again (all headings)."""
         wall0, cpu0 = time.perf_counter(), time.process_time()
         stats = UpdateStats()
-        changed, near = self._changed_box(bev, changed)
+        # a mask is used as its box: the trunk runs over a rectangle either way, and
+        # finding the pixels near the mask cost more than it saved (bench_incremental.py)
+        changed, _ = self._changed_box(bev, changed)
         if changed is not None:
             m = self.model.margin
             for k, layer in enumerate(self._layers):
-                box = _bbox(_touching(layer.bev_row, layer.bev_col, changed, near))
+                box = _bbox(_touching(layer.bev_row, layer.bev_col, changed))
                 if box is None:
                     continue
                 channels, observed = rotated_pixels(bev, layer.transform, *box)
