@@ -209,21 +209,26 @@ def main() -> None:
     parser.add_argument("--no-rgb", action="store_true", help="ablation: colour zeroed")
     parser.add_argument("--report", action="store_true",
                         help="only print the tables of the saved results of --seeds")
-    args = parser.parse_args()
-    out_dir = artifacts.data_root() / "equivariant"
-    if args.report:
-        print(report([json.loads((out_dir / f"results{args.tag}_{args.profile}_seed{s}.json")
-                                 .read_text()) for s in args.seeds]))
-        return
-    artifacts.ensure = _load_only
-    torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
-    base = as_profile(args.profile)
-    for seed in args.seeds:
-        record = run_seed(base.with_(seed=seed), args)
-        record["uptime"] = open("/proc/loadavg").read().split()[:3]
-        path = out_dir / f"results{args.tag}_{base.name}_seed{seed}.json"
-        path.write_text(json.dumps(record, indent=1))
-        print(f"wrote {path}", flush=True)
+    run_seeds(parser.parse_args(), "equivariant", run_seed, report)
+
+
+def run_seeds(args, subdir: str, run_seed, report) -> None:
+    """The seeds loop of an evaluation script: ``--report`` prints ``report`` of the saved
+    records of ``--seeds``; otherwise each seed's ``run_seed(profile, args)`` record (with
+    the load average) is saved under ``data/<subdir>/`` (only reading the profile's cache)
+    and the report of all of them printed at the end."""
+    out_dir = artifacts.data_root() / subdir
+    paths = [out_dir / f"results{args.tag}_{args.profile}_seed{s}.json" for s in args.seeds]
+    if not args.report:
+        artifacts.ensure = _load_only
+        torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
+        base = as_profile(args.profile)
+        for seed, path in zip(args.seeds, paths, strict=True):
+            record = run_seed(base.with_(seed=seed), args)
+            record["uptime"] = open("/proc/loadavg").read().split()[:3]
+            path.write_text(json.dumps(record, indent=1))
+            print(f"wrote {path}", flush=True)
+    print(report([json.loads(path.read_text()) for path in paths]))
 
 
 if __name__ == "__main__":

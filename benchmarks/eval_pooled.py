@@ -30,10 +30,15 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from eval_equivariant import _load_only, accuracy_lines, ground_truth_accuracy, test_lines  # noqa: E402
+from eval_equivariant import (  # noqa: E402
+    accuracy_lines,
+    ground_truth_accuracy,
+    run_seeds,
+    test_lines,
+)
 
 from dgt_lib.core import artifacts  # noqa: E402
-from dgt_lib.core.config import VEHICLES, as_profile  # noqa: E402
+from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning import pooled  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate, train_model  # noqa: E402
@@ -116,23 +121,7 @@ def main() -> None:
     parser.add_argument("--tag", default="", help="suffix of the output files (variants)")
     parser.add_argument("--report", action="store_true",
                         help="only print the tables of the saved results of --seeds")
-    args = parser.parse_args()
-    out_dir = artifacts.data_root() / "pooled"
-    if args.report:
-        print(report([json.loads((out_dir / f"results{args.tag}_{args.profile}_seed{s}.json")
-                                 .read_text()) for s in args.seeds]))
-        return
-    artifacts.ensure = _load_only
-    torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
-    base = as_profile(args.profile)
-    for seed in args.seeds:
-        record = run_seed(base.with_(seed=seed), args)
-        record["uptime"] = open("/proc/loadavg").read().split()[:3]
-        path = out_dir / f"results{args.tag}_{base.name}_seed{seed}.json"
-        path.write_text(json.dumps(record, indent=1))
-        print(f"wrote {path}", flush=True)
-    print(report([json.loads((out_dir / f"results{args.tag}_{base.name}_seed{s}.json")
-                             .read_text()) for s in args.seeds]))
+    run_seeds(parser.parse_args(), "pooled", run_seed, report)
 
 
 if __name__ == "__main__":

@@ -68,6 +68,15 @@ def centre_heights(x):
     return out
 
 
+def head_column(heads: Sequence[str], vehicle: str | int) -> int:
+    """Column of ``vehicle`` (name, or index into ``config.VEHICLES``) among a model's
+    ``heads`` (vehicle names in output order); KeyError naming the heads if it has none."""
+    name = VEHICLES[vehicle] if isinstance(vehicle, (int, np.integer)) else vehicle
+    if name not in heads:
+        raise KeyError(f"this model has no head for {name!r}; its heads: {tuple(heads)}")
+    return list(heads).index(name)
+
+
 class ArchitectureMismatchError(ValueError):
     """Weights or a checkpoint that do not fit the network they are loaded into."""
 
@@ -228,10 +237,7 @@ class DGTNet(nn.Module):
 
     def head_index(self, vehicle: str | int) -> int:
         """Column of ``vehicle`` (name, or index into ``config.VEHICLES``) in the output."""
-        name = VEHICLES[vehicle] if isinstance(vehicle, (int, np.integer)) else vehicle
-        if name not in self.vehicles:
-            raise KeyError(f"this model has no head for {name!r}; its heads: {self.vehicles}")
-        return self.vehicles.index(name)
+        return head_column(self.vehicles, vehicle)
 
     @torch.no_grad()
     def set_normalization(self, mean: np.ndarray | torch.Tensor,

@@ -46,7 +46,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from dgt_lib.core.config import VEHICLES
-from dgt_lib.learning.model import HEAD_PRIOR_CLIP
+from dgt_lib.learning.model import HEAD_PRIOR_CLIP, head_column
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_RES, PATCH_ROWS, extract_patches
@@ -126,10 +126,7 @@ class PooledNet(nn.Module):
 
     def head_index(self, vehicle: str | int) -> int:
         """Column of ``vehicle`` (name or index into ``config.VEHICLES``) in the output."""
-        name = VEHICLES[vehicle] if isinstance(vehicle, (int, np.integer)) else vehicle
-        if name not in self.vehicles:
-            raise KeyError(f"this model has no head for {name!r}; its heads: {self.vehicles}")
-        return self.vehicles.index(name)
+        return head_column(self.vehicles, vehicle)
 
     @torch.no_grad()
     def set_normalization(self, crops: np.ndarray, index: np.ndarray | None = None) -> None:

@@ -241,6 +241,33 @@ class _GrowingCostmap:
         self._basis[:, changed] = bev.channels[:, changed]
         return self.update(bev, changed if changed.any() else None)
 
+    def update(self, bev: BEVMap, changed: np.ndarray | Box | None) -> UpdateStats:
+        """Bring the layers up to date with ``bev``, whose cells outside ``changed`` equal
+        the previous map's: an (H, W) bool mask (:func:`changed_mask`; only windows that
+        read a changed cell are evaluated again) or a box of (rows, cols) slices
+        (:func:`changed_cells`; every window reading the box), None when nothing changed.
+        ``stats.windows`` counts the windows the network evaluated again (all headings)."""
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        stats = UpdateStats()
+        changed, near = self._changed_box(bev, changed)
+        if changed is not None:
+            for k, cells in self._update_layers(bev, changed, near, stats):
+                stats.cells += (cells[0].stop - cells[0].start) * (cells[1].stop
+                                                                   - cells[1].start)
+                self._write_cost(k, cells, bev)
+            self._write_cost(None, changed, bev)
+            self.observed[changed] = bev.observed[changed]
+        stats.wall_s = time.perf_counter() - wall0
+        stats.cpu_s = time.process_time() - cpu0
+        return stats
+
+    def _update_layers(self, bev: BEVMap, changed: Box, near: np.ndarray | None,
+                       stats: UpdateStats) -> list[tuple[int, Box]]:
+        """Bring every heading layer's ``world`` up to date with ``bev`` around ``changed``
+        (``near``: the dilated changed mask, or None); count the windows evaluated in
+        ``stats``; return (heading, box of BEV cells rewritten) pairs."""
+        raise NotImplementedError
+
     def _changed_box(self, bev: BEVMap, changed: np.ndarray | Box | None
                      ) -> tuple[Box | None, np.ndarray | None]:
         """The box of ``changed`` (a mask or a box) clipped to the grid, and the mask dilated
@@ -304,37 +331,25 @@ class IncrementalCostmap(_GrowingCostmap):
             np.zeros((v, n_a, n_b), np.float32), np.zeros((n_a, n_b), bool),
             np.zeros((v, d, d), np.float32), np.zeros((v, h, w), np.float32))
 
-    def update(self, bev: BEVMap, changed: np.ndarray | Box | None) -> UpdateStats:
-        """Bring the layers up to date with ``bev``, whose cells outside ``changed`` equal
-        the previous map's: an (H, W) bool mask (:func:`changed_mask`; only windows that
-        read a changed cell are evaluated again) or a box of (rows, cols) slices
-        (:func:`changed_cells`; every window reading the box), None when nothing changed."""
-        wall0, cpu0 = time.perf_counter(), time.process_time()
-        stats = UpdateStats()
-        changed, near = self._changed_box(bev, changed)
-        if changed is not None:
-            # 1–2: resample touched pixels, find the lattice windows that read them
-            todo = [self._resample(layer, bev, changed, near) for layer in self._layers]
-            patches = [sliding_windows(layer.channels)[:, a, b] for layer, (a, b, _) in
-                       zip(self._layers, todo, strict=True)]
-            n = [len(a) for a, _, _ in todo]
-            stats.windows = int(sum(n))
-            pred = (self._predict(np.concatenate([np.moveaxis(p, 0, 1) for p in patches]))
-                    if stats.windows else np.zeros((0, self.n_vehicles), np.float32))
-            splits = np.split(pred, np.cumsum(n)[:-1])
-            # 3–5: lattice, interpolation, averaging and rotation back, where they change
-            for k, (layer, (a, b, dirty), p) in enumerate(
-                    zip(self._layers, todo, splits, strict=True)):
-                cells = self._refresh(layer, a, b, dirty, p)
-                if cells is not None:
-                    stats.cells += (cells[0].stop - cells[0].start) * (
-                        cells[1].stop - cells[1].start)
-                    self._write_cost(k, cells, bev)
-            self._write_cost(None, changed, bev)
-            self.observed[changed] = bev.observed[changed]
-        stats.wall_s = time.perf_counter() - wall0
-        stats.cpu_s = time.process_time() - cpu0
-        return stats
+    def _update_layers(self, bev: BEVMap, changed: Box, near: np.ndarray | None,
+                       stats: UpdateStats) -> list[tuple[int, Box]]:
+        # 1–2: resample touched pixels, find the lattice windows that read them
+        todo = [self._resample(layer, bev, changed, near) for layer in self._layers]
+        patches = [sliding_windows(layer.channels)[:, a, b] for layer, (a, b, _) in
+                   zip(self._layers, todo, strict=True)]
+        n = [len(a) for a, _, _ in todo]
+        stats.windows = int(sum(n))
+        pred = (self._predict(np.concatenate([np.moveaxis(p, 0, 1) for p in patches]))
+                if stats.windows else np.zeros((0, self.n_vehicles), np.float32))
+        splits = np.split(pred, np.cumsum(n)[:-1])
+        # 3–5: lattice, interpolation, averaging and rotation back, where they change
+        out = []
+        for k, (layer, (a, b, dirty), p) in enumerate(zip(self._layers, todo, splits,
+                                                          strict=True)):
+            cells = self._refresh(layer, a, b, dirty, p)
+            if cells is not None:
+                out.append((k, cells))
+        return out
 
     def _predict(self, patches: np.ndarray) -> np.ndarray:
         outs = [np.asarray(self.predict(np.ascontiguousarray(patches[i:i + self.batch_size],
@@ -440,44 +455,33 @@ class DenseIncrementalCostmap(_GrowingCostmap):
                            on_map, np.zeros((N_CHANNELS + 1, d + 2 * m, d + 2 * m), np.float32),
                            field, averaged, unrotate_map(averaged, transform))
 
-    def update(self, bev: BEVMap, changed: np.ndarray | Box | None) -> UpdateStats:
-        """As :meth:`IncrementalCostmap.update`; ``stats.windows`` counts the windows the
-        network evaluated again (all headings)."""
-        wall0, cpu0 = time.perf_counter(), time.process_time()
-        stats = UpdateStats()
-        # a mask is used as its box: the trunk runs over a rectangle either way, and
-        # finding the pixels near the mask cost more than it saved (bench_incremental.py)
-        changed, _ = self._changed_box(bev, changed)
-        if changed is not None:
-            m = self.model.margin
-            for k, layer in enumerate(self._layers):
-                box = _bbox(_touching(layer.bev_row, layer.bev_col, changed))
-                if box is None:
-                    continue
-                channels, observed = rotated_pixels(bev, layer.transform, *box)
-                inner = (slice(box[0].start + m, box[0].stop + m),
-                         slice(box[1].start + m, box[1].stop + m))
-                layer.padded[(slice(0, N_CHANNELS), *inner)] = channels
-                layer.padded[(N_CHANNELS, *inner)] = observed
-                # windows whose context [a − m, a + 21 + m] × [b − m, b + 6 + m] holds the box
-                win = _clip((slice(box[0].start - PATCH_ROWS + 1 - m, box[0].stop + m),
-                             slice(box[1].start - PATCH_COLS + 1 - m, box[1].stop + m)),
-                            layer.valid.shape)
-                if win is None or not layer.valid[win].any():
-                    continue
-                context = layer.padded[:, win[0].start : win[0].stop + PATCH_ROWS - 1 + 2 * m,
-                                       win[1].start : win[1].stop + PATCH_COLS - 1 + 2 * m]
-                field = self.model.padded_window_field(context, layer.valid[win])[self._heads]
-                layer.field[(slice(None), *win)] = np.where(layer.valid[win], field,
-                                                             layer.field[(slice(None), *win)])
-                stats.windows += int(layer.valid[win].sum())
-                cells = _reaverage(self.grid, layer, win)
-                if cells is not None:
-                    stats.cells += (cells[0].stop - cells[0].start) * (
-                        cells[1].stop - cells[1].start)
-                    self._write_cost(k, cells, bev)
-            self._write_cost(None, changed, bev)
-            self.observed[changed] = bev.observed[changed]
-        stats.wall_s = time.perf_counter() - wall0
-        stats.cpu_s = time.process_time() - cpu0
-        return stats
+    def _update_layers(self, bev: BEVMap, changed: Box, near: np.ndarray | None,
+                       stats: UpdateStats) -> list[tuple[int, Box]]:
+        # ``near`` is not used: the trunk runs over a rectangle either way, and finding the
+        # pixels near the mask cost more than it saved (bench_incremental.py)
+        m, out = self.model.margin, []
+        for k, layer in enumerate(self._layers):
+            box = _bbox(_touching(layer.bev_row, layer.bev_col, changed))
+            if box is None:
+                continue
+            channels, observed = rotated_pixels(bev, layer.transform, *box)
+            inner = (slice(box[0].start + m, box[0].stop + m),
+                     slice(box[1].start + m, box[1].stop + m))
+            layer.padded[(slice(0, N_CHANNELS), *inner)] = channels
+            layer.padded[(N_CHANNELS, *inner)] = observed
+            # windows whose context [a − m, a + 21 + m] × [b − m, b + 6 + m] holds the box
+            win = _clip((slice(box[0].start - PATCH_ROWS + 1 - m, box[0].stop + m),
+                         slice(box[1].start - PATCH_COLS + 1 - m, box[1].stop + m)),
+                        layer.valid.shape)
+            if win is None or not layer.valid[win].any():
+                continue
+            context = layer.padded[:, win[0].start : win[0].stop + PATCH_ROWS - 1 + 2 * m,
+                                   win[1].start : win[1].stop + PATCH_COLS - 1 + 2 * m]
+            field = self.model.padded_window_field(context, layer.valid[win])[self._heads]
+            layer.field[(slice(None), *win)] = np.where(layer.valid[win], field,
+                                                         layer.field[(slice(None), *win)])
+            stats.windows += int(layer.valid[win].sum())
+            cells = _reaverage(self.grid, layer, win)
+            if cells is not None:
+                out.append((k, cells))
+        return out
