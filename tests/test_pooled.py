@@ -158,3 +158,18 @@ def test_the_dense_incremental_costmap_equals_the_dense_costmap_after_every_fram
         assert 0 < stats.windows < all_windows / 2
         bev, full = new, expected
     assert inc.refresh(bev).windows == 0  # nothing new: nothing evaluated
+
+
+def test_a_saved_network_comes_back_with_its_size_and_its_predictions():
+    model = small_net(seed=3, width=6, depth=3, fc_hidden=12)
+    again = pooled.PooledNet.from_state_dict(model.state_dict(), ("jeep", "vw_van"))
+    assert (again.width, again.depth, again.fc_hidden, again.margin) == (6, 3, 12, 4)
+    bev = hilly_bev((30, 30))
+    rotated = rotate_map(bev, 0.3)
+    np.testing.assert_array_equal(again.window_field(rotated.channels, rotated.observed),
+                                  model.window_field(rotated.channels, rotated.observed))
+    nothing = rotate_map(synthetic_bev(np.zeros((30, 30), np.float32),
+                                       np.zeros((30, 30), bool)), 0.3)
+    field = model.window_field(nothing.channels, nothing.observed)  # nothing observed
+    np.testing.assert_allclose(field, np.broadcast_to(model.empty_window()[:, None, None],
+                                                      field.shape), atol=1e-6)
