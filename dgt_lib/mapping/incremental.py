@@ -33,6 +33,7 @@ the network over the windows whose context reads a changed pixel, and its layers
 from __future__ import annotations
 
 import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import cv2
@@ -196,7 +197,7 @@ class UpdateStats:
     cpu_s: float = 0.0
 
 
-class _GrowingCostmap:
+class _GrowingCostmap(ABC):
     """What every incremental costmap shares: the cost layers, the map they were last
     brought up to date with, :meth:`refresh` (finds the changed cells itself) and the
     conversion C = 1 − L. Subclasses keep the heading layers (``_layers``, each with a
@@ -261,12 +262,12 @@ class _GrowingCostmap:
         stats.cpu_s = time.process_time() - cpu0
         return stats
 
+    @abstractmethod
     def _update_layers(self, bev: BEVMap, changed: Box, near: np.ndarray | None,
                        stats: UpdateStats) -> list[tuple[int, Box]]:
         """Bring every heading layer's ``world`` up to date with ``bev`` around ``changed``
         (``near``: the dilated changed mask, or None); count the windows evaluated in
         ``stats``; return (heading, box of BEV cells rewritten) pairs."""
-        raise NotImplementedError
 
     def _changed_box(self, bev: BEVMap, changed: np.ndarray | Box | None
                      ) -> tuple[Box | None, np.ndarray | None]:
