@@ -46,7 +46,7 @@ from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.checkpoints import load_checkpoint
 from dgt_lib.learning.equivariant import C8Net, EquivariantResult, equivariant_costmap
-from dgt_lib.learning.pooled import PooledNet
+from dgt_lib.learning.pooled import PooledNet, bfloat16_copy
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import predict, train_model
 from dgt_lib.mapping.costmap import (
@@ -98,6 +98,8 @@ def main() -> None:
     parser.add_argument("--pooled-widths", type=int, nargs="*", default=[],
                         help="untrained PooledNets of these widths (timing only); default 32 "
                              "when no --pooled is given")
+    parser.add_argument("--bf16", action="store_true",
+                        help="also time each PooledNet in bfloat16 (pooled.bfloat16_copy)")
     args = parser.parse_args()
     torch.set_num_threads(os.cpu_count() or 2)
     bev = terrain_bev(args.size)
@@ -161,12 +163,16 @@ def main() -> None:
         scaled = "" if n_lit == 8 else f" (measured on {n_lit} headings, ×{8 / n_lit:g})"
         rows.append((label, "its literal, stride 1", literal_s, literal_cpu, 1.0, 0.0, 0.0,
                      scaled))
-        t0, c0 = time.perf_counter(), time.process_time()
-        cost = directional_costmap_dense(bev, net, 8, progress=False)
-        secs, cpu = time.perf_counter() - t0, time.process_time() - c0
-        diff = np.abs(cost[:, :n_lit] - ref)
-        rows.append((label, "dense (exact)", secs, cpu, literal_cpu / cpu, float(diff.mean()),
-                     float(diff.max()), f"; {dgt_literal_cpu / cpu:.0f}× DGTNet's literal CPU"))
+        runs = [("dense (exact)", net)] + ([("dense, bfloat16", bfloat16_copy(net))]
+                                           if args.bf16 else [])
+        for proc, model in runs:
+            directional_costmap_dense(bev, model, 1, progress=False)  # warm-up
+            t0, c0 = time.perf_counter(), time.process_time()
+            cost = directional_costmap_dense(bev, model, 8, progress=False)
+            secs, cpu = time.perf_counter() - t0, time.process_time() - c0
+            diff = np.abs(cost[:, :n_lit] - ref)
+            rows.append((label, proc, secs, cpu, literal_cpu / cpu, float(diff.mean()),
+                         float(diff.max()), f"; {dgt_literal_cpu / cpu:.0f}× DGTNet's literal CPU"))
     print("\n| model | procedure | wall [s] | CPU [s] | speed-up (CPU) | mean abs diff "
           "| max abs diff |")
     print("| --- | --- | --- | --- | --- | --- | --- |")

@@ -41,7 +41,7 @@ import dgt_lib as dgt  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
-from dgt_lib.learning.pooled import PooledNet  # noqa: E402
+from dgt_lib.learning.pooled import PooledNet, bfloat16_copy  # noqa: E402
 from dgt_lib.learning.training import evaluate, predict, train_model  # noqa: E402
 from dgt_lib.mapping.costmap import directional_costmap, directional_costmap_dense  # noqa: E402
 from dgt_lib.mapping.incremental import (  # noqa: E402
@@ -85,6 +85,8 @@ def main() -> None:
                     help="lattice stride (default: the profile's costmap stride)")
     ap.add_argument("--pooled", default=None,
                     help="a PooledNet state dict (benchmarks/eval_pooled.py): dense updates")
+    ap.add_argument("--bf16", action="store_true",
+                    help="with --pooled: drive and recompute with its bfloat16 copy")
     ap.add_argument("--width", type=int, default=None,
                     help="first train a multi-task model of this width (the profile's recipe "
                          "otherwise) on the profile's cached dataset and drive with it")
@@ -103,6 +105,8 @@ def main() -> None:
     grid = bev_grid(world.grid.extent)
     if args.pooled:  # drive with the PooledNet, densely; compare with its dense costmap
         model = PooledNet.from_state_dict(torch.load(args.pooled, weights_only=True))
+        if args.bf16:
+            model = bfloat16_copy(model)
         pooled_head = model.head_index(args.vehicle)
 
     stride = tuple(args.stride) if args.stride else profile.costmap.stride
@@ -147,7 +151,8 @@ def main() -> None:
     }
     h, w = result.bev.grid.shape
     width = getattr(model, "width", None) or "?"
-    how = (f"PooledNet depth {model.depth}, dense" if args.pooled else f"stride {cfg.stride}")
+    how = (f"PooledNet depth {model.depth}, dense{', bfloat16' if args.bf16 else ''}"
+           if args.pooled else f"stride {cfg.stride}")
     print(f"eval world {world.grid.extent[1]:.0f} m, BEV {h}×{w} cells, K = {cfg.n_headings}, "
           f"{how}, change tolerance {cfg.change_tolerance}, "
           f"vehicle {args.vehicle}, model width {width}, "

@@ -173,3 +173,15 @@ def test_a_saved_network_comes_back_with_its_size_and_its_predictions():
     field = model.window_field(nothing.channels, nothing.observed)  # nothing observed
     np.testing.assert_allclose(field, np.broadcast_to(model.empty_window()[:, None, None],
                                                       field.shape), atol=1e-6)
+
+
+def test_the_bfloat16_copy_keeps_its_inputs_in_float32_and_stays_close():
+    bev, model = hilly_bev((41, 37)), small_net(seed=4)
+    fast = pooled.bfloat16_copy(model)
+    assert fast.stem.weight.dtype == torch.bfloat16 and model.stem.weight.dtype == torch.float32
+    assert fast.input_mean.dtype == fast.slope_scale.dtype == torch.float32
+    exact = directional_costmap_dense(bev, model, 8, progress=False)
+    approx = directional_costmap_dense(bev, fast, 8, progress=False)
+    assert approx.dtype == np.float32
+    diff = np.abs(approx - exact)
+    assert 0 < diff.max() < 0.02 and diff.mean() < 0.005  # bfloat16: not exact, close
