@@ -1,8 +1,10 @@
 """MPPI control rate on one core: Nav2's defaults (1000 samples × 56 steps, 0.05 s).
 
 Target ≥ 50 Hz (Nav2's C++ MPPI runs at 50–100 Hz). Run: ``python benchmarks/bench_control.py``.
-Prints the time per ``compute`` without and with an occupancy grid, and the
-closed-loop tracking error on the kinematic bicycle.
+Prints the time per ``compute`` of both backends (``compiled``, the default, and the numpy
+reference) without and with an occupancy grid — with one footprint circle and with the
+three of the mercedes_van that closed-loop trials use — checks that both return the same
+commands, and the closed-loop tracking error on the kinematic bicycle.
 """
 
 import os
@@ -13,16 +15,20 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import math  # noqa: E402
 import time  # noqa: E402
 
+import dataclasses  # noqa: E402
+
 import numpy as np  # noqa: E402
 
 from dgt_lib.core.geometry import GridSpec  # noqa: E402
+from dgt_lib.core.vehicles import get_vehicle  # noqa: E402
 from dgt_lib.navigation.bicycle import (  # noqa: E402
     KinematicBicycle,
     cross_track_errors,
     simulate_tracking,
 )
 from dgt_lib.navigation.mppi import MPPIController  # noqa: E402
-from dgt_lib.navigation.mppi_config import MPPIConfig  # noqa: E402
+from dgt_lib.navigation.mppi import BACKENDS  # noqa: E402
+from dgt_lib.navigation.mppi_config import MPPIConfig, vehicle_footprint  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
 
@@ -33,28 +39,31 @@ def s_curve(length_m: float = 120.0, amplitude_m: float = 4.0, wavelength_m: flo
     return np.stack([x, amplitude_m * np.sin(k * x), np.arctan(amplitude_m * k * np.cos(k * x))], 1)
 
 
-def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200) -> np.ndarray:
+def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200,
+                 backend: str = "compiled") -> tuple[np.ndarray, np.ndarray]:
     """Seconds per compute() call while driving along the path (pose advanced by the
-    commands, so the path window and warm start behave as in a loop)."""
-    ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)
+    commands, so the path window and warm start behave as in a loop), and the commands."""
+    ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0,
+                          backend=backend)
     ctrl.set_path(s_curve())
     x, y, yaw, v = 0.0, 0.0, 0.3, 4.0
-    times = []
+    times, commands = [], []
     for _ in range(calls):
         t0 = time.perf_counter()
         v_cmd, w_cmd = ctrl.compute((x, y, yaw), v, occupancy, grid)
         times.append(time.perf_counter() - t0)
+        commands.append((v_cmd, w_cmd))
         x += v_cmd * math.cos(yaw) * cfg.model_dt
         y += v_cmd * math.sin(yaw) * cfg.model_dt
         yaw += w_cmd * cfg.model_dt
         v = v_cmd
-    return np.asarray(times[10:])  # without the warm-up calls
+    return np.asarray(times[10:]), np.asarray(commands)  # without the warm-up calls
 
 
 def report(label: str, t: np.ndarray) -> None:
     med = float(np.median(t))
     print(
-        f"{label:<38} median {1e3 * med:6.2f} ms  p90 {1e3 * np.percentile(t, 90):6.2f} ms"
+        f"{label:<50} median {1e3 * med:6.2f} ms  p90 {1e3 * np.percentile(t, 90):6.2f} ms"
         f"  → {1.0 / med:6.1f} Hz"
     )
 
@@ -63,7 +72,6 @@ def main() -> None:
     cfg = MPPIConfig()
     print(f"MPPI {cfg.batch_size} samples × {cfg.time_steps} steps, model_dt {cfg.model_dt} s,"
           " one thread")
-    report("compute, no occupancy", time_compute(cfg))
     grid = GridSpec((-20.0, -40.0), 0.4, (200, 400))  # 160 m × 80 m at 0.4 m
     occ = np.zeros(grid.shape, np.uint8)
     rng = np.random.default_rng(0)
@@ -71,8 +79,18 @@ def main() -> None:
     X, Y = grid.cell_to_xy(r, c)
     keep = np.abs(Y - 4.0 * np.sin(2 * np.pi * X / 40.0)) > 4.0  # trees away from the path
     occ[r[keep], c[keep]] = 1
-    report("compute, occupancy 200×400 grid", time_compute(cfg, occ, grid))
-    report("compute, batch 300 (tests)", time_compute(MPPIConfig(batch_size=300)))
+    van = dataclasses.replace(cfg, **vehicle_footprint(get_vehicle("mercedes_van")))
+    cases = [("no occupancy", cfg, None, None),
+             ("occupancy 200×400 grid, 1 circle", cfg, occ, grid),
+             (f"occupancy, {len(van.footprint_offsets_m)} circles (trials)", van, occ, grid),
+             ("batch 300 (tests)", MPPIConfig(batch_size=300), None, None)]
+    for label, c, o, g in cases:
+        runs = {b: time_compute(c, o, g, backend=b) for b in BACKENDS}
+        for b, (t, _) in runs.items():
+            report(f"{b:<8} {label}", t)
+        same = np.array_equal(runs["compiled"][1], runs["numpy"][1])
+        ratio = np.median(runs["numpy"][0]) / np.median(runs["compiled"][0])
+        print(f"{'':<9}compiled {ratio:.1f}× faster; the same commands: {same}")
 
     path = s_curve()
     ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)

@@ -52,6 +52,11 @@ from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.bicycle import resample_path, rollout_unicycle
 from dgt_lib.navigation.mppi_config import MPPIConfig
 
+BACKENDS = ("compiled", "numpy")
+"""How :meth:`MPPIController.compute` evaluates its samples: ``"compiled"`` (numba,
+:mod:`dgt_lib.navigation.mppi_compiled`) or ``"numpy"`` (the reference); the same
+commands to the bit."""
+
 
 class MPPIController:
     """Nav2-style MPPI path tracker for an Ackermann vehicle (see the module docstring).
@@ -72,7 +77,14 @@ class MPPIController:
         max_steer_rad: float,
         min_turn_radius_m: float | None = None,
         seed: int = 0,
+        backend: str = "compiled",
     ):
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if backend == "compiled":
+            from dgt_lib.navigation import mppi_compiled  # numba: imported when used
+            self._kernels = mppi_compiled
+        self.backend = backend
         self.cfg = cfg if cfg is not None else MPPIConfig()
         if wheelbase_m <= 0 or not 0 < max_steer_rad < math.pi / 2:
             raise ValueError("need wheelbase_m > 0 and 0 < max_steer_rad < π/2")
@@ -102,7 +114,8 @@ class MPPIController:
         self.reset()
 
     @classmethod
-    def from_vehicle(cls, vehicle, cfg: MPPIConfig | None = None, seed: int = 0):
+    def from_vehicle(cls, vehicle, cfg: MPPIConfig | None = None, seed: int = 0,
+                     backend: str = "compiled"):
         """Build from an object with ``wheelbase_m``, ``max_steer_rad``, ``min_turn_radius_m``
         (e.g. ``dgt_lib.core.vehicles.VehicleSpec``)."""
         return cls(
@@ -111,6 +124,7 @@ class MPPIController:
             max_steer_rad=vehicle.max_steer_rad,
             min_turn_radius_m=vehicle.min_turn_radius_m,
             seed=seed,
+            backend=backend,
         )
 
     # -- state ---------------------------------------------------------------
@@ -188,6 +202,11 @@ class MPPIController:
         free[1:-1, 1:-1] = occupancy == 0
         self._clearance = (distance_transform_edt(free) * grid.resolution).astype(np.float32)
         self._occ_key = (occupancy.copy(), grid)
+        if self.backend == "compiled":  # the critics' per-cell terms, looked up per point
+            r_c = np.float32(self.cfg.collision_radius_m)
+            r_i = np.float32(self.cfg.inflation_radius_m)
+            self._cell_hit = (self._clearance < r_c).astype(np.float64)
+            self._cell_near = np.clip((r_i - self._clearance) / (r_i - r_c), 0.0, 1.0)
 
     # -- the controller --------------------------------------------------------
 
@@ -237,14 +256,10 @@ class MPPIController:
         if self._last_v is None:
             self._last_v = float(np.clip(speed, cfg.v_min, cfg.v_max))
 
-        v, w = self._sample()
-        v_act, w_act = self._vehicle_response(v, w, speed)
-        # Rollouts in a frame centred on the robot (float32 keeps its precision there).
-        x, y, yaw = rollout_unicycle((0.0, 0.0, yaw0), v_act, w_act, dt)
-        cost = self._path_costs(x, y, yaw, v_act, i_robot, x0, y0)
-        if occupancy is not None:
-            cost += self._occupancy_cost(x, y, yaw, x0, y0, grid)
-        cost += self._constraint_cost(v_act, w_act)
+        if self.backend == "compiled":
+            v, w, cost = self._sampled_costs_compiled(x0, y0, yaw0, speed, i_robot, grid)
+        else:
+            v, w, cost = self._sampled_costs(x0, y0, yaw0, speed, i_robot, grid)
 
         # Softmax weighting of the sampled sequences (Nav2: temperature λ).
         cost -= cost.min()
@@ -272,6 +287,70 @@ class MPPIController:
         nominal[:-1] = nominal[1:].copy()  # warm start: shift by one step
         return v_cmd, w_cmd
 
+    def _sampled_costs(self, x0: float, y0: float, yaw0: float, speed: float, i_robot: int,
+                       grid: GridSpec | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The reference (numpy): sampled commands v, ω ``(T, B)`` and each one's cost
+        S ``(B,)``; the occupancy critic when ``grid`` is given."""
+        v, w = self._sample()
+        v_act, w_act = self._vehicle_response(v, w, speed)
+        # Rollouts in a frame centred on the robot (float32 keeps its precision there).
+        x, y, yaw = rollout_unicycle((0.0, 0.0, yaw0), v_act, w_act, self.cfg.model_dt)
+        cost = self._path_costs(*self._path_errors(x, y, yaw, v_act, i_robot, x0, y0),
+                                i_robot, x0, y0)
+        if grid is not None:
+            cost += self._occupancy_cost(x, y, yaw, x0, y0, grid)
+        cost += self._constraint_cost(v_act, w_act)
+        return v, w, cost
+
+    def _sampled_costs_compiled(self, x0: float, y0: float, yaw0: float, speed: float,
+                                i_robot: int, grid: GridSpec | None
+                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_sampled_costs` with numba's kernels (:mod:`.mppi_compiled`), the same
+        float32 operations in the same order; cosines and sines stay numpy's."""
+        cfg, f32 = self.cfg, np.float32
+        v, w, ev, ew = self._v, self._w, *self._noise()
+        v_act, w_act, yaw, mid = (np.empty_like(v) for _ in range(4))
+        a = self._alpha
+        self._kernels.sample_rollouts(
+            ev, ew, self._nominal[:, 0], self._nominal[:, 1], f32(self._last_v),
+            f32(cfg.model_dt), f32(cfg.accel_std), f32(cfg.decel_max), f32(cfg.accel_max),
+            f32(cfg.v_min), f32(cfg.v_max), f32(cfg.w_rate_std * cfg.model_dt),
+            f32(1.0 / self.min_turn_radius_m), f32(cfg.w_max), f32(a), f32(a - 1.0),
+            f32((1.0 - a) * speed), f32(yaw0), v, w, v_act, w_act, yaw, mid)
+        x, y = np.empty_like(v), np.empty_like(v)
+        first, every = cfg.path_point_step - 1, cfg.path_point_step
+        scored = (cfg.time_steps - first + every - 1) // every
+        cross, angle_err, speed_err = (np.empty((scored, cfg.batch_size), f32)
+                                       for _ in range(3))
+        wx, wy, tx, ty, s_win, path_yaw = self._window(i_robot, x0, y0)
+        self._kernels.project_on_path(
+            v_act, np.cos(mid), np.sin(mid), yaw, f32(cfg.model_dt), first, every, wx, wy,
+            tx, ty, s_win, path_yaw, f32(self._length), f32(cfg.target_speed),
+            f32(2.0 * cfg.goal_decel), f32(1.0 / cfg.target_speed), x, y, cross, angle_err,
+            speed_err)
+        sel = slice(first, None, every)
+        cost = self._path_costs(cross, angle_err, speed_err, x[sel], y[sel], i_robot, x0, y0)
+        if grid is not None:
+            occupancy = np.empty_like(cost)
+            self._kernels.occupancy_cost(
+                x, y, np.cos(yaw), np.sin(yaw),
+                np.array(cfg.footprint_offsets_m, f32), self._cell_hit, self._cell_near,
+                f32(x0 - grid.origin_xy[0]), f32(y0 - grid.origin_xy[1]),
+                f32(1.0 / grid.resolution), f32(cfg.collision_weight),
+                f32(cfg.inflation_weight), occupancy)
+            cost += occupancy
+        cost += self._constraint_cost(v_act, w_act)
+        return v, w, cost
+
+    def _noise(self) -> tuple[np.ndarray, np.ndarray]:
+        """Standard normal noise ``(T, B)`` for speeds and yaw rates; sample 0 none."""
+        ev, ew = self._eps_v, self._eps_w
+        self._rng.standard_normal(out=ev, dtype=np.float32)
+        self._rng.standard_normal(out=ew, dtype=np.float32)
+        ev[:, 0] = 0.0
+        ew[:, 0] = 0.0
+        return ev, ew
+
     def _sample(self) -> tuple[np.ndarray, np.ndarray]:
         """Noisy (v, ω) sequences ``(T, B)`` around the warm start, made feasible.
 
@@ -285,11 +364,7 @@ class MPPIController:
         """
         cfg = self.cfg
         dt = np.float32(cfg.model_dt)
-        v, w, ev, ew = self._v, self._w, self._eps_v, self._eps_w
-        self._rng.standard_normal(out=ev, dtype=np.float32)
-        self._rng.standard_normal(out=ew, dtype=np.float32)
-        ev[:, 0] = 0.0
-        ew[:, 0] = 0.0
+        v, w, ev, ew = self._v, self._w, *self._noise()
         nominal_v = self._nominal[:, 0]
         accel = np.diff(nominal_v, prepend=np.float32(self._last_v)) / dt  # (T,)
         np.multiply(ev, np.float32(cfg.accel_std), out=v)
@@ -332,18 +407,25 @@ class MPPIController:
         )
         return v_act, w * (v_act / v_safe)
 
-    def _path_costs(self, x, y, yaw, v, i_robot: int, x0: float, y0: float) -> np.ndarray:
-        """Path, path-angle, speed and goal critics, ``(B,)``. Every
-        ``path_point_step``-th rollout point is projected on the tangent of its
-        nearest path point within a window around the robot's progress."""
-        cfg = self.cfg
+    def _window(self, i_robot: int, x0: float, y0: float) -> tuple[np.ndarray, ...]:
+        """The path points the rollouts are projected on, around the robot's progress,
+        float32 ``(M,)`` each: position relative to the robot (x, y) [m], unit tangent
+        (x, y), arc length s [m] and yaw [rad]."""
         lo = max(0, i_robot - self._back)
         hi = min(len(self._path), i_robot + self._ahead)
         win = self._path[lo:hi]
-        wx = (win[:, 0] - x0).astype(np.float32)
-        wy = (win[:, 1] - y0).astype(np.float32)
-        tx = self._tangent[lo:hi, 0].astype(np.float32)
-        ty = self._tangent[lo:hi, 1].astype(np.float32)
+        return ((win[:, 0] - x0).astype(np.float32), (win[:, 1] - y0).astype(np.float32),
+                self._tangent[lo:hi, 0].astype(np.float32),
+                self._tangent[lo:hi, 1].astype(np.float32),
+                self._s[lo:hi].astype(np.float32), win[:, 2].astype(np.float32))
+
+    def _path_errors(self, x, y, yaw, v, i_robot: int, x0: float, y0: float
+                     ) -> tuple[np.ndarray, ...]:
+        """Every ``path_point_step``-th rollout point ``(T', B)`` projected on the tangent
+        of its nearest path point in the window: distance to the path [m], yaw error
+        [rad], speed error (v − v_ref)/v_target, and the points' x, y [m]."""
+        cfg = self.cfg
+        wx, wy, tx, ty, s_win, path_yaw = self._window(i_robot, x0, y0)
         sel = slice(cfg.path_point_step - 1, None, cfg.path_point_step)
         px, py = x[sel], y[sel]  # (T', B)
         # argmin_j |p − w_j|² = argmin_j (|w_j|² − 2 p·w_j): one product, no BLAS
@@ -355,16 +437,21 @@ class MPPIController:
         ex, ey = px - wx[j], py - wy[j]
         lateral = ex * ty[j] - ey * tx[j]
         along = ex * tx[j] + ey * ty[j]
-        s = self._s[lo:hi].astype(np.float32)[j] + along
+        s = s_win[j] + along
         # Before the start or past the goal the tangent line does not count: the
         # overshoot along it is distance from the path too.
         beyond = np.maximum(-s, 0.0) + np.maximum(s - np.float32(self._length), 0.0)
         cross = np.sqrt(lateral * lateral + beyond * beyond)  # distance to the path [m]
-        path_yaw = win[:, 2].astype(np.float32)
-        align = 1.0 - np.cos(yaw[sel] - path_yaw[j])
         remaining = np.maximum(np.float32(self._length) - s, 0.0)
         v_ref = np.minimum(np.float32(cfg.target_speed), np.sqrt(2.0 * cfg.goal_decel * remaining))
         speed_err = (v[sel] - v_ref) * np.float32(1.0 / cfg.target_speed)
+        return cross, yaw[sel] - path_yaw[j], speed_err, px, py
+
+    def _path_costs(self, cross, angle_err, speed_err, px, py, i_robot: int, x0: float,
+                    y0: float) -> np.ndarray:
+        """Path, path-angle, speed and goal critics ``(B,)`` from :meth:`_path_errors`."""
+        cfg = self.cfg
+        align = 1.0 - np.cos(angle_err)
         cost = cfg.path_weight * cross.mean(axis=0)
         cost += cfg.path_angle_weight * align.mean(axis=0)
         cost += cfg.speed_weight * (speed_err * speed_err).mean(axis=0)
