@@ -12,10 +12,9 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"  # one core: set before numpy loads its BLAS
 
+import dataclasses  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
-
-import dataclasses  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -26,8 +25,7 @@ from dgt_lib.navigation.bicycle import (  # noqa: E402
     cross_track_errors,
     simulate_tracking,
 )
-from dgt_lib.navigation.mppi import MPPIController  # noqa: E402
-from dgt_lib.navigation.mppi import BACKENDS  # noqa: E402
+from dgt_lib.navigation.mppi import BACKENDS, MPPIController  # noqa: E402
 from dgt_lib.navigation.mppi_config import MPPIConfig, vehicle_footprint  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
