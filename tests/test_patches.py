@@ -16,6 +16,7 @@ from dgt_lib.perception.patches import (
     rotate_map,
     sliding_windows,
     unrotate_map,
+    window_counts,
 )
 
 
@@ -145,6 +146,18 @@ def test_sliding_window_on_rotated_map_equals_extract_patches(theta):
     assert np.allclose(poses[:, 2], theta)
     row, col = rotated.transform.xy_to_rotated(poses[:, 0], poses[:, 1])
     assert np.allclose(row, a + 10.5) and np.allclose(col, b + 3.0)
+
+
+def test_window_counts_count_the_true_pixels_under_each_window():
+    # a sparse mask (most windows see nothing, some one pixel) and a dense one
+    rng = np.random.default_rng(2)
+    for density in (0.002, 0.5):
+        mask = rng.random((60, 45)) < density
+        counts = window_counts(mask)
+        windows = sliding_windows(mask)
+        assert counts.shape == windows.shape[:2]
+        assert np.array_equal(counts, windows.sum(axis=(-2, -1)))
+    assert (window_counts(mask) > 0).any() and not window_counts(np.zeros((30, 30), bool)).any()
 
 
 def test_quarter_turns_are_exact_permutations_and_unrotate_inverts():

@@ -52,6 +52,7 @@ from dgt_lib.perception.patches import (
     rotate_map,
     sliding_windows,
     unrotate_map,
+    window_counts,
 )
 
 Predictor = Callable[[np.ndarray], np.ndarray]
@@ -148,8 +149,7 @@ def explain_heading_layer(bev: BEVMap, theta: float, predict: Predictor, *,
     lattice[:: stride[0], :: stride[1]] = True
     evaluate = lattice & inside if stride != (1, 1) else on_map.copy()
     if skip_unobserved:
-        covers_observed = sliding_windows(rotated.observed.astype(np.uint8)).any(axis=(-2, -1))
-        evaluate &= covers_observed
+        evaluate &= window_counts(rotated.observed) > 0  # covers an observed pixel
     a, b = np.nonzero(evaluate)
     pred_points = _predict_windows(windows, a, b, predict, batch_size)  # (N, V)
     n_v = pred_points.shape[1] if len(pred_points) else 1

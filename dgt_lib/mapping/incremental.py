@@ -56,6 +56,7 @@ from dgt_lib.perception.patches import (
     rotation_transform,
     sliding_windows,
     unrotate_map,
+    window_counts,
 )
 
 Box = tuple[slice, slice]
@@ -124,13 +125,6 @@ _NEAR_RADIUS = 2
 def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
     size = 2 * radius + 1
     return cv2.dilate(mask.astype(np.uint8), np.ones((size, size), np.uint8)).astype(bool)
-
-
-def _window_counts(mask: np.ndarray) -> np.ndarray:
-    """(n_a, n_b) number of True pixels under each 22 × 7 window of a (D, D) mask."""
-    s = cv2.integral(mask.astype(np.uint8))  # (D + 1, D + 1) int32
-    return (s[PATCH_ROWS:, PATCH_COLS:] - s[:-PATCH_ROWS, PATCH_COLS:]
-            - s[PATCH_ROWS:, :-PATCH_COLS] + s[:-PATCH_ROWS, :-PATCH_COLS])
 
 
 def _reaverage(grid, layer, win: Box) -> Box | None:
@@ -378,12 +372,12 @@ class IncrementalCostmap(_GrowingCostmap):
                        slice(box[1].start - PATCH_COLS + 1, box[1].stop)), dirty.shape)
         pix = (slice(w_box[0].start, w_box[0].stop + PATCH_ROWS - 1),
                slice(w_box[1].start, w_box[1].stop + PATCH_COLS - 1))
-        dirty[w_box] = _window_counts(touched[pix]) > 0
+        dirty[w_box] = window_counts(touched[pix]) > 0
         lattice = np.zeros_like(dirty)
         lattice[::s0, ::s1] = True
         dirty &= lattice
         covers = np.zeros_like(dirty)
-        covers[w_box] = _window_counts(layer.observed[pix]) > 0
+        covers[w_box] = window_counts(layer.observed[pix]) > 0
         a, b = np.nonzero(dirty & layer.inside & covers)
         return a, b, dirty
 

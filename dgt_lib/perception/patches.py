@@ -299,6 +299,16 @@ def sliding_windows(rotated: np.ndarray) -> np.ndarray:
                                                     axis=(-2, -1))
 
 
+def window_counts(mask: np.ndarray) -> np.ndarray:
+    """(D − 21, D − 6) number of True pixels under each 22 × 7 window of a (D, D) mask,
+    indexed like :func:`sliding_windows` (by the window's top-left pixel); exact, from an
+    integral image (``sliding_windows(mask).any(axis=(-2, -1))`` is ``> 0`` of it, ~50×
+    slower)."""
+    s = cv2.integral(mask.astype(np.uint8))  # (D + 1, D + 1) int32
+    return (s[PATCH_ROWS:, PATCH_COLS:] - s[:-PATCH_ROWS, PATCH_COLS:]
+            - s[PATCH_ROWS:, :-PATCH_COLS] + s[:-PATCH_ROWS, :-PATCH_COLS])
+
+
 def unrotate_map(layers: np.ndarray, transform: RotationTransform,
                  nearest: bool = False,
                  cells: tuple[slice, slice] | None = None) -> np.ndarray:
