@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_train.py                  # speed, widths 64 32 16
     .venv/bin/python benchmarks/bench_train.py --accuracy       # + synthetic accuracy per width
     .venv/bin/python benchmarks/bench_train.py --full-epoch     # + one real epoch at width 64
+    .venv/bin/python benchmarks/bench_train.py --conv-taps all live --full-epoch
     .venv/bin/python benchmarks/bench_train.py --no-speed --accuracy --threads 1
 
 Speed uses a synthetic dataset of the paper's size (30k/10k/10k/2k patches,
@@ -10,7 +11,9 @@ float16, split 70/15/15 by trajectory): training samples/s are timed over
 ``--steps`` Adam steps of the real training step (float16 batch → float32,
 masked loss), and an epoch's time is extrapolated as train samples / rate plus
 validation patches / inference rate. Inference is ``predict`` at batch 1024
-(all heads from one embedding). ``--accuracy`` trains each width on a smaller
+(all heads from one embedding). ``--conv-taps all live`` times each width both with every
+kernel tap and with the live taps only (``TrainConfig.conv_taps``: the same network,
+fewer multiplications of zero padding). ``--accuracy`` trains each width on a smaller
 synthetic set with the same seed and reports test MSE and Spearman per vehicle
 (synthetic labels: a proxy for the accuracy trade-off, not the simulator's).
 """
@@ -24,7 +27,7 @@ import time
 import numpy as np
 import torch
 
-from dgt_lib.core.config import VEHICLES, TrainConfig
+from dgt_lib.core.config import CONV_TAPS, VEHICLES, TrainConfig
 from dgt_lib.learning.model import DGTNet, count_parameters
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import (
@@ -39,11 +42,13 @@ from dgt_lib.perception.dataset import TRAIN, VAL
 PAPER_SIZES = (30_000, 10_000, 10_000, 2_000)  # paper: Experiments → Dataset
 
 
-def train_rate(dataset, width: int, batch_size: int, steps: int, seed: int = 0) -> float:
+def train_rate(dataset, width: int, batch_size: int, steps: int, seed: int = 0,
+               conv_taps: str = "all") -> float:
     """Training samples per second of ``steps`` Adam steps (after 2 warm-up steps)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     model = DGTNet(width=width)
+    model.use_live_taps(conv_taps == "live")
     train_idx = np.flatnonzero(dataset.split == TRAIN)
     model.set_normalization(*channel_statistics(dataset.patches, train_idx[:4096]))
     model.train()
@@ -79,20 +84,21 @@ def speed(args: argparse.Namespace) -> None:
     n_val = int(np.sum(ds.split == VAL))
     print(f"synthetic paper-sized dataset: {len(ds)} patches ({n_train} train, {n_val} val), "
           f"built in {time.perf_counter() - t0:.1f} s")
-    print(f"{'width':>5} {'params':>10} {'train samples/s':>16} {'epoch (s)':>10} "
+    print(f"{'width':>5} {'taps':>5} {'params':>10} {'train samples/s':>16} {'epoch (s)':>10} "
           f"{'infer patches/s':>16}")
     for width in args.widths:
-        rate = train_rate(ds, width, args.batch_size, args.steps)
         infer = inference_rate(ds, width, args.infer_patches)
-        epoch = n_train / rate + n_val / infer
         params = count_parameters(DGTNet(width=width))
-        print(f"{width:>5} {params:>10,} {rate:>16.0f} {epoch:>10.0f} {infer:>16.0f}",
-              flush=True)
-    if args.full_epoch:
-        cfg = TrainConfig(epochs=1, batch_size=args.batch_size, width=64)
+        for taps in args.conv_taps:
+            rate = train_rate(ds, width, args.batch_size, args.steps, conv_taps=taps)
+            epoch = n_train / rate + n_val / infer
+            print(f"{width:>5} {taps:>5} {params:>10,} {rate:>16.0f} {epoch:>10.0f} "
+                  f"{infer:>16.0f}", flush=True)
+    for taps in args.conv_taps if args.full_epoch else ():
+        cfg = TrainConfig(epochs=1, batch_size=args.batch_size, width=64, conv_taps=taps)
         t0 = time.perf_counter()
         result = train_model(ds, cfg, seed=0, progress=True)
-        print(f"one real epoch at width 64 (train + val + test metrics): "
+        print(f"one real epoch at width 64, {taps} taps (train + val + test metrics): "
               f"{time.perf_counter() - t0:.0f} s, val loss {result.history[0]['val_loss']:.4f}")
 
 
@@ -121,6 +127,8 @@ def main() -> None:
     parser.add_argument("--infer-patches", type=int, default=8192)
     parser.add_argument("--threads", type=int, default=None, help="torch threads (default: all)")
     parser.add_argument("--full-epoch", action="store_true")
+    parser.add_argument("--conv-taps", nargs="+", choices=CONV_TAPS, default=["all"],
+                        help="time training with every kernel tap and/or the live taps only")
     parser.add_argument("--accuracy", action="store_true")
     parser.add_argument("--no-speed", action="store_true", help="skip the speed table")
     parser.add_argument("--accuracy-sizes", type=int, nargs=4, default=[3000, 1000, 1000, 200])

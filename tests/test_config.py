@@ -124,6 +124,9 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
     ("train.patience", "soon", "train.patience expects an integer or none"),
     ("planner.heuristic", 3, "planner.heuristic expects a string"),
     ("seeds", "0", "seeds=0: Profile.seeds must be ≥ 1"),
+    # a choice is checked when set, not when training reaches it an hour later
+    ("train.conv_taps", "half", "train.conv_taps=half: unknown conv_taps 'half'; valid: all, live"),
+    ("train.lr_schedule", "step", "unknown lr_schedule 'step'; valid: constant, cosine"),
 ])
 def test_a_value_of_the_wrong_type_is_a_clear_error(key, value, expected):
     with pytest.raises(InvalidOverrideError, match=re.escape(expected)):

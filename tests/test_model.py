@@ -5,7 +5,15 @@ import pytest
 import torch
 
 from dgt_lib.core.config import VEHICLES
-from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, ResNet18, centre_heights
+from dgt_lib.learning.model import (
+    PATCH_SHAPE,
+    ArchitectureMismatchError,
+    DGTNet,
+    PatchConv2d,
+    ResNet18,
+    centre_heights,
+    live_taps,
+)
 
 WIDTH = 8  # small network: fast tests, same code path as the paper's width 64
 
@@ -132,3 +140,38 @@ def test_heights_are_relative_to_the_patch_so_altitude_does_not_matter():
     centred = centre_heights(x.numpy())
     np.testing.assert_allclose(centred[:, 3].mean(axis=(1, 2)), 0.0, atol=1e-5)
     np.testing.assert_array_equal(centred[:, :3], x.numpy()[:, :3])
+
+
+@pytest.mark.parametrize("n, k, p, s, expected", [
+    (1, 3, 1, 1, (1, 2, 0, 0)),  # a 1×1 map: only the centre tap meets it
+    (2, 3, 1, 2, (1, 3, 0, 0)),  # 2 → 1 with stride 2: the centre and the tap after it
+    (7, 7, 3, 2, (0, 7, 3, 3)),  # the stem across a patch: every tap is live
+    (3, 3, 1, 1, (0, 3, 1, 1)),
+])
+def test_live_taps_are_the_kernel_taps_that_meet_the_input(n, k, p, s, expected):
+    assert live_taps(n, k, p, s) == expected
+
+
+def test_live_taps_compute_the_same_network_with_the_same_parameters():
+    torch.manual_seed(1)
+    full, live = DGTNet(width=8, fc_hidden=16), DGTNet(width=8, fc_hidden=16)
+    live.load_state_dict(full.state_dict())
+    live.use_live_taps()
+    assert list(live.state_dict()) == list(full.state_dict())  # checkpoints interchange
+    x = torch.rand(32, *PATCH_SHAPE)
+    x[0, :, 5, 3] = float("nan")  # an unobserved cell
+    for net in (full, live):  # training mode: BatchNorm on the batch, as in a training step
+        net.train()
+        net(x).square().sum().backward()
+    torch.testing.assert_close(live(x), full(x), rtol=1e-5, atol=1e-6)
+    for (name, a), b in zip(full.named_parameters(), live.parameters(), strict=True):
+        scale = a.grad.abs().max()  # gradients equal up to rounding, at each tensor's scale
+        assert (b.grad - a.grad).abs().max() <= 1e-5 * scale + 1e-12, name
+    # on 1×1 maps every tap but the centre multiplies padding: its gradient is zero
+    dead = torch.ones(3, 3)
+    dead[1, 1] = 0
+    for net in (full, live):
+        grad = net.rgb.layer4[1].conv2.weight.grad
+        assert grad[:, :, 1, 1].abs().sum() > 0 and (grad * dead).abs().sum() == 0
+    live.use_live_taps(False)
+    assert not any(m.live_taps for m in live.modules() if isinstance(m, PatchConv2d))

@@ -17,7 +17,7 @@ from dgt_lib.learning.checkpoints import (
     prediction_digest,
     save_checkpoint,
 )
-from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, centre_heights
+from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, PatchConv2d, centre_heights
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import (
     channel_statistics,
@@ -392,10 +392,32 @@ def test_selection_last_keeps_the_final_epoch_even_when_an_earlier_one_validated
         train_model(dataset, replace(TINY, lr_schedule="step"), progress=False)
 
 
+def test_live_taps_train_the_same_network_and_hand_back_full_kernels(dataset):
+    losses = {}
+    for taps in ("all", "live"):
+        steps = losses[taps] = []
+        trained = train_model(dataset, replace(TINY, conv_taps=taps), progress=False,
+                              device=CPU, on_batch_end=lambda e, s, loss, steps=steps:
+                              steps.append(loss))
+    # the same initial network on the same batch: the same loss up to float rounding (the
+    # runs then drift apart as any two trainings do; the network is checked in test_model)
+    assert losses["live"][0] == pytest.approx(losses["all"][0], rel=1e-5)
+    assert losses["live"][1] == pytest.approx(losses["all"][1], rel=1e-3)
+    # the trained network evaluates with its full kernels, as one loaded from its weights
+    assert not any(m.live_taps for m in trained.model.modules() if isinstance(m, PatchConv2d))
+    loaded = DGTNet(trained.model.vehicles, width=TINY.width, fc_hidden=TINY.fc_hidden)
+    loaded.load_state_dict(trained.model.state_dict())
+    np.testing.assert_array_equal(predict(trained.model, dataset.patches[:64]),
+                                  predict(loaded, dataset.patches[:64]))
+    with pytest.raises(ValueError, match="conv_taps"):
+        train_model(dataset, replace(TINY, conv_taps="some"), progress=False)
+
+
 def test_recipe_fields_at_their_old_behaviour_keep_the_cached_models_valid():
     old = {k: v for k, v in artifacts._jsonable(TINY).items()
            if k not in train_stage.LATER_TRAIN_FIELDS}  # the key before the fields existed
     assert artifacts._jsonable(train_stage.train_key(TINY)) == old
     cosine = train_stage.train_key(replace(TINY, lr_schedule="cosine"))
     assert cosine["lr_schedule"] == "cosine"
+    assert train_stage.train_key(replace(TINY, conv_taps="live"))["conv_taps"] == "live"
     assert artifacts.config_hash(cosine) != artifacts.config_hash(train_stage.train_key(TINY))

@@ -39,14 +39,7 @@ import torch
 from scipy import stats
 from tqdm.auto import tqdm
 
-from dgt_lib.core.config import (
-    HEAD_INITS,
-    LABEL_WEIGHTINGS,
-    LR_SCHEDULES,
-    SELECTIONS,
-    VEHICLES,
-    TrainConfig,
-)
+from dgt_lib.core.config import VEHICLES, TrainConfig
 from dgt_lib.learning.checkpoints import TrainResult, save_checkpoint
 from dgt_lib.learning.model import N_CHANNELS, DGTNet, centre_heights
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
@@ -354,16 +347,6 @@ def train_model(
     vehicles = _vehicle_tuple(vehicles)
     if cfg.epochs < 1 or cfg.batch_size < 2:
         raise ValueError(f"need epochs ≥ 1 and batch_size ≥ 2, got {cfg.epochs}, {cfg.batch_size}")
-    if cfg.head_init not in HEAD_INITS:
-        raise ValueError(f"unknown head_init {cfg.head_init!r}; valid: {', '.join(HEAD_INITS)}")
-    if cfg.label_weighting not in LABEL_WEIGHTINGS:
-        raise ValueError(f"unknown label_weighting {cfg.label_weighting!r}; valid: "
-                         f"{', '.join(LABEL_WEIGHTINGS)}")
-    if cfg.lr_schedule not in LR_SCHEDULES:
-        raise ValueError(f"unknown lr_schedule {cfg.lr_schedule!r}; valid: "
-                         f"{', '.join(LR_SCHEDULES)}")
-    if cfg.selection not in SELECTIONS:
-        raise ValueError(f"unknown selection {cfg.selection!r}; valid: {', '.join(SELECTIONS)}")
     chosen = np.isin(dataset.vehicle, [VEHICLES.index(v) for v in vehicles])
     train_idx = np.flatnonzero(chosen & (dataset.split == TRAIN))
     val_idx = np.flatnonzero(chosen & (dataset.split == VAL))
@@ -387,6 +370,9 @@ def train_model(
         raise ValueError(f"the model's heads {model.vehicles} are not the vehicles {vehicles}")
     if cfg.head_init == "prior":
         model.init_heads(head_prior(dataset, train_idx, vehicles))
+    live_taps = cfg.conv_taps == "live" and isinstance(model, DGTNet)
+    if live_taps:
+        model.use_live_taps()
     model.to(device)
     columns = _head_columns(model, dataset.vehicle)  # (N,) model column per sample
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate,
@@ -462,6 +448,8 @@ def train_model(
         if batch_bar is not None:
             batch_bar.close()
         epochs_bar.close()
+        if live_taps:
+            model.use_live_taps(False)  # the trained network evaluates with its full kernels
     if best_state is None:
         raise RuntimeError(f"training {name} diverged: validation loss "
                            f"{[h['val_loss'] for h in history]}; try a lower learning rate")
