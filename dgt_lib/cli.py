@@ -125,7 +125,15 @@ def _reproduce(args: argparse.Namespace) -> int:
         return 0
     from tqdm.auto import tqdm
 
+    from dgt_lib.stages.timings import (
+        machine_load,
+        new_run_id,
+        record_stage_time,
+        stage_times_path,
+    )
+
     rows = []
+    invocation = new_run_id()
     jobs = [(run, stage) for run in runs for stage in stages]
     run, stage = jobs[0]
     ex = profile.execution
@@ -135,9 +143,12 @@ def _reproduce(args: argparse.Namespace) -> int:
                 tqdm(jobs, desc="pipeline", bar_format=PIPELINE_BAR_FORMAT) as bar:
             for run, stage in bar:
                 tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
-                t0 = time.perf_counter()
+                started, load, t0 = time.time(), machine_load(), time.perf_counter()
                 result = stage.load()(run)
-                rows.append((run.seed, stage.name, time.perf_counter() - t0, result))
+                seconds = time.perf_counter() - t0
+                record_stage_time(run, stage.name, seconds, run=invocation,
+                                  started_unix_s=started, load_before=load)
+                rows.append((run.seed, stage.name, seconds, result))
     except KeyboardInterrupt:
         print(_interrupted_message(run.seed, stage, args.command_line), file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -146,6 +157,7 @@ def _reproduce(args: argparse.Namespace) -> int:
         print(f"  seed {seed} {name:<12} {seconds:8.1f} s  {result.summary}")
         for p in result.paths:
             print(f"  {'':<19} → {p}")
+    print(f"Stage wall times (with the load when each started): {stage_times_path(profile)}")
     if "experiments" in [s.name for s in stages]:
         from dgt_lib.report import write_seeds_report
 

@@ -53,6 +53,36 @@ def test_reproduce_runs_every_stage_for_every_seed_each_in_its_own_directory(
     assert "--seeds must be ≥ 1" in capsys.readouterr().err
 
 
+def test_every_stage_s_wall_time_is_kept_per_seed_and_run_and_survives_an_interrupt(
+        capsys, tmp_path, monkeypatch):
+    from dgt_lib.stages.timings import last_run, read_stage_times, stage_time_table
+
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
+        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+    assert main(["reproduce", "--profile", "smoke", "--seeds", "2"]) == 0
+    assert str(tmp_path / "smoke" / "stage_times.jsonl") in capsys.readouterr().out
+    first = read_stage_times("smoke")
+    assert [(r["seed"], r["stage"]) for r in first] == [
+        (0, "first"), (0, "second"), (1, "first"), (1, "second")]
+    assert all(r["seconds"] >= 0 and r["workers"] == 2 for r in first)
+    assert len({r["run"] for r in first}) == 1
+
+    import tests.stage_examples as examples
+
+    def interrupted(profile):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(examples, "second", interrupted)
+    assert main(["reproduce", "--profile", "smoke"]) == 130
+    records = read_stage_times("smoke")
+    assert len(records) == 5  # the finished stage of the interrupted run is kept
+    assert [(r["seed"], r["stage"]) for r in last_run(records)] == [(0, "first")]
+    table = stage_time_table(first)
+    assert table.count("**total**") == 2 and "| 1 | second |" in table
+
+
 def test_unknown_stage_and_profile_are_clear_errors(capsys, monkeypatch):
     monkeypatch.setattr(pipeline, "STAGES", [pipeline.Stage("a", "x:y", "d")])
     assert main(["reproduce", "--stages", "nope"]) == 2

@@ -1,0 +1,40 @@
+"""Where a whole ``dgt reproduce`` run's wall time went, per seed and stage.
+
+Every stage ``dgt reproduce`` finishes appends its wall time (and the load average when it
+started) to ``data/<profile>/stage_times.jsonl`` (``dgt_lib.stages.timings``). This prints
+the latest run's breakdown as a markdown table, with each seed's total::
+
+    dgt reproduce --profile paper --seeds 1        # from an empty data directory
+    .venv/bin/python benchmarks/stage_times.py --profile paper
+
+A stage that was already cached takes a fraction of a second, so time a whole seed from an
+empty data directory (``DGT_DATA_DIR``) on idle cores; the load column says whether they
+were.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from dgt_lib.stages.timings import last_run, read_stage_times, stage_time_table, stage_times_path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--profile", default="demo")
+    parser.add_argument("--all", action="store_true",
+                        help="every recorded run, not only the latest")
+    args = parser.parse_args()
+    records = read_stage_times(args.profile)
+    if not records:
+        raise SystemExit(f"no stage times in {stage_times_path(args.profile)}: run "
+                         f"`dgt reproduce --profile {args.profile}` first")
+    shown = records if args.all else last_run(records)
+    print(f"{stage_times_path(args.profile)} — run started {shown[0]['run']}, "
+          f"{shown[0]['cpus']} CPUs, {shown[0]['workers']} workers "
+          f"({shown[0]['executor']}), device {shown[0]['device']}\n")
+    print(stage_time_table(shown))
+
+
+if __name__ == "__main__":
+    main()
