@@ -24,13 +24,17 @@ def test_reproduce_runs_and_summarises(capsys, tmp_path, monkeypatch):
     assert "no stages yet" in out
 
 
-def test_reproduce_runs_registered_stages_in_order_with_summary(capsys, tmp_path, monkeypatch):
+@pytest.fixture
+def two_stages(tmp_path, monkeypatch):
+    """The data directory in ``tmp_path`` and a pipeline of two tiny stages (one writes a
+    file, the other reads it: ``tests/stage_examples.py``)."""
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
-    stages = [
+    monkeypatch.setattr(pipeline, "STAGES", [
         pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
-        pipeline.Stage("second", "tests.stage_examples:second", "reads it"),
-    ]
-    monkeypatch.setattr(pipeline, "STAGES", stages)
+        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+
+
+def test_reproduce_runs_registered_stages_in_order_with_summary(capsys, tmp_path, two_stages):
     assert main(["reproduce", "--profile", "smoke", "--stages", "second", "first"]) == 0
     out = capsys.readouterr().out
     assert out.index("first") < out.index("second")  # pipeline order, not argument order
@@ -38,11 +42,7 @@ def test_reproduce_runs_registered_stages_in_order_with_summary(capsys, tmp_path
 
 
 def test_reproduce_runs_every_stage_for_every_seed_each_in_its_own_directory(
-        capsys, tmp_path, monkeypatch):
-    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
-    monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
-        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+        capsys, tmp_path, two_stages):
     assert main(["reproduce", "--profile", "smoke", "--seeds", "3"]) == 0
     out = capsys.readouterr().out
     assert "seed(s) 0, 1, 2" in out
@@ -54,13 +54,9 @@ def test_reproduce_runs_every_stage_for_every_seed_each_in_its_own_directory(
 
 
 def test_every_stage_s_wall_time_is_kept_per_seed_and_run_and_survives_an_interrupt(
-        capsys, tmp_path, monkeypatch):
+        capsys, tmp_path, monkeypatch, two_stages):
     from dgt_lib.stages.timings import last_run, read_stage_times, stage_time_table
 
-    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
-    monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
-        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
     assert main(["reproduce", "--profile", "smoke", "--seeds", "2"]) == 0
     assert str(tmp_path / "smoke" / "stage_times.jsonl") in capsys.readouterr().out
     first = read_stage_times("smoke")
