@@ -4,8 +4,8 @@ Each finished stage appends one JSON line to ``data/<profile>/stage_times.jsonl`
 started (UTC), the seed, the stage, its wall time [s], the machine's 1-minute load average
 when it started, the CPU count and how the jobs ran. Appending per stage keeps what
 finished when a run is interrupted or crashes later, and a stage that was already cached
-shows as a fraction of a second. The README's per-stage breakdown of a run is read from
-this file (:func:`stage_time_table`), so the figures quoted are the ones the code wrote.
+shows as a fraction of a second. A run's per-stage breakdown (:func:`stage_time_table`,
+``benchmarks/stage_times.py``) can then be quoted from what the code wrote.
 """
 
 from __future__ import annotations
