@@ -370,8 +370,8 @@ def _demo() -> Profile:
         # exact (unweighted) Hybrid A*, as the paper: the compiled search plans the experiment
         # queries in 0.01–0.07 s median (README → Hybrid A*); weighting is no longer needed.
         planner=PlannerConfig(heuristic_weight=1.0),
-        # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives: measured 94 s on 2
-        # otherwise idle cores (154 CPU s, ~0.08 a drive), once for all three seeds.
+        # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives, once for all three
+        # seeds: 39 s on 2 otherwise idle cores (a fresh clone's `make reproduce`, 9c7b4c7).
         ground_truth=GroundTruthConfig(cells=48),
     )
 
@@ -400,7 +400,8 @@ def _paper() -> Profile:
         # (the paper's Euclidean distance, here maxed with the 2D cost-to-go), unweighted.
         planner=PlannerConfig(step_m=1.6, beta=150.0, heuristic_weight=1.0, max_time_s=60.0,
                               max_expansions=500_000),
-        # 96 cells: 3,840 drives, ~3–4 min on 2 cores (not measured), once for both seeds.
+        # 96 cells: 3,840 drives, once for all seeds: 94 s on 2 idle cores (README: "The
+        # `paper` run").
         ground_truth=GroundTruthConfig(cells=96),
     )
 
