@@ -380,7 +380,7 @@ def _paper() -> Profile:
     """The paper's sizes (Section Experiments → Dataset, Tables I and II)."""
     return Profile(
         name="paper",
-        seeds=3,  # every claim of the README's paper section held in all three
+        seeds=3,  # the README's `paper` results rest on these three run seeds
         # Dataset / Experiment 3: the paper gives no map sizes; 300 m × 300 m holds
         # 1,300 runs of ≤ 100 s at 5 m/s, 200 m × 200 m 100 random start/goal pairs.
         worlds=WorldsConfig(training_size_m=300.0, eval_size_m=200.0),
