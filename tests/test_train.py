@@ -195,6 +195,81 @@ def test_ctrl_c_keeps_the_best_checkpoint(dataset, tmp_path):
                                   predict(result.model, dataset.patches[:64]))
 
 
+RESUMABLE = TrainConfig(epochs=4, batch_size=64, learning_rate=2e-3, width=8, fc_hidden=32,
+                        mirror_augment=True, lr_schedule="cosine")
+
+
+def _same_training(a, b):
+    """Two results with bit-identical weights, history (but its timings) and best epoch."""
+    assert a.best_epoch == b.best_epoch
+    strip = [[{k: v for k, v in h.items() if k != "seconds"} for h in r.history] for r in (a, b)]
+    assert strip[0] == strip[1]
+    sa, sb = a.model.state_dict(), b.model.state_dict()
+    assert sa.keys() == sb.keys()
+    for k in sa:
+        assert torch.equal(sa[k], sb[k]), k
+
+
+def test_a_training_stopped_by_ctrl_c_resumes_to_the_weights_of_one_never_stopped(
+        dataset, tmp_path, capsys):
+    """The batch order, the mirror flips, Adam's moments and the cosine schedule all carry
+    on from the snapshot: resuming after epoch 2 ends where the uninterrupted run ends."""
+    whole = train_model(dataset, RESUMABLE, seed=3, progress=False, device=CPU)
+    snapshot = tmp_path / "multitask.resume.pt"
+
+    def interrupt_in_epoch_3(epoch, step, loss):
+        if epoch == 3 and step == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        train_model(dataset, RESUMABLE, seed=3, progress=False, device=CPU,
+                    keep_best_on_interrupt=False, snapshot_path=snapshot, snapshot_every_s=0,
+                    on_batch_end=interrupt_in_epoch_3)
+    assert "epochs 1–2 are saved" in capsys.readouterr().out
+    epochs_run = []
+    resumed = train_model(dataset, RESUMABLE, seed=3, progress=False, device=CPU,
+                          snapshot_path=snapshot,
+                          on_batch_end=lambda epoch, step, loss: epochs_run.append(epoch))
+    assert sorted(set(epochs_run)) == [3, 4]  # epochs 1–2 were not trained again
+    assert "resuming after epoch 2" in capsys.readouterr().out
+    _same_training(resumed, whole)
+    assert resumed.metrics == whole.metrics
+
+
+def test_a_finished_snapshot_gives_its_model_without_training_again(dataset, tmp_path):
+    cfg = replace(RESUMABLE, epochs=8, patience=1, lr_schedule="constant")
+    snapshot = tmp_path / "single.resume.pt"
+    first = train_model(dataset, cfg, vehicles=("jeep",), seed=0, progress=False,
+                        device=CPU, snapshot_path=snapshot, snapshot_every_s=0)
+    assert len(first.history) < 8  # early stopping ended it (so resuming must not go on)
+    steps = []
+    again = train_model(dataset, cfg, vehicles=("jeep",), seed=0, progress=False, device=CPU,
+                        snapshot_path=snapshot, on_batch_end=lambda *a: steps.append(a))
+    assert steps == []
+    _same_training(again, first)
+
+
+def test_a_snapshot_of_another_training_is_not_resumed(dataset, tmp_path, capsys):
+    snapshot = tmp_path / "model.resume.pt"
+    train_model(dataset, TINY, seed=0, progress=False, device=CPU, snapshot_path=snapshot)
+    assert not snapshot.exists()  # < 30 s of training: no snapshot (the default interval)
+    train_model(dataset, TINY, seed=0, progress=False, device=CPU, snapshot_path=snapshot,
+                snapshot_every_s=0)
+    other = replace(TINY, learning_rate=1e-3)
+    fresh = train_model(dataset, other, seed=0, progress=False, device=CPU)
+    capsys.readouterr()
+    for cfg, seed, key in ((other, 0, None), (TINY, 1, None), (TINY, 0, {"dataset": "b"})):
+        result = train_model(dataset, cfg, seed=seed, progress=False, device=CPU,
+                             snapshot_path=snapshot, snapshot_key=key)
+        assert [h["epoch"] for h in result.history] == [1, 2], (cfg, seed, key)
+        assert "of another training; training from the start" in capsys.readouterr().out
+    snapshot.write_bytes(b"half a file")
+    result = train_model(dataset, other, seed=0, progress=False, device=CPU,
+                         snapshot_path=snapshot)
+    assert "unreadable" in capsys.readouterr().out
+    _same_training(result, fresh)
+
+
 def test_ctrl_c_before_the_first_epoch_ends_is_reraised(dataset):
     def interrupt(epoch, step, loss):
         raise KeyboardInterrupt
@@ -225,9 +300,9 @@ def test_ensure_model_caches_per_kind(dataset, data_dir, monkeypatch):
 
 def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
         dataset, data_dir, monkeypatch):
-    """Ctrl-C is not swallowed: the stage stops (no next model, nothing saved for the
+    """Ctrl-C is not swallowed: the stage stops (no next model, no model cached for the
     interrupted one), the models finished before stay cached, and a rerun trains only
-    what is missing."""
+    what is missing — the interrupted model from after its last finished epoch."""
     profile = get_profile("smoke").with_(train=TrainConfig(epochs=3, batch_size=64, width=8,
                                                           fc_hidden=32))
     real, trained, stop = train.train_model, [], [True]
@@ -242,17 +317,23 @@ def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
                     else None)
 
     monkeypatch.setattr(train_stage, "train_model", train_model)
+    monkeypatch.setattr(train_stage, "SNAPSHOT_EVERY_S", 0.0)  # these epochs take ~0.1 s
     kinds = ("single:carla_cola", "single:jeep", "single:vw_van")
     with pytest.raises(KeyboardInterrupt):
         train_stage.models_stage(profile, dataset, kinds=kinds, progress=False)
     assert trained == [("carla_cola",), ("jeep",)]  # stopped: vw_van never started
     models = data_dir / "smoke" / "seed-0" / "models"
-    assert sorted(p.name for p in models.glob("*.pt")) == ["single_carla_cola.pt"]
+    assert sorted(p.name for p in models.glob("*.pt")) == ["single_carla_cola.pt",
+                                                          "single_jeep.resume.pt"]
     stop[0] = False
     trained.clear()
     out = train_stage.models_stage(profile, dataset, kinds=kinds, progress=False)
     assert trained == [("jeep",), ("vw_van",)]  # carla_cola is reused
     assert all(p.exists() for p in out.paths) and len(out.paths) == 3
+    assert not list(models.glob("*.resume.pt"))  # each snapshot gone once its model is cached
+    never_stopped = train_model(dataset, profile.train, vehicles=("jeep",), seed=0,
+                                progress=False)
+    _same_training(load_checkpoint(models / "single_jeep.pt"), never_stopped)
 
 
 def test_channel_statistics_skip_nan_and_match_numpy():

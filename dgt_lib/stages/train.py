@@ -33,6 +33,10 @@ from dgt_lib.stages.registry import StageOutput
 MODEL_KINDS: tuple[str, ...] = ("multitask",) + tuple(f"single:{v}" for v in VEHICLES)
 """The models of ``ensure_model``: multi-task, and one single-task model per vehicle."""
 
+SNAPSHOT_EVERY_S = 30.0
+"""Least wall time between two snapshots of an unfinished training [s]
+(``train_model(snapshot_every_s=…)``)."""
+
 RGB_WEIGHTS_ENV_VAR = "DGT_RESNET18_WEIGHTS"
 RGB_WEIGHTS_FILE = "resnet18-f37072fd.pth"
 """torchvision's ImageNet ResNet-18 file name; looked for under ``data/`` by ``ensure_model``."""
@@ -52,6 +56,12 @@ def model_relpath(kind: str) -> Path:
     """Where model ``kind`` lives in the profile's data directory: ``models/single_vw_van.pt`` …"""
     parse_kind(kind)
     return Path("models") / f"{kind.replace(':', '_')}.pt"
+
+
+def snapshot_relpath(kind: str) -> Path:
+    """Where model ``kind``'s unfinished training is kept between runs
+    (:mod:`dgt_lib.learning.resume`): ``models/single_vw_van.resume.pt`` …"""
+    return model_relpath(kind).with_suffix(".resume.pt")
 
 
 def dataset_fingerprint(dataset: PatchDataset) -> str:
@@ -106,8 +116,12 @@ def ensure_model(
     experiments built on the model, is its
     :func:`~dgt_lib.learning.checkpoints.prediction_digest`: retraining to the same
     weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training
-    propagates at once and writes nothing: an interrupted model is never cached as a
-    finished one, and the next call trains it again from the start.
+    propagates at once: an interrupted model is never cached as a finished one. Its
+    finished epochs are kept: after an epoch (at most every :data:`SNAPSHOT_EVERY_S`) the
+    training is saved in ``models/<kind>.resume.pt`` (:func:`snapshot_relpath`), and the
+    next call resumes after that epoch, to the same weights as a training never stopped
+    (an interrupt or a crash loses at most the time since). The snapshot is deleted once
+    the model is cached.
 
     device: where the model trains and is returned (default ``profile.execution.device``:
     a CUDA GPU when there is one); not part of the cache key — a checkpoint holds
@@ -127,13 +141,17 @@ def ensure_model(
               "dataset": dataset_hash or dataset_fingerprint(dataset), "train": train_key(cfg),
               "seed": seed, "rgb_weights": rgb, "checkpoint_version": CHECKPOINT_VERSION}
 
+    snapshot = data_dir(profile) / snapshot_relpath(kind)
+
     def build() -> dict[str, Any]:
         return checkpoint_dict(train_model(
             dataset, cfg, vehicles=vehicles, seed=seed, device=device, progress=progress,
-            rgb_weights=rgb_weights, keep_best_on_interrupt=False))
+            rgb_weights=rgb_weights, keep_best_on_interrupt=False,
+            snapshot_path=snapshot, snapshot_key=config, snapshot_every_s=SNAPSHOT_EVERY_S))
 
     ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile),
                             fingerprint=prediction_digest)
+    snapshot.unlink(missing_ok=True)
     return load_checkpoint(ckpt, vehicles=vehicles, device=device)
 
 
@@ -145,7 +163,8 @@ def models_stage(profile: Profile, dataset: PatchDataset,
     Spearman ρ per vehicle. A single-task model whose vehicle has no training or
     no validation samples (possible in the tiny ``smoke`` profile) is skipped,
     and the summary says so. Ctrl-C propagates (:func:`ensure_model`): the models
-    finished before it stay cached, the interrupted one is not saved.
+    finished before it stay cached, the interrupted one resumes after its last finished
+    epoch.
     """
     paths, parts = [], []
     counts = dataset.counts()
