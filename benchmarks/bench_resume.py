@@ -3,11 +3,14 @@
     .venv/bin/python benchmarks/bench_resume.py --profile demo --seed 0
     .venv/bin/python benchmarks/bench_resume.py --profile demo --intervals 1e9 30 0 --repeats 2
     .venv/bin/python benchmarks/bench_resume.py --profile paper --interrupt-after 60 --intervals
+    .venv/bin/python benchmarks/bench_resume.py --profile paper --kinds single:vw_van \
+        --intervals 1e9 30 --interrupt-after -1
 
 Needs the seed's dataset (``dgt reproduce --profile P --stages dataset``, or a whole run).
-Each run is the real training stage (``dgt_lib.stages.train.stage_train``: the multi-task
-model and the four single-task ones) in a fresh process, on a temporary data directory
-that links the seed's episodes, BEV maps and dataset, so nothing of ``data/`` is written.
+Each run is the real training stage (``dgt_lib.stages.train.models_stage``: the multi-task
+model and the four single-task ones, or the ``--kinds`` given) in a fresh process, on a
+temporary data directory that links the seed's episodes, BEV maps and dataset, so nothing
+of ``data/`` is written.
 
 1. ``--intervals``: the whole stage once per snapshot interval (``SNAPSHOT_EVERY_S``; 1e9
    = never, 0 = after every epoch), wall time each: what snapshots cost.
@@ -33,6 +36,7 @@ import time
 from pathlib import Path
 
 from dgt_lib.core import artifacts
+from dgt_lib.stages.train import MODEL_KINDS
 
 LINKED = ("episodes", "bev", "dataset.npz", "dataset.npz.meta.json")
 STAGE = """
@@ -42,7 +46,9 @@ from dgt_lib.core.config import get_profile
 from dgt_lib.stages import train
 if sys.argv[1] != "default":
     train.SNAPSHOT_EVERY_S = float(sys.argv[1])
-train.stage_train(get_profile(sys.argv[2]).with_(seed=int(sys.argv[3])))
+from dgt_lib.stages.dataset import ensure_dataset
+profile = get_profile(sys.argv[2]).with_(seed=int(sys.argv[3]))
+train.models_stage(profile, ensure_dataset(profile), kinds=tuple(sys.argv[4].split(",")))
 """
 
 
@@ -60,7 +66,8 @@ def run_stage(data: Path, interval: str, args, interrupt_after: float | None = N
     t0 = time.perf_counter()
     with tempfile.TemporaryFile("w+") as log:
         proc = subprocess.Popen([sys.executable, "-c", STAGE, interval, args.profile,
-                                 str(args.seed)], env=env, stdout=log, stderr=subprocess.STDOUT)
+                                 str(args.seed), ",".join(args.kinds)], env=env, stdout=log,
+                                stderr=subprocess.STDOUT)
         if interrupt_after is not None:
             while proc.poll() is None and not list(data.glob("*/*/models/*.resume.pt")):
                 time.sleep(0.5)
@@ -79,6 +86,8 @@ def main() -> None:
     ap.add_argument("--intervals", nargs="*", default=["1e9", "30", "0"],
                     help="snapshot intervals [s] to time the whole stage with")
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--kinds", nargs="+", default=list(MODEL_KINDS),
+                    help=f"the models to train (default all: {' '.join(MODEL_KINDS)})")
     ap.add_argument("--interrupt-after", type=float, default=1.0,
                     help="seconds from the first snapshot to the SIGINT of the resume check "
                          "(negative: no check)")

@@ -24,7 +24,6 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.evaluation.trials import trial_time_limit_s
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar, PlanResult, check_query_on_world
@@ -212,6 +211,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success)
     report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
     if drive and result.success:
+        from dgt_lib.evaluation.trials import trial_time_limit_s  # imports MPPI: only to drive
         from dgt_lib.navigation.drive import drive as drive_path
 
         limit = trial_time_limit_s(prof.experiments, result.length_m)

@@ -39,6 +39,7 @@ import sys
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import rerun as rr
@@ -48,13 +49,15 @@ from matplotlib import colormaps
 from dgt_lib.core.config import Profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.evaluation.experiments import ExperimentResult
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.navigation.explore import ExploreResult
 from dgt_lib.world.worlds import World
+
+if TYPE_CHECKING:  # annotations only: importing them pulls in MPPI and the trials (~0.7 s)
+    from dgt_lib.evaluation.experiments import ExperimentResult
+    from dgt_lib.navigation.explore import ExploreResult
 
 WORLD = "world"
 TERRAIN = "world/terrain"

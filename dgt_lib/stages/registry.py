@@ -51,7 +51,8 @@ STAGES: list[Stage] = [
           "the episodes and BEV maps it needs (the dataset itself is built again)"),
     Stage("train", "dgt_lib.stages.train:stage_train",
           "multi-task model and one single-task model per vehicle",
-          "every model finished so far, and the interrupted one's finished epochs"),
+          "every model finished so far, and the interrupted one's training up to its last "
+          "snapshot (models/<kind>.resume.pt)"),
     Stage("costmaps", "dgt_lib.stages.costmaps:stage_costmaps",
           "directional costmaps of every method, occupancy maps (τ_s)",
           "every costmap finished so far"),
