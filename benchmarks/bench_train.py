@@ -5,6 +5,7 @@
     .venv/bin/python benchmarks/bench_train.py --full-epoch     # + one real epoch at width 64
     .venv/bin/python benchmarks/bench_train.py --conv-taps all live --full-epoch
     .venv/bin/python benchmarks/bench_train.py --no-speed --accuracy --threads 1
+    .venv/bin/python benchmarks/bench_train.py --widths 64 --bf16   # + mixed precision
 
 Speed uses a synthetic dataset of the paper's size (30k/10k/10k/2k patches,
 float16, split 70/15/15 by trajectory): training samples/s are timed over
@@ -43,8 +44,10 @@ PAPER_SIZES = (30_000, 10_000, 10_000, 2_000)  # paper: Experiments → Dataset
 
 
 def train_rate(dataset, width: int, batch_size: int, steps: int, seed: int = 0,
-               conv_taps: str = "all") -> float:
-    """Training samples per second of ``steps`` Adam steps (after 2 warm-up steps)."""
+               conv_taps: str = "all", bf16: bool = False) -> float:
+    """Training samples per second of ``steps`` Adam steps (after 2 warm-up steps);
+    ``bf16``: the forward pass under ``torch.autocast`` in bfloat16 (mixed precision,
+    float32 weights) with channels-last tensors — what AMX CPUs run fastest."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     model = DGTNet(width=width)
@@ -52,6 +55,8 @@ def train_rate(dataset, width: int, batch_size: int, steps: int, seed: int = 0,
     train_idx = np.flatnonzero(dataset.split == TRAIN)
     model.set_normalization(*channel_statistics(dataset.patches, train_idx[:4096]))
     model.train()
+    if bf16:
+        model = model.to(memory_format=torch.channels_last)
     opt = torch.optim.Adam(model.parameters(), lr=1e-3)
     labels = torch.from_numpy(dataset.labels)
     heads = torch.from_numpy(dataset.vehicle.astype(np.int64))
@@ -60,8 +65,13 @@ def train_rate(dataset, width: int, batch_size: int, steps: int, seed: int = 0,
         if step == 2:
             t0 = time.perf_counter()
         idx = rng.choice(train_idx, batch_size, replace=False)
-        loss = masked_loss(model(batch_to_tensor(dataset.patches[idx], torch.device("cpu"))),
-                           labels[idx], heads[idx])
+        x = batch_to_tensor(dataset.patches[idx], torch.device("cpu"))
+        if bf16:
+            with torch.autocast("cpu", dtype=torch.bfloat16):
+                pred = model(x.contiguous(memory_format=torch.channels_last)).float()
+        else:
+            pred = model(x)
+        loss = masked_loss(pred, labels[idx], heads[idx])
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -84,16 +94,18 @@ def speed(args: argparse.Namespace) -> None:
     n_val = int(np.sum(ds.split == VAL))
     print(f"synthetic paper-sized dataset: {len(ds)} patches ({n_train} train, {n_val} val), "
           f"built in {time.perf_counter() - t0:.1f} s")
-    print(f"{'width':>5} {'taps':>5} {'params':>10} {'train samples/s':>16} {'epoch (s)':>10} "
+    print(f"{'width':>5} {'taps':>9} {'params':>10} {'train samples/s':>16} {'epoch (s)':>10} "
           f"{'infer patches/s':>16}")
     for width in args.widths:
         infer = inference_rate(ds, width, args.infer_patches)
         params = count_parameters(DGTNet(width=width))
         for taps in args.conv_taps:
-            rate = train_rate(ds, width, args.batch_size, args.steps, conv_taps=taps)
-            epoch = n_train / rate + n_val / infer
-            print(f"{width:>5} {taps:>5} {params:>10,} {rate:>16.0f} {epoch:>10.0f} "
-                  f"{infer:>16.0f}", flush=True)
+            for bf16 in (False, True) if args.bf16 else (False,):
+                rate = train_rate(ds, width, args.batch_size, args.steps, conv_taps=taps,
+                                  bf16=bf16)
+                epoch = n_train / rate + n_val / infer
+                print(f"{width:>5} {taps + (' bf16' if bf16 else ''):>9} {params:>10,} "
+                      f"{rate:>16.0f} {epoch:>10.0f} {infer:>16.0f}", flush=True)
     for taps in args.conv_taps if args.full_epoch else ():
         cfg = TrainConfig(epochs=1, batch_size=args.batch_size, width=64, conv_taps=taps)
         t0 = time.perf_counter()
@@ -129,6 +141,8 @@ def main() -> None:
     parser.add_argument("--full-epoch", action="store_true")
     parser.add_argument("--conv-taps", nargs="+", choices=CONV_TAPS, default=["all"],
                         help="time training with every kernel tap and/or the live taps only")
+    parser.add_argument("--bf16", action="store_true",
+                        help="also time training with a bfloat16 autocast forward pass")
     parser.add_argument("--accuracy", action="store_true")
     parser.add_argument("--no-speed", action="store_true", help="skip the speed table")
     parser.add_argument("--accuracy-sizes", type=int, nargs=4, default=[3000, 1000, 1000, 200])

@@ -1,8 +1,8 @@
 """Resuming an interrupted training: the state of
-:func:`~dgt_lib.learning.training.train_model` after each finished epoch.
+:func:`~dgt_lib.learning.training.train_model` after a finished epoch.
 
 A `paper` multi-task model trains for ~15 minutes on two CPU cores (epochs of ~70 s).
-With a snapshot file (written after an epoch, at most every 30 s by default), Ctrl-C or a
+With a snapshot file (written after an epoch, at most once a minute by default), Ctrl-C or a
 crash costs at most the time since the last snapshot: the next call continues after the
 epoch it holds instead of starting over.
 

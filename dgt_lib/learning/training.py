@@ -24,7 +24,7 @@ learning-rate schedule ``TrainConfig.lr_schedule="cosine"``); Ctrl-C
 has saved) that model — or, with ``keep_best_on_interrupt=False`` (the cached
 pipeline), lets the interrupt through so that nothing half-trained is kept. With
 ``snapshot_path`` the training is saved after an epoch (:mod:`dgt_lib.learning.resume`) and
-the next call resumes after it: an interrupt or a crash costs at most ~30 s and an epoch.
+the next call resumes after it: an interrupt or a crash costs at most ~1 min and an epoch.
 """
 
 from __future__ import annotations
@@ -325,7 +325,7 @@ def train_model(
     model: torch.nn.Module | None = None,
     snapshot_path: str | Path | None = None,
     snapshot_key: Any = None,
-    snapshot_every_s: float = 30.0,
+    snapshot_every_s: float = 60.0,
 ) -> TrainResult:
     """Train a DGTNet with Adam and the masked loss; keep the epoch ``cfg.selection`` picks.
 
@@ -370,8 +370,8 @@ def train_model(
             (e.g. the model cache's configuration); JSON-able.
         snapshot_every_s: the least wall time between two snapshots [s] (0: after every
             epoch). A width-64 snapshot is 270–360 MB and takes 0.4–1.5 s to write; the default
-            keeps that near 1 % of training and an interrupt costs at most ~30 s plus the
-            epoch in progress.
+            keeps that within training's run-to-run spread (``benchmarks/bench_resume.py``)
+            and an interrupt costs at most a minute plus the epoch in progress.
     """
     vehicles = _vehicle_tuple(vehicles)
     if cfg.epochs < 1 or cfg.batch_size < 2:

@@ -33,7 +33,7 @@ from dgt_lib.stages.registry import StageOutput
 MODEL_KINDS: tuple[str, ...] = ("multitask",) + tuple(f"single:{v}" for v in VEHICLES)
 """The models of ``ensure_model``: multi-task, and one single-task model per vehicle."""
 
-SNAPSHOT_EVERY_S = 30.0
+SNAPSHOT_EVERY_S = 60.0
 """Least wall time between two snapshots of an unfinished training [s]
 (``train_model(snapshot_every_s=…)``)."""
 
