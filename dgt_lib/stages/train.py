@@ -116,8 +116,8 @@ def ensure_model(
     experiments built on the model, is its
     :func:`~dgt_lib.learning.checkpoints.prediction_digest`: retraining to the same
     weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training
-    propagates at once: an interrupted model is never cached as a finished one. Its
-    finished epochs are kept: after an epoch (at most every :data:`SNAPSHOT_EVERY_S`) the
+    propagates at once: an interrupted model is never cached as a finished one, but its
+    progress is kept: after an epoch (at most every :data:`SNAPSHOT_EVERY_S`) the
     training is saved in ``models/<kind>.resume.pt`` (:func:`snapshot_relpath`), and the
     next call resumes after that epoch, to the same weights as a training never stopped
     (an interrupt or a crash loses at most the time since). The snapshot is deleted once
@@ -163,8 +163,7 @@ def models_stage(profile: Profile, dataset: PatchDataset,
     Spearman ρ per vehicle. A single-task model whose vehicle has no training or
     no validation samples (possible in the tiny ``smoke`` profile) is skipped,
     and the summary says so. Ctrl-C propagates (:func:`ensure_model`): the models
-    finished before it stay cached, the interrupted one resumes after its last finished
-    epoch.
+    finished before it stay cached, the interrupted one resumes from its last snapshot.
     """
     paths, parts = [], []
     counts = dataset.counts()
