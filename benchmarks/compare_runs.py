@@ -70,8 +70,9 @@ def compare(first: Path, second: Path) -> list[tuple[str, int, int, list[str]]]:
     """Per group: (name, files in both, identical, names of the differing files)."""
     rows = []
     for name, pattern in GROUPS:
+        # artifacts only: not their metadata, nor an unfinished training's snapshot
         in_first = {p.relative_to(first) for p in first.glob(pattern)
-                    if not p.name.endswith(".meta.json")}
+                    if not p.name.endswith((".meta.json", ".resume.pt"))}
         both = sorted(p for p in in_first if (second / p).exists())
         differ = [str(p) for p in both if not COMPARE[p.suffix](first / p, second / p)]
         rows.append((name, len(both), len(both) - len(differ), differ))
