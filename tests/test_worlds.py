@@ -237,3 +237,41 @@ def test_on_route_tells_which_route_a_path_took():
     wobble = np.array([1.5, -1.0])
     assert w.on_route(a + wobble, "A") and not w.on_route(a, "B")
     assert w.on_route(b - wobble, "B") and not w.on_route(b, "A")
+
+
+def test_features_computed_on_their_window_equal_the_whole_grid_formula():
+    """make_training adds each bump and ridge on the box outside which it is exactly zero
+    (terrain._window): the world must come out as if every feature covered the whole map."""
+    from dgt_lib.core.geometry import GridSpec
+    from dgt_lib.world.terrain import _EXP_UNDERFLOW, _window
+
+    grid = GridSpec(origin_xy=(0.0, 0.0), resolution=0.4, shape=(400, 500))
+    X, Y = grid.cell_centers()
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        cx, cy = rng.uniform(-20.0, 220.0, 2)  # centres off the map too
+        sig, amp = rng.uniform(0.8, 2.0), rng.uniform(0.2, 0.7)
+        whole = amp * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * sig**2))
+        part = np.zeros_like(whole)
+        w = _window(grid, cx, cy, sig * np.sqrt(2 * _EXP_UNDERFLOW))
+        part[w] = amp * np.exp(-((X[w] - cx) ** 2 + (Y[w] - cy) ** 2) / (2 * sig**2))
+        np.testing.assert_array_equal(part, whole)
+        ang, length, height = rng.uniform(0, np.pi), rng.uniform(8, 30), rng.uniform(0.3, 0.9)
+        flank = np.tan(np.radians(rng.uniform(8.0, 20.0)))
+        shape = (cx, cy, ang, length, height, flank)
+        whole = _ridge(X, Y, *shape)
+        part = np.zeros_like(whole)
+        w = _window(grid, cx, cy, length / 2 + height / flank)
+        part[w] = _ridge(X[w], Y[w], *shape)
+        np.testing.assert_array_equal(part, whole)
+        assert whole.any() or not part.any()
+
+
+def _ridge(xs, ys, cx, cy, ang, length, height, flank):
+    """make_training's ridge: a triangular cross-section over a length with rounded ends."""
+    from dgt_lib.world.worlds import _smoothstep
+
+    u = (xs - cx) * np.cos(ang) + (ys - cy) * np.sin(ang)
+    v = -(xs - cx) * np.sin(ang) + (ys - cy) * np.cos(ang)
+    along = _smoothstep(length / 2 - np.abs(u), 0.0, 2.0)
+    return np.clip(height - np.abs(v) * flank, 0.0, None) * along
