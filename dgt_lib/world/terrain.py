@@ -310,8 +310,8 @@ def get_world(name: str, profile: Profile | str | None = None) -> World:
     ``training`` and ``eval`` take their sizes and terrain seeds from ``profile.worlds``;
     ``hill`` and ``ridge`` are the same in every profile (their features are the
     experiments). The run seed (``profile.seed``) does not change any world. Worlds are
-    cached in memory, per process; generating one takes a fraction of a second, except
-    `paper`'s 750² training world (~2 s).
+    cached in memory, per process; generating one takes at most ~0.6 s (`paper`'s 750²
+    training world).
     """
     if name not in WORLD_NAMES:
         raise UnknownWorldError(f"unknown world {name!r}; valid worlds: {', '.join(WORLD_NAMES)}")
