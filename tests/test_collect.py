@@ -81,6 +81,20 @@ def test_training_bev_aggregates_episode_frames(data_dir, bevs):
     assert int(hill["episode_frames"]) == 0
 
 
+def test_a_cached_bev_loads_without_generating_its_world(bevs, monkeypatch):
+    """Checking a cached map's key must not regenerate the world (`paper`'s 750² training
+    world: ~0.5 s on every `dgt plan`, which only needs the dataset's key)."""
+    import dgt_lib.stages.collect as collect
+
+    def no_world(*_):
+        raise AssertionError("a cached BEV map regenerated its world")
+
+    monkeypatch.setattr(collect, "get_world", no_world)
+    for name in WORLD_NAMES:
+        bev = ensure_bev(name, tiny_profile(), executor=SerialExecutor(), progress=False)
+        np.testing.assert_array_equal(bev.channels, bevs[name].channels)
+
+
 def test_survey_validates_its_configuration():
     world = get_world("ridge", "smoke")
     with pytest.raises(ValueError, match="survey_overlap"):

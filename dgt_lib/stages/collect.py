@@ -265,9 +265,9 @@ def _ensure_bev_arrays(world_name: str, profile: Profile | str | None,
     if world_name not in WORLD_NAMES:
         raise ValueError(f"unknown world {world_name!r}; valid worlds: {', '.join(WORLD_NAMES)}")
     prof = as_profile(profile)
-    world = get_world(world_name, prof)
 
     def build() -> dict[str, np.ndarray]:
+        world = get_world(world_name, prof)  # only to build: a cached map's key needs no world
         paths: list[Path] = []
         if world_name == "training":
             collect_episodes(prof, executor=executor, progress=progress)
