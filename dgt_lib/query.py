@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,7 +26,6 @@ from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
-from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar, PlanResult, check_query_on_world
 from dgt_lib.stages.costmaps import ensure_world_costmaps, world_occupancy
 from dgt_lib.stages.dataset import DATASET_RELPATH
@@ -33,6 +33,9 @@ from dgt_lib.stages.paths import data_dir
 from dgt_lib.stages.train import model_relpath
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World, load_heightmap
+
+if TYPE_CHECKING:
+    from dgt_lib.navigation.outcome import TrialOutcome  # imports the simulator: to drive
 
 HIGH_COST = 0.5
 """Path cells with a directional cost C above this are listed in the summary."""

@@ -42,10 +42,11 @@ def built(tmp_path, monkeypatch, dataset):
     monkeypatch.setattr(costmaps, "world_bev", world_bev)
     monkeypatch.setattr(costmaps, "ensure_dataset", lambda prof, progress=True: dataset)
     monkeypatch.setattr(costmaps, "ensure_tau_s", lambda prof: 0.6)
+    log = []
     real_load = costmaps.ensure_model
     monkeypatch.setattr(costmaps, "ensure_model",
-                        lambda *a, **k: real_load(*a, **k, device="cpu"))
-    log = []
+                        lambda *a, **k: log.append("load model") or real_load(*a, **k,
+                                                                              device="cpu"))
     real_network, real_slope = costmaps.directional_costmap, costmaps.slope_costmap
     monkeypatch.setattr(costmaps, "directional_costmap",
                         lambda *a, **k: log.append("network") or real_network(*a, **k))
@@ -61,27 +62,50 @@ def _maps(prof):
 
 def test_a_model_retrained_to_the_same_weights_invalidates_no_costmap(built):
     first = _maps(PROFILE)
-    assert built == ["network", "slope"]
+    assert built == ["load model", "network", "slope"]
     model = data_dir(PROFILE) / model_relpath("multitask")
     sha, experiment = artifacts._file_digest(model), experiment_config("experiment1", PROFILE)
     model.unlink()  # retrained: same data and seed, same weights; other timings in the file
     again = _maps(PROFILE)
     assert artifacts._file_digest(model) != sha  # the checkpoint file did change
-    assert built == ["network", "slope"]  # the costmap built on it did not
+    assert built == ["load model", "network", "slope"]  # the costmap built on it did not
     assert experiment_config("experiment1", PROFILE) == experiment  # nor the experiments
     np.testing.assert_array_equal(again.costmap("dgt", "jeep"), first.costmap("dgt", "jeep"))
     _maps(PROFILE.with_(train=replace(TINY, learning_rate=1e-3)))  # other weights
-    assert built == ["network", "slope", "network"]
+    assert built == ["load model", "network", "slope", "load model", "network"]
+
+
+def test_a_cached_costmap_is_served_without_loading_its_model(built):
+    """`dgt plan` on cached maps checks the model's key, not its weights: no checkpoint
+    is loaded (and torch is not imported) unless a costmap must be built."""
+    _maps(PROFILE)
+    assert built == ["load model", "network", "slope"]
+    maps = _maps(PROFILE)
+    assert built == ["load model", "network", "slope"]
+    assert maps.costmap("dgt", "jeep").shape[0] == PROFILE.costmap.n_headings
+
+
+def test_importing_the_plan_command_does_not_import_torch():
+    """torch takes ~1 s to import; `dgt plan` on cached maps never needs it."""
+    import subprocess
+    import sys
+
+    code = ("import sys, dgt_lib.cli, dgt_lib.query; "
+            "print(sorted(m for m in ('torch', 'dgt_lib.learning.model') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
 
 
 def test_more_slope_trials_rebuild_the_slope_map_not_the_networks(built):
     _maps(PROFILE)
     more = PROFILE.with_(costmap=replace(PROFILE.costmap, slope_trials=9))
     _maps(more)
-    assert built == ["network", "slope", "slope"]
+    assert built == ["load model", "network", "slope", "slope"]
     fits = data_dir(PROFILE) / "baselines" / "slope_models.json.meta.json"
     assert '"trials": 9' in fits.read_text()
     _maps(more.with_(costmap=replace(more.costmap, batch_size=64)))  # same maps, other chunks
-    assert built == ["network", "slope", "slope"]
+    assert built == ["load model", "network", "slope", "slope"]
     _maps(more.with_(costmap=replace(more.costmap, stride=(2, 1))))  # other windows
-    assert built == ["network", "slope", "slope", "network", "slope"]
+    assert built == ["load model", "network", "slope", "slope", "load model", "network",
+                     "slope"]

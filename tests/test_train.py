@@ -281,7 +281,7 @@ def test_ctrl_c_before_the_first_epoch_ends_is_reraised(dataset):
 def test_ensure_model_caches_per_kind(dataset, data_dir, monkeypatch):
     calls = []
     real = train.train_model
-    monkeypatch.setattr(train_stage, "train_model",
+    monkeypatch.setattr(train, "train_model",
                         lambda *a, **k: calls.append(k) or real(*a, **k))
     profile = get_profile("smoke").with_(train=TINY)
     first = ensure_model(profile, dataset, "single:vw_van", progress=False)
@@ -316,7 +316,7 @@ def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
         return real(*a, **k, on_batch_end=interrupt_in_epoch_2 if k["vehicles"] == ("jeep",)
                     else None)
 
-    monkeypatch.setattr(train_stage, "train_model", train_model)
+    monkeypatch.setattr(train, "train_model", train_model)
     monkeypatch.setattr(train_stage, "SNAPSHOT_EVERY_S", 0.0)  # these epochs take ~0.1 s
     kinds = ("single:carla_cola", "single:jeep", "single:vw_van")
     with pytest.raises(KeyboardInterrupt):

@@ -1,18 +1,23 @@
 """Checkpoints of a trained :class:`~dgt_lib.learning.model.DGTNet`: what training
 returns (:class:`TrainResult`), and saving / loading it with its architecture, history,
-metrics and settings, checked on load."""
+metrics and settings, checked on load.
+
+Importing this module does not import torch (:func:`load_checkpoint` does): the model
+cache's key (:data:`CHECKPOINT_VERSION`) is checked by ``dgt plan`` without it."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
-
-import torch
+from typing import TYPE_CHECKING, Any
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import TrainConfig
-from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet
+
+if TYPE_CHECKING:
+    import torch
+
+    from dgt_lib.learning.model import DGTNet
 
 CHECKPOINT_FORMAT = "dgt-kit/DGTNet"
 
@@ -94,6 +99,8 @@ def load_checkpoint(
     :class:`~dgt_lib.learning.model.ArchitectureMismatchError` saying what differs. Something
     that is not a DGTNet checkpoint raises :class:`CheckpointError`.
     """
+    from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet
+
     where = str(source) if not isinstance(source, dict) else "checkpoint"
     ckpt = artifacts.load(Path(source)) if not isinstance(source, dict) else source
     if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:

@@ -35,15 +35,13 @@ to locomotion (N, V), one column per vehicle head. Unobserved cells cost 1.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 from tqdm.auto import tqdm
 
 from dgt_lib.core.geometry import heading_bins
-from dgt_lib.learning.dense import dense_window_field
-from dgt_lib.learning.model import DGTNet
-from dgt_lib.learning.pooled import PooledNet
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.patches import (
     PATCH_COLS,
@@ -54,6 +52,10 @@ from dgt_lib.perception.patches import (
     unrotate_map,
     window_counts,
 )
+
+if TYPE_CHECKING:  # the networks import torch: only the dense pass needs them
+    from dgt_lib.learning.model import DGTNet
+    from dgt_lib.learning.pooled import PooledNet
 
 Predictor = Callable[[np.ndarray], np.ndarray]
 """patches (N, 6, 22, 7) float32 → locomotion L (N, V) in [0, 1]."""
@@ -303,6 +305,9 @@ def directional_costmap_dense(bev: BEVMap, model: DGTNet | PooledNet, n_headings
     its windows on its own instead (the reference the dense pass equals). A DGTNet is
     evaluated by :mod:`dgt_lib.learning.dense`, which is not the per-window network (a
     measured negative result)."""
+    from dgt_lib.learning.dense import dense_window_field
+    from dgt_lib.learning.pooled import PooledNet
+
     if isinstance(model, PooledNet):
         def field(rotated: RotatedMap, on_map: np.ndarray) -> np.ndarray:
             if literal:

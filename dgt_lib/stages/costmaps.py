@@ -20,7 +20,6 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, Profile, as_profile
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.learning.training import predict
 from dgt_lib.mapping.baselines import (
     SlopeModel,
     binary_costmap,
@@ -49,7 +48,7 @@ from dgt_lib.stages.collect import (
 from dgt_lib.stages.dataset import ensure_dataset
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
-from dgt_lib.stages.train import ensure_model, model_relpath
+from dgt_lib.stages.train import ensure_model, model_digest
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
@@ -99,12 +98,6 @@ def load_model(profile: Profile | str | None, kind: str = "multitask", *,
     prof = as_profile(profile)
     dataset = dataset if dataset is not None else ensure_dataset(prof, progress=progress)
     return ensure_model(prof, dataset, kind, progress=progress).model
-
-
-def _model_fingerprint(profile: Profile, kind: str) -> str:
-    """What a costmap of model ``kind`` is keyed by: the digest of the model's weights
-    and architecture (not of its checkpoint file, which holds training timings)."""
-    return artifacts.stored_digest(model_relpath(kind), profile=cache_dir(profile))
 
 
 def ensure_slope_models(profile: Profile | str | None = None, *,
@@ -208,14 +201,23 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
     k = prof.costmap.n_headings
     maps: dict[tuple[str, str], np.ndarray] = {}
 
+    def model_costmap(kind: str) -> tuple[np.ndarray, tuple[str, ...]]:
+        """Model ``kind``'s (n_heads, K, H, W) costmap of this world, and its heads'
+        vehicles: the model is loaded (torch imported) only to build a costmap."""
+        from dgt_lib.learning.training import predict
+
+        model = load_model(prof, kind, dataset=ds, progress=progress)
+        cost = directional_costmap(bev, lambda p: predict(model, p, prof.costmap.batch_size),
+                                   k, **kwargs)
+        return cost, model.vehicles
+
     if {"dgt", "isotropic"} & set(methods):
-        model = load_model(prof, "multitask", dataset=ds, progress=progress)
-        config = _costmap_config(prof, bev_path, "dgt", _model_fingerprint(prof, "multitask"))
+        config = _costmap_config(prof, bev_path, "dgt",
+                                 model_digest(prof, ds, "multitask", progress=progress))
 
         def build_dgt() -> dict[str, np.ndarray]:
-            cost = directional_costmap(bev, lambda p: predict(model, p, prof.costmap.batch_size),
-                                       k, **kwargs)
-            return {name: cost[model.head_index(name)] for name in model.vehicles}
+            cost, heads = model_costmap("multitask")
+            return dict(zip(heads, cost, strict=True))
 
         dgt = artifacts.ensure(f"costmaps/{key}/dgt.npz", config, build_dgt,
                                profile=cache_dir(prof))
@@ -227,13 +229,11 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
     if "single-task" in methods:
         for v in vehicles:
             kind = f"single:{v}"
-            model = load_model(prof, kind, dataset=ds, progress=progress)
-            config = _costmap_config(prof, bev_path, kind, _model_fingerprint(prof, kind))
+            config = _costmap_config(prof, bev_path, kind,
+                                     model_digest(prof, ds, kind, progress=progress))
 
-            def build_st(model=model) -> dict[str, np.ndarray]:
-                cost = directional_costmap(
-                    bev, lambda p: predict(model, p, prof.costmap.batch_size), k, **kwargs)
-                return {"cost": cost[0]}
+            def build_st(kind=kind) -> dict[str, np.ndarray]:
+                return {"cost": model_costmap(kind)[0][0]}
 
             maps[("single-task", v)] = artifacts.ensure(
                 f"costmaps/{key}/single_{v}.npz", config, build_st,

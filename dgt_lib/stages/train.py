@@ -11,9 +11,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Any
-
-import torch
+from typing import TYPE_CHECKING, Any
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, Profile, TrainConfig
@@ -24,11 +22,13 @@ from dgt_lib.learning.checkpoints import (
     load_checkpoint,
     prediction_digest,
 )
-from dgt_lib.learning.training import collapsed_heads, resolve_device, train_model
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.stages.dataset import ensure_dataset
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
+
+if TYPE_CHECKING:
+    import torch
 
 MODEL_KINDS: tuple[str, ...] = ("multitask",) + tuple(f"single:{v}" for v in VEHICLES)
 """The models of ``ensure_model``: multi-task, and one single-task model per vehicle."""
@@ -94,6 +94,27 @@ def train_key(cfg: TrainConfig) -> dict[str, object]:
                if not (k in LATER_TRAIN_FIELDS and v == LATER_TRAIN_FIELDS[k])}}
 
 
+def model_config(profile: Profile, dataset: PatchDataset, kind: str = "multitask", *,
+                 seed: int | None = None, rgb_weights: str | Path | None = None,
+                 dataset_hash: str | None = None) -> dict[str, Any]:
+    """What model ``kind`` of ``profile`` depends on (its artifact's cache key): the
+    dataset (``dataset_hash``, default :func:`dataset_fingerprint`), ``profile.train``
+    (:func:`train_key`), the kind, the seed (default ``profile.seed``), whether ImageNet
+    RGB weights were used (``rgb_weights``, default :func:`default_rgb_weights`, only
+    with width 64) and the checkpoint layout. Computed without torch."""
+    vehicles = parse_kind(kind)
+    cfg = profile.train
+    if rgb_weights is None and cfg.width == 64:
+        rgb_weights = default_rgb_weights()
+    rgb = None
+    if rgb_weights is not None:
+        rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
+    return {"stage": "train", "kind": kind, "vehicles": list(vehicles),
+            "dataset": dataset_hash or dataset_fingerprint(dataset), "train": train_key(cfg),
+            "seed": profile.seed if seed is None else seed, "rgb_weights": rgb,
+            "checkpoint_version": CHECKPOINT_VERSION}
+
+
 def ensure_model(
     profile: Profile,
     dataset: PatchDataset,
@@ -107,12 +128,9 @@ def ensure_model(
 ) -> TrainResult:
     """The trained model ``kind`` of ``profile`` from the artifact cache, trained if needed.
 
-    Stored at ``models/<kind>.pt`` (``single:vw_van`` → ``single_vw_van.pt``);
-    the configuration hash covers the dataset (``dataset_hash``, default
-    :func:`dataset_fingerprint`), ``profile.train`` (architecture and training
-    settings), the kind, the seed (default ``profile.seed``) and whether ImageNet
-    RGB weights were used (``rgb_weights``, default :func:`default_rgb_weights`,
-    only with width 64). The artifact's fingerprint, which keys the costmaps and
+    Stored at ``models/<kind>.pt`` (``single:vw_van`` → ``single_vw_van.pt``), keyed by
+    :func:`model_config` (the dataset, ``profile.train``, the kind, the seed, the RGB
+    weights). The artifact's fingerprint, which keys the costmaps and
     experiments built on the model, is its
     :func:`~dgt_lib.learning.checkpoints.prediction_digest`: retraining to the same
     weights invalidates nothing built on it. Ctrl-C (KeyboardInterrupt) while training
@@ -127,20 +145,16 @@ def ensure_model(
     a CUDA GPU when there is one); not part of the cache key — a checkpoint holds
     CPU tensors and loads on any device.
     """
+    from dgt_lib.learning.training import resolve_device, train_model  # torch: only here
+
     vehicles = parse_kind(kind)
     device = resolve_device(device if device is not None else profile.execution.device)
     cfg = profile.train
     seed = profile.seed if seed is None else seed
     if rgb_weights is None and cfg.width == 64:
         rgb_weights = default_rgb_weights()
-    rgb = None
-    if rgb_weights is not None:
-        rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
-    relpath = model_relpath(kind)
-    config = {"stage": "train", "kind": kind, "vehicles": list(vehicles),
-              "dataset": dataset_hash or dataset_fingerprint(dataset), "train": train_key(cfg),
-              "seed": seed, "rgb_weights": rgb, "checkpoint_version": CHECKPOINT_VERSION}
-
+    config = model_config(profile, dataset, kind, seed=seed, rgb_weights=rgb_weights,
+                          dataset_hash=dataset_hash)
     snapshot = data_dir(profile) / snapshot_relpath(kind)
 
     def build() -> dict[str, Any]:
@@ -149,10 +163,23 @@ def ensure_model(
             rgb_weights=rgb_weights, keep_best_on_interrupt=False,
             snapshot_path=snapshot, snapshot_key=config, snapshot_every_s=SNAPSHOT_EVERY_S))
 
-    ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(profile),
+    ckpt = artifacts.ensure(model_relpath(kind), config, build, profile=cache_dir(profile),
                             fingerprint=prediction_digest)
     snapshot.unlink(missing_ok=True)
     return load_checkpoint(ckpt, vehicles=vehicles, device=device)
+
+
+def model_digest(profile: Profile, dataset: PatchDataset, kind: str = "multitask", *,
+                 progress: bool = True) -> str:
+    """The digest that keys what is built on model ``kind`` (its
+    :func:`~dgt_lib.learning.checkpoints.prediction_digest`, from the cache's metadata).
+    A cached model is checked against :func:`model_config` but not loaded (no torch: a
+    cached ``dgt plan`` stays quick); a missing or stale one is trained first
+    (:func:`ensure_model`)."""
+    if not artifacts.is_fresh(model_relpath(kind), model_config(profile, dataset, kind),
+                              profile=cache_dir(profile)):
+        ensure_model(profile, dataset, kind, progress=progress)
+    return artifacts.stored_digest(model_relpath(kind), profile=cache_dir(profile))
 
 
 def models_stage(profile: Profile, dataset: PatchDataset,
@@ -165,6 +192,8 @@ def models_stage(profile: Profile, dataset: PatchDataset,
     and the summary says so. Ctrl-C propagates (:func:`ensure_model`): the models
     finished before it stay cached, the interrupted one resumes from its last snapshot.
     """
+    from dgt_lib.learning.training import collapsed_heads
+
     paths, parts = [], []
     counts = dataset.counts()
     for kind in kinds:
