@@ -48,7 +48,7 @@ from dgt_lib.stages.collect import (
 from dgt_lib.stages.dataset import ensure_dataset
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
-from dgt_lib.stages.train import ensure_model, model_digest
+from dgt_lib.stages.train import dataset_fingerprint, ensure_model, model_digest
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
@@ -201,19 +201,23 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
     k = prof.costmap.n_headings
     maps: dict[tuple[str, str], np.ndarray] = {}
 
+    uses_models = bool({"dgt", "isotropic", "single-task"} & set(methods))
+    ds_hash = dataset_fingerprint(ds) if uses_models else None  # once for every model's key
+
     def model_costmap(kind: str) -> tuple[np.ndarray, tuple[str, ...]]:
         """Model ``kind``'s (n_heads, K, H, W) costmap of this world, and its heads'
         vehicles: the model is loaded (torch imported) only to build a costmap."""
         from dgt_lib.learning.training import predict
 
-        model = load_model(prof, kind, dataset=ds, progress=progress)
+        model = ensure_model(prof, ds, kind, dataset_hash=ds_hash, progress=progress).model
         cost = directional_costmap(bev, lambda p: predict(model, p, prof.costmap.batch_size),
                                    k, **kwargs)
         return cost, model.vehicles
 
     if {"dgt", "isotropic"} & set(methods):
         config = _costmap_config(prof, bev_path, "dgt",
-                                 model_digest(prof, ds, "multitask", progress=progress))
+                                 model_digest(prof, ds, "multitask", dataset_hash=ds_hash,
+                                              progress=progress))
 
         def build_dgt() -> dict[str, np.ndarray]:
             cost, heads = model_costmap("multitask")
@@ -230,7 +234,8 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
         for v in vehicles:
             kind = f"single:{v}"
             config = _costmap_config(prof, bev_path, kind,
-                                     model_digest(prof, ds, kind, progress=progress))
+                                     model_digest(prof, ds, kind, dataset_hash=ds_hash,
+                                                  progress=progress))
 
             def build_st(kind=kind) -> dict[str, np.ndarray]:
                 return {"cost": model_costmap(kind)[0][0]}

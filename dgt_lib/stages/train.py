@@ -170,15 +170,16 @@ def ensure_model(
 
 
 def model_digest(profile: Profile, dataset: PatchDataset, kind: str = "multitask", *,
-                 progress: bool = True) -> str:
+                 dataset_hash: str | None = None, progress: bool = True) -> str:
     """The digest that keys what is built on model ``kind`` (its
     :func:`~dgt_lib.learning.checkpoints.prediction_digest`, from the cache's metadata).
     A cached model is checked against :func:`model_config` but not loaded (no torch: a
     cached ``dgt plan`` stays quick); a missing or stale one is trained first
-    (:func:`ensure_model`)."""
-    if not artifacts.is_fresh(model_relpath(kind), model_config(profile, dataset, kind),
-                              profile=cache_dir(profile)):
-        ensure_model(profile, dataset, kind, progress=progress)
+    (:func:`ensure_model`). ``dataset_hash``: :func:`dataset_fingerprint` of ``dataset``
+    when the caller has it."""
+    config = model_config(profile, dataset, kind, dataset_hash=dataset_hash)
+    if not artifacts.is_fresh(model_relpath(kind), config, profile=cache_dir(profile)):
+        ensure_model(profile, dataset, kind, dataset_hash=dataset_hash, progress=progress)
     return artifacts.stored_digest(model_relpath(kind), profile=cache_dir(profile))
 
 
