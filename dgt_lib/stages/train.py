@@ -94,6 +94,14 @@ def train_key(cfg: TrainConfig) -> dict[str, object]:
                if not (k in LATER_TRAIN_FIELDS and v == LATER_TRAIN_FIELDS[k])}}
 
 
+def rgb_weights_for(cfg: TrainConfig, rgb_weights: str | Path | None) -> Path | str | None:
+    """The ImageNet RGB weights a training uses: ``rgb_weights`` when given, else
+    :func:`default_rgb_weights` for width 64 (the ResNet-18 they fit), else None."""
+    if rgb_weights is None and cfg.width == 64:
+        return default_rgb_weights()
+    return rgb_weights
+
+
 def model_config(profile: Profile, dataset: PatchDataset, kind: str = "multitask", *,
                  seed: int | None = None, rgb_weights: str | Path | None = None,
                  dataset_hash: str | None = None) -> dict[str, Any]:
@@ -104,8 +112,7 @@ def model_config(profile: Profile, dataset: PatchDataset, kind: str = "multitask
     with width 64) and the checkpoint layout. Computed without torch."""
     vehicles = parse_kind(kind)
     cfg = profile.train
-    if rgb_weights is None and cfg.width == 64:
-        rgb_weights = default_rgb_weights()
+    rgb_weights = rgb_weights_for(cfg, rgb_weights)
     rgb = None
     if rgb_weights is not None:
         rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
@@ -151,8 +158,7 @@ def ensure_model(
     device = resolve_device(device if device is not None else profile.execution.device)
     cfg = profile.train
     seed = profile.seed if seed is None else seed
-    if rgb_weights is None and cfg.width == 64:
-        rgb_weights = default_rgb_weights()
+    rgb_weights = rgb_weights_for(cfg, rgb_weights)
     config = model_config(profile, dataset, kind, seed=seed, rgb_weights=rgb_weights,
                           dataset_hash=dataset_hash)
     snapshot = data_dir(profile) / snapshot_relpath(kind)
