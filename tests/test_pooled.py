@@ -38,6 +38,22 @@ def test_dense_costmap_equals_running_every_window_on_its_own():
     assert np.ptp(dense[:, :, bev.observed]) > 0.01  # not a constant map
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+def test_a_network_on_a_gpu_gives_the_costmap_it_gives_on_the_cpu():
+    """train_model leaves a PooledNet where it trained it: the map-level methods take numpy
+    on the CPU and must run it there (up to TF32 rounding of the convolutions)."""
+    bev, model = hilly_bev((41, 37)), small_net(seed=2)
+    on_cpu = directional_costmap_dense(bev, model, 8, progress=False)
+    literal_cpu = directional_costmap_dense(bev, model, 8, literal=True, progress=False)
+    model.to("cuda")
+    assert model.device.type == "cuda"
+    np.testing.assert_allclose(directional_costmap_dense(bev, model, 8, progress=False),
+                               on_cpu, atol=2e-3)
+    np.testing.assert_allclose(directional_costmap_dense(bev, model, 8, literal=True,
+                                                         progress=False), literal_cpu, atol=2e-3)
+    np.testing.assert_allclose(model.empty_window(), model.cpu().empty_window(), atol=2e-3)
+
+
 def test_tiles_and_the_needed_windows_do_not_change_the_field():
     bev, model = hilly_bev((41, 37)), small_net(seed=1)
     rotated = rotate_map(bev, 0.7)

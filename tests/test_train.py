@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import VEHICLES, TrainConfig, get_profile
+from dgt_lib.core.config import VEHICLES, ExecutionConfig, TrainConfig, get_profile
 from dgt_lib.learning import training as train
 from dgt_lib.learning.checkpoints import (
     CheckpointError,
@@ -303,8 +303,9 @@ def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
     """Ctrl-C is not swallowed: the stage stops (no next model, no model cached for the
     interrupted one), the models finished before stay cached, and a rerun trains only
     what is missing — the interrupted model from after its last finished epoch."""
-    profile = get_profile("smoke").with_(train=TrainConfig(epochs=3, batch_size=64, width=8,
-                                                          fc_hidden=32))
+    profile = get_profile("smoke").with_(  # the CPU: a GPU's runs differ even unstopped
+        train=TrainConfig(epochs=3, batch_size=64, width=8, fc_hidden=32),
+        execution=ExecutionConfig(device=CPU))
     real, trained, stop = train.train_model, [], [True]
 
     def interrupt_in_epoch_2(epoch, step, loss):
@@ -332,7 +333,7 @@ def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
     assert all(p.exists() for p in out.paths) and len(out.paths) == 3
     assert not list(models.glob("*.resume.pt"))  # each snapshot gone once its model is cached
     never_stopped = train_model(dataset, profile.train, vehicles=("jeep",), seed=0,
-                                progress=False)
+                                progress=False, device=CPU)
     _same_training(load_checkpoint(models / "single_jeep.pt"), never_stopped)
 
 

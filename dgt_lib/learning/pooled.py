@@ -123,6 +123,12 @@ class PooledNet(nn.Module):
         """Cells of context a window needs on every side: 1 (the slopes) + 1 per convolution."""
         return 1 + self.depth
 
+    @property
+    def device(self) -> torch.device:
+        """Where the network's weights are (a network trained on a GPU stays there): the
+        map-level methods move their input there and hand back numpy arrays on the CPU."""
+        return self.input_mean.device
+
     def architecture(self) -> dict[str, object]:
         return {"name": "PooledNet", "vehicles": list(self.vehicles), "width": self.width,
                 "depth": self.depth, "fc_hidden": self.fc_hidden}
@@ -225,7 +231,7 @@ class PooledNet(nn.Module):
         m = self.margin
         n_a, n_b = x.shape[1] - PATCH_ROWS + 1 - 2 * m, x.shape[2] - PATCH_COLS + 1 - 2 * m
         windows = np.ones((n_a, n_b), bool) if windows is None else np.asarray(windows, bool)
-        t = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))[None]
+        t = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))[None].to(self.device)
         out = torch.zeros((len(self.vehicles), n_a, n_b))
         for s in range(0, n_a, tile):
             cols = np.flatnonzero(windows[s : s + tile].any(axis=0))
@@ -242,7 +248,7 @@ class PooledNet(nn.Module):
             halves = half_window_means(f)
             z = torch.cat([halves[:, :, :rows], halves[:, :, FRONT_ROWS : FRONT_ROWS + rows]],
                           dim=1)
-            out[:, r0:r1, c0:c1] = self.heads(z)[0].float()
+            out[:, r0:r1, c0:c1] = self.heads(z)[0].float().cpu()
         out[:, ~torch.from_numpy(windows)] = 0.0
         return out.numpy()
 
@@ -250,9 +256,10 @@ class PooledNet(nn.Module):
     def empty_window(self) -> np.ndarray:
         """L̂ (V,) of a window whose context holds no observed cell (every input is 0)."""
         m = self.margin
-        x = torch.zeros((1, N_INPUTS - 1, PATCH_ROWS + 2 * m, PATCH_COLS + 2 * m))
+        x = torch.zeros((1, N_INPUTS - 1, PATCH_ROWS + 2 * m, PATCH_COLS + 2 * m),
+                        device=self.device)
         self.eval()
-        return self(x)[0].numpy()
+        return self(x)[0].cpu().numpy()
 
     @torch.no_grad()
     def literal_window_field(self, channels: np.ndarray, observed: np.ndarray,
@@ -272,7 +279,7 @@ class PooledNet(nn.Module):
         for s in range(0, len(a), batch_size):
             sa, sb = a[s : s + batch_size], b[s : s + batch_size]
             batch = torch.from_numpy(np.ascontiguousarray(np.moveaxis(crops[:, sa, sb], 0, 1)))
-            field[:, sa, sb] = self(batch).numpy().T
+            field[:, sa, sb] = self(batch.to(self.device)).cpu().numpy().T
         return field
 
 

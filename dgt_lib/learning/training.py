@@ -363,7 +363,8 @@ def train_model(
             whenever ``snapshot_every_s`` have passed since the last one, and a snapshot
             found there of this same training (settings, vehicles, seed,
             network, data and ``snapshot_key``) is resumed: the epochs after it run, and the
-            result equals that of a training never stopped. A snapshot of another training
+            result equals that of a training never stopped (on the CPU, bit for bit; on a GPU
+            two trainings never stopped differ already). A snapshot of another training
             is overwritten. The file stays when training ends (the caller deletes it once
             the result is stored: :func:`~dgt_lib.stages.train.ensure_model` does).
         snapshot_key: anything else that makes this training what it is for the snapshot

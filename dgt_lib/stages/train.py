@@ -145,7 +145,8 @@ def ensure_model(
     progress is kept: after an epoch (at most every :data:`SNAPSHOT_EVERY_S`) the
     training is saved in ``models/<kind>.resume.pt`` (:func:`snapshot_relpath`), and the
     next call resumes after that epoch, to the same weights as a training never stopped
-    (an interrupt or a crash loses at most the time since). The snapshot is deleted once
+    (on the CPU; a GPU's cuDNN kernels differ from run to run anyway; an interrupt or a crash
+    loses at most the time since). The snapshot is deleted once
     the model is cached.
 
     device: where the model trains and is returned (default ``profile.execution.device``:
