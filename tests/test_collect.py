@@ -266,6 +266,29 @@ def test_stages_report_what_they_built(data_dir, bevs):
     assert "hill" in out.summary and "observed" in out.summary
 
 
+def test_depth_is_drawn_without_multisampling_and_colour_with_it():
+    """A multisampled depth buffer is resolved differently by each OpenGL driver (NVIDIA's
+    by centimetres to metres from Mesa's): the depth pass gets a context without
+    multisampling, whole-world and tiled frames alike, and the model keeps its setting for
+    the colour pass."""
+    from dgt_lib.world.rendering import TerrainRenderer, onboard_camera_pose, simulator
+
+    world = get_world("training", "smoke")
+    sim = simulator(world, "jeep")
+    samples = sim.model.vis.quality.offsamples
+    assert samples > 0  # the colour image is antialiased
+    x, y, yaw = spawn_pose(world, "jeep", np.random.default_rng(1))
+    sim.reset(x, y, yaw)
+    pose = onboard_camera_pose(sim)
+    tiles = TerrainRenderer(world, max_depth_m=8.0)
+    tiles.render(pose)
+    sim.render_rgbd(pose, show_vehicle=False)
+    for renderers in (tiles._renderers, *sim._renderers.values()):
+        assert renderers.rgb._mjr_context.offSamples == samples
+        assert renderers.depth._mjr_context.offSamples == 0
+    assert sim.model.vis.quality.offsamples == samples
+
+
 def test_tiled_rendering_equals_the_whole_world_up_to_max_depth():
     """Frames rendered on a tile around the camera equal the whole world's frames
     up to the renderer's max depth, whichever tiles were loaded before."""

@@ -20,7 +20,7 @@ from dgt_lib.core.camera import RGBDFrame
 from dgt_lib.core.config import CollectConfig
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.world.mujoco_model import CAMERA, MAX_DEPTH_M
-from dgt_lib.world.simulator import Simulator, look_at
+from dgt_lib.world.simulator import FrameRenderers, Simulator, look_at
 from dgt_lib.world.worlds import World, from_heightmap
 
 # Per-process caches (a model build and a GL context are paid once per worker). Each
@@ -136,7 +136,7 @@ class TerrainRenderer:
         self.tile_shape = (h, w) if whole else (min(n, h), min(n, w))
         self._tiles: dict[tuple[int, int], Simulator] = {}
         self._cache_tiles = cache_tiles
-        self._renderer: mujoco.Renderer | None = None
+        self._renderers: FrameRenderers | None = None
         self._current: tuple[int, int] | None = None
 
     def restart(self) -> None:
@@ -212,18 +212,21 @@ class TerrainRenderer:
             key = self._tile_origin(0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3]))
         sim = self._tile(key)
         size = (self.camera.height, self.camera.width)
-        if self._renderer is None:
-            self._renderer = mujoco.Renderer(sim.model, *size)
+        if self._renderers is None:
+            self._renderers = FrameRenderers.create(sim.model, *size)
         elif key != self._current:
             # Private members of mujoco.Renderer: it has no public way to swap models.
-            r = self._renderer
-            r._gl_context.make_current()
-            r._model = sim.model  # the scene is built from the tile's model
-            mujoco.mjr_uploadHField(sim.model, r._mjr_context, sim.model.hfield("terrain").id)
+            for r in self._renderers:
+                r._gl_context.make_current()
+                r._model = sim.model  # the scene is built from the tile's model
+                mujoco.mjr_uploadHField(sim.model, r._mjr_context,
+                                        sim.model.hfield("terrain").id)
+            r = self._renderers.rgb
+            r._gl_context.make_current()  # the depth pass draws no texture
             mujoco.mjr_uploadTexture(sim.model, r._mjr_context,
                                      sim.model.texture("terrain_tex").id)
         self._current = key
-        sim.share_renderer(self._renderer)  # Simulator.render_rgbd renders with it
+        sim.share_renderers(self._renderers)  # Simulator.render_rgbd renders with them
         return sim.render_rgbd(pose, intrinsics=self.camera, show_vehicle=False)
 
 
