@@ -266,12 +266,18 @@ def test_stages_report_what_they_built(data_dir, bevs):
     assert "hill" in out.summary and "observed" in out.summary
 
 
-def test_depth_is_drawn_without_multisampling_and_colour_with_it():
+def test_depth_is_drawn_without_multisampling_where_the_driver_would_change_it():
     """A multisampled depth buffer is resolved differently by each OpenGL driver (NVIDIA's
-    by centimetres to metres from Mesa's): the depth pass gets a context without
-    multisampling, whole-world and tiled frames alike, and the model keeps its setting for
-    the colour pass."""
+    by centimetres to metres from Mesa's): depth gets a context without multisampling,
+    whole-world and tiled frames alike, except on a renderer whose multisampled depth is
+    the same bit for bit (llvmpipe) — checked here on whichever renderer runs the tests."""
     from dgt_lib.world.rendering import TerrainRenderer, onboard_camera_pose, simulator
+    from dgt_lib.world.simulator import (
+        EXACT_DEPTH_RESOLVE,
+        FrameRenderers,
+        Simulator,
+        opengl_renderer,
+    )
 
     world = get_world("training", "smoke")
     sim = simulator(world, "jeep")
@@ -283,10 +289,21 @@ def test_depth_is_drawn_without_multisampling_and_colour_with_it():
     tiles = TerrainRenderer(world, max_depth_m=8.0)
     tiles.render(pose)
     sim.render_rgbd(pose, show_vehicle=False)
+    exact = any(name in opengl_renderer(tiles._renderers.rgb) for name in EXACT_DEPTH_RESOLVE)
     for renderers in (tiles._renderers, *sim._renderers.values()):
         assert renderers.rgb._mjr_context.offSamples == samples
-        assert renderers.depth._mjr_context.offSamples == 0
+        assert (renderers.depth is renderers.rgb) == exact
+        assert renderers.depth._mjr_context.offSamples == (samples if exact else 0)
     assert sim.model.vis.quality.offsamples == samples
+    if exact:  # the premise of sharing: multisampled depth is the depth drawn without
+        depths = []
+        for separate in (False, True):
+            fresh = Simulator(world, "jeep")
+            fresh.share_renderers(FrameRenderers.create(fresh.model, fresh.camera.height,
+                                                        fresh.camera.width, separate))
+            depths.append(fresh.render_rgbd(pose, show_vehicle=False).depth)
+            fresh.close()
+        assert np.array_equal(depths[0], depths[1], equal_nan=True)
 
 
 def test_tiled_rendering_equals_the_whole_world_up_to_max_depth():

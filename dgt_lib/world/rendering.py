@@ -216,7 +216,7 @@ class TerrainRenderer:
             self._renderers = FrameRenderers.create(sim.model, *size)
         elif key != self._current:
             # Private members of mujoco.Renderer: it has no public way to swap models.
-            for r in self._renderers:
+            for r in self._renderers.distinct():
                 r._gl_context.make_current()
                 r._model = sim.model  # the scene is built from the tile's model
                 mujoco.mjr_uploadHField(sim.model, r._mjr_context,

@@ -56,21 +56,38 @@ GATE_STEPS = max(1, round(GATE_PERIOD_S / TIMESTEP_S))  # physics steps between 
 
 
 
+EXACT_DEPTH_RESOLVE = (b"llvmpipe",)
+"""OpenGL renderers (``GL_RENDERER`` substrings) whose multisampled depth equals the depth
+drawn without multisampling, bit for bit (Mesa's llvmpipe: measured, and checked by
+``tests/test_collect.py`` wherever the tests run on it)."""
+
+
 class FrameRenderers(NamedTuple):
-    """The two OpenGL renderers of one frame size: ``rgb`` draws the colour image (with the
-    model's multisampling, ``vis.quality.offsamples``), ``depth`` the depth image, with
-    none. A multisampled depth buffer is resolved differently by each OpenGL driver: on
-    the hill world NVIDIA's depth differed from Mesa llvmpipe's by a median 1–30 mm and up to
-    7 m at edges; without multisampling by ≤ 0.1 mm on survey frames (median 5·10⁻⁵ m on an
-    onboard one). llvmpipe, which every recorded run used, gives the same depth either way."""
+    """The OpenGL renderers of one frame size: ``rgb`` draws the colour image (with the
+    model's multisampling, ``vis.quality.offsamples``), ``depth`` the depth image, without.
+    A multisampled depth buffer is resolved differently by each OpenGL driver: on the hill
+    world NVIDIA's depth differed from Mesa llvmpipe's by a median 1–30 mm and up to 7 m at
+    edges; without multisampling by ≤ 0.1 mm on survey frames (median 5·10⁻⁵ m on an onboard
+    one). On a renderer of :data:`EXACT_DEPTH_RESOLVE` the multisampled depth already is that
+    depth, so ``depth`` is ``rgb`` there (a second context would double the terrain uploads:
+    +8 % on a collection run)."""
 
     rgb: mujoco.Renderer
     depth: mujoco.Renderer
 
     @classmethod
-    def create(cls, model: mujoco.MjModel, height: int, width: int) -> FrameRenderers:
+    def create(cls, model: mujoco.MjModel, height: int, width: int,
+               separate_depth: bool | None = None) -> FrameRenderers:
+        """Renderers of ``height`` × ``width`` frames for ``model``; ``separate_depth``:
+        whether depth gets its own context without multisampling (default: unless the
+        model draws none or the OpenGL renderer is one of :data:`EXACT_DEPTH_RESOLVE`)."""
         rgb = mujoco.Renderer(model, height, width)
         samples = model.vis.quality.offsamples
+        if separate_depth is None:
+            separate_depth = samples > 0 and not any(
+                name in opengl_renderer(rgb) for name in EXACT_DEPTH_RESOLVE)
+        if not separate_depth:
+            return cls(rgb, rgb)
         model.vis.quality.offsamples = 0  # read once, when the GL context is made
         try:
             depth = mujoco.Renderer(model, height, width)
@@ -78,9 +95,22 @@ class FrameRenderers(NamedTuple):
             model.vis.quality.offsamples = samples
         return cls(rgb, depth)
 
+    def distinct(self) -> tuple[mujoco.Renderer, ...]:
+        """Each renderer once (one when depth shares the colour one's context)."""
+        return tuple(dict.fromkeys(self))
+
     def close(self) -> None:
-        for r in self:
+        for r in self.distinct():
             r.close()
+
+
+def opengl_renderer(renderer: mujoco.Renderer) -> bytes:
+    """``GL_RENDERER`` of ``renderer``'s OpenGL context, e.g. ``b"llvmpipe (LLVM 15.0.7,
+    256 bits)"`` or ``b"NVIDIA H100 80GB HBM3/PCIe/SSE2"``."""
+    from OpenGL import GL
+
+    renderer._gl_context.make_current()
+    return GL.glGetString(GL.GL_RENDERER) or b""
 
 
 _DIVERGENCE_WARNINGS = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
