@@ -14,6 +14,17 @@ Run: ``.venv/bin/python benchmarks/bench_collect.py [--profile paper] [--episode
    (simulated seconds per wall second) and the sample's mean episode length per
    vehicle give the estimate of the whole profile's collection:
    Σ_v episodes_v × mean length_v / throughput.
+4. ``--lp-threads 1 0``: the same in-process episodes in a fresh process per value of
+   Mesa llvmpipe's ``LP_NUM_THREADS`` (read when a process makes its first OpenGL
+   context; the pool's workers use 1, ``dgt_lib.core.executors.THREAD_VARS``),
+   alternating ``--repeats`` times: wall and CPU seconds and a digest of every frame's
+   RGB and depth, so a setting that changed the frames would show.
+5. ``--tile-cache 16 64 256``: would keeping several terrain tiles uploaded pay? Over
+   ``--episodes`` per vehicle (interleaved, as a worker gets them), every switch of
+   :class:`~dgt_lib.world.rendering.TerrainRenderer`'s tile re-uploads its heightfield
+   (~35 ms on llvmpipe); printed: the switches, the distinct tiles, how many switches an
+   LRU cache of K uploaded tiles would have served, and the memory one more OpenGL
+   context of a tile takes (the cost of holding a tile uploaded).
 
 Timings on the shared 2-core machine vary with its load; the load average is printed.
 """
@@ -21,8 +32,11 @@ Timings on the shared 2-core machine vary with its load; the load average is pri
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import resource
+import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -36,6 +50,7 @@ from dgt_lib.perception.episodes import episode_seed, run_episode
 from dgt_lib.perception.locomotion import WINDOW_S
 from dgt_lib.stages.collect import build_world_bev as build_bev
 from dgt_lib.stages.collect import collect_episodes
+from dgt_lib.world import rendering
 from dgt_lib.world.rendering import survey_poses
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 
@@ -115,6 +130,114 @@ def pooled(prof, k: int) -> None:
           f"{expected * cpu / sim_s / prof.workers / 60:.0f} min on idle cores (CPU time)")
 
 
+def frames_digest(prof, n_episodes: int) -> None:
+    """Run ``n_episodes`` per vehicle in this process; print frames, wall and CPU seconds
+    and a digest of every onboard frame (what ``--lp-threads`` runs in each subprocess)."""
+    world = get_world("training", prof)
+    digest, frames = hashlib.sha256(), 0
+    render = rendering.TerrainRenderer.render
+
+    def hashed(self, pose):
+        nonlocal frames
+        frame = render(self, pose)
+        digest.update(frame.rgb.tobytes())
+        digest.update(frame.depth.tobytes())
+        frames += 1
+        return frame
+
+    rendering.TerrainRenderer.render = hashed
+    t0, c0 = time.perf_counter(), time.process_time()
+    for v in VEHICLES:
+        for i in range(n_episodes):
+            run_episode(world, v, episode_seed(prof.seed, v, i), prof.collect, index=i)
+    print(f"{frames} {time.perf_counter() - t0:.3f} {time.process_time() - c0:.3f} "
+          f"{digest.hexdigest()[:16]}")
+
+
+def lp_threads(prof, values: list[str], n_episodes: int, repeats: int) -> None:
+    print(f"{n_episodes} episodes per vehicle in a fresh process per LP_NUM_THREADS value, "
+          f"{repeats} rounds")
+    print(f"{'LP_NUM_THREADS':>14s} {'frames':>6s} {'wall s':>7s} {'cpu s':>6s}  frames digest")
+    walls: dict[str, list[float]] = {v: [] for v in values}
+    for _ in range(repeats):
+        for value in values:
+            env = {**os.environ, "LP_NUM_THREADS": value}
+            out = subprocess.run([sys.executable, __file__, "--profile", prof.name,
+                                  "--episodes", str(n_episodes), "--frames-digest"],
+                                 env=env, check=True, capture_output=True, text=True)
+            frames, wall, cpu, digest = out.stdout.split()[-4:]
+            walls[value].append(float(wall))
+            print(f"{value:>14s} {frames:>6s} {float(wall):7.2f} {float(cpu):6.2f}  {digest}")
+    base = np.median(walls[values[0]])
+    for value in values[1:]:
+        print(f"LP_NUM_THREADS={value}: median wall {np.median(walls[value]):.2f} s against "
+              f"{base:.2f} s with {values[0]} ({base / np.median(walls[value]):.2f}×)")
+
+
+def tile_cache(prof, n_episodes: int, sizes: list[int]) -> None:
+    import collections
+
+    import mujoco
+
+    from dgt_lib.world.simulator import FrameRenderers
+
+    world = get_world("training", prof)
+    switches: list[tuple[int, int]] = []
+    tile = rendering.TerrainRenderer._tile
+
+    def recorded(self, key):
+        if key != self._current:
+            switches.append(key)
+        return tile(self, key)
+
+    rendering.TerrainRenderer._tile = recorded
+    t0 = time.perf_counter()
+    for i in range(n_episodes):
+        for v in VEHICLES:
+            run_episode(world, v, episode_seed(prof.seed, v, i), prof.collect, index=i)
+    wall = time.perf_counter() - t0
+    rendering.TerrainRenderer._tile = tile
+    renderer = rendering.terrain_renderer(world, prof.collect.frame_max_depth_m)
+    sim, r = renderer._tile(renderer._current), renderer._renderers.rgb
+    r._gl_context.make_current()
+    t0 = time.perf_counter()
+    for _ in range(10):
+        mujoco.mjr_uploadHField(sim.model, r._mjr_context, sim.model.hfield("terrain").id)
+    upload = (time.perf_counter() - t0) / 10
+    print(f"{n_episodes} episodes per vehicle in {wall:.1f} s: {len(switches)} tile uploads "
+          f"of {1e3 * upload:.0f} ms (~{len(switches) * upload / wall:.0%} of the time), "
+          f"{len(set(switches))} distinct tiles of {renderer.tile_shape} cells")
+    for k in sizes:
+        cache: collections.OrderedDict = collections.OrderedDict()
+        served = 0
+        for key in switches:
+            if key in cache:
+                served += 1
+                cache.move_to_end(key)
+            else:
+                cache[key] = None
+                if len(cache) > k:
+                    cache.popitem(last=False)
+        print(f"  {k:4d} tiles kept uploaded: {served} of {len(switches)} uploads saved "
+              f"({served / len(switches):.0%})")
+
+    def rss_mb() -> float:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+    grown, kept = [], []
+    for key in list(dict.fromkeys(switches))[:4]:
+        sim = renderer._tile(key)
+        before = rss_mb()
+        r = FrameRenderers.create(sim.model, renderer.camera.height, renderer.camera.width)
+        r.rgb.update_scene(sim.data)
+        r.rgb.render()
+        grown.append(rss_mb() - before)
+        kept.append(r)
+    print(f"one more OpenGL context of a tile: +{min(grown):.0f} to +{max(grown):.0f} MB "
+          f"resident ({len(grown)} contexts)")
+
+
 def _children_cpu() -> float:
     """User + system CPU seconds of this process's reaped child processes."""
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -127,8 +250,20 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=2, help="per vehicle, in-process")
     parser.add_argument("--pool", type=int, default=0, help="per vehicle, through the pool")
     parser.add_argument("--skip-survey", action="store_true")
+    parser.add_argument("--lp-threads", nargs="+", metavar="N",
+                        help="compare llvmpipe thread counts (e.g. 1 0) on --episodes")
+    parser.add_argument("--repeats", type=int, default=2, help="rounds of --lp-threads")
+    parser.add_argument("--tile-cache", nargs="+", type=int, metavar="K",
+                        help="tile uploads an LRU cache of K tiles would save, on --episodes")
+    parser.add_argument("--frames-digest", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     prof = get_profile(args.profile)
+    if args.frames_digest:
+        return frames_digest(prof, args.episodes)
+    if args.lp_threads:
+        return lp_threads(prof, args.lp_threads, args.episodes, args.repeats)
+    if args.tile_cache:
+        return tile_cache(prof, args.episodes, args.tile_cache)
     cfg = prof.collect
     print(f"profile {prof.name}: training world {get_world('training', prof).grid.shape} "
           f"cells, {cfg.episode_duration_s:.0f} s episodes, a frame every "

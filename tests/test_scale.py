@@ -63,8 +63,9 @@ def _fails_on_zero(x):
 def _worker_state(_):
     import torch
 
-    return (os.environ.get("OMP_NUM_THREADS"), os.environ.get("MUJOCO_GL"),
-            torch.get_num_threads(), os.environ.get(artifacts.DATA_ENV_VAR))
+    return (os.environ.get("OMP_NUM_THREADS"), os.environ.get("LP_NUM_THREADS"),
+            os.environ.get("MUJOCO_GL"), torch.get_num_threads(),
+            os.environ.get(artifacts.DATA_ENV_VAR))
 
 
 # ----------------------------------------------------------------------------- same results
@@ -89,6 +90,21 @@ def _trials_equal(a, b):
         assert x.expansions == y.expansions and x.plan_cost == y.plan_cost
         for field in ("path", "trajectory", "speed"):
             np.testing.assert_array_equal(getattr(x, field), getattr(y, field))
+
+
+def test_pool_workers_record_the_episodes_this_process_records(data_dir):
+    """The pool's workers render with one llvmpipe thread (``LP_NUM_THREADS=1``), this
+    process with its own settings (the test process: Mesa's default, a render thread per
+    core): the frames, so the stored episodes and their BEV statistics, are the same to
+    the bit."""
+    prof = tiny_profile()
+    episodes = {}
+    for name, executor in (("serial", SerialExecutor()), ("pool", None)):
+        (data_dir / name).mkdir()
+        os.environ[artifacts.DATA_ENV_VAR] = str(data_dir / name)
+        episodes[name] = collect_episodes(prof, executor=executor, progress=False)
+    _episodes_equal(episodes["serial"], episodes["pool"], prof, data_dir / "serial",
+                    data_dir / "pool")
 
 
 @pytest.mark.parametrize("kind", CLUSTERS)
@@ -124,7 +140,7 @@ def test_cluster_workers_get_one_thread_headless_mujoco_and_the_data_directory(
     with make_executor(kind, workers=2) as ex:
         states = set(run_jobs(_worker_state, [(i,) for i in range(4)], executor=ex,
                               progress=False).values())
-    assert states == {("1", "egl", 1, str(data_dir))}
+    assert states == {("1", "1", "egl", 1, str(data_dir))}
 
 
 # ----------------------------------------------------------------------------- dying workers
