@@ -58,6 +58,17 @@ def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200,
     return np.asarray(times[10:]), np.asarray(commands)  # without the warm-up calls
 
 
+def time_noise(cfg: MPPIConfig, calls: int = 200) -> float:
+    """Median milliseconds of one ``compute``'s noise draw (``MPPIController._noise``)."""
+    ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)
+    times = []
+    for _ in range(calls):
+        t0 = time.perf_counter()
+        ctrl._noise()
+        times.append(time.perf_counter() - t0)
+    return 1e3 * float(np.median(times[10:]))
+
+
 def report(label: str, t: np.ndarray) -> None:
     med = float(np.median(t))
     print(
@@ -89,6 +100,11 @@ def main() -> None:
         same = np.array_equal(runs["compiled"][1], runs["numpy"][1])
         ratio = np.median(runs["numpy"][0]) / np.median(runs["compiled"][0])
         print(f"{'':<9}compiled {ratio:.1f}× faster; the same commands: {same}")
+
+    noise_ms = time_noise(van)
+    print(f"{'':<9}of which the noise draw (numpy's float32 normals, 2 × "
+          f"{van.time_steps} × {van.batch_size}): {noise_ms:.2f} ms a call — a fixed cost: "
+          "another generator would change every trial's samples")
 
     path = s_curve()
     ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)
