@@ -94,9 +94,9 @@ def _trials_equal(a, b):
 
 def test_pool_workers_record_the_episodes_this_process_records(data_dir):
     """The pool's workers render with one llvmpipe thread (``LP_NUM_THREADS=1``), this
-    process with its own settings (the test process: Mesa's default, a render thread per
-    core): the frames, so the stored episodes and their BEV statistics, are the same to
-    the bit."""
+    process with the settings it started with (Mesa reads them at its first OpenGL
+    context; unset, a render thread per core): the frames, so the stored episodes and
+    their BEV statistics, are the same to the bit."""
     prof = tiny_profile()
     episodes = {}
     for name, executor in (("serial", SerialExecutor()), ("pool", None)):
