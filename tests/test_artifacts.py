@@ -1,3 +1,4 @@
+import copy
 import json
 
 import numpy as np
@@ -150,6 +151,20 @@ def test_config_hash_is_stable_and_sensitive():
     assert artifacts.config_hash(np.zeros(3)) != artifacts.config_hash(np.ones(3))
     with pytest.raises(TypeError):
         artifacts.config_hash(object())
+
+
+def test_a_settings_object_used_many_times_hashes_as_its_copies_do():
+    """A key that repeats one settings object (the 1,300 episodes of `paper` share the
+    profile's worlds and vehicles) converts it once; the key is what distinct equal copies
+    give, so caches written before are still valid."""
+    p = get_profile("paper")
+    shared = [{"worlds": p.worlds, "collect": p.collect, "i": i} for i in range(3)]
+    copies = [{"worlds": copy.deepcopy(p.worlds), "collect": copy.deepcopy(p.collect), "i": i}
+              for i in range(3)]
+    assert artifacts.config_hash(shared) == artifacts.config_hash(copies)
+    assert artifacts._jsonable(shared) == artifacts._jsonable(copies)
+    copies[2]["worlds"] = get_profile("demo").worlds
+    assert artifacts.config_hash(shared) != artifacts.config_hash(copies)
 
 
 @pytest.mark.parametrize("suffix,value", [

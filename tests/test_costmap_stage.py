@@ -11,6 +11,7 @@ from dgt_lib.core.config import TrainConfig, get_profile
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.stages import costmaps
 from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.stages.dataset import dataset_fingerprint
 from dgt_lib.stages.experiments import experiment_config
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.train import model_relpath
@@ -28,6 +29,12 @@ def dataset():
     return synthetic_dataset((120, 60, 60, 40), seed=0)
 
 
+class BuildLog(list):
+    """What ensure_world_costmaps built, in order, and how often it loaded the dataset."""
+
+    dataset_loads = 0
+
+
 @pytest.fixture
 def built(tmp_path, monkeypatch, dataset):
     """ensure_world_costmaps on a small synthetic world and dataset, on the CPU; returns
@@ -40,9 +47,16 @@ def built(tmp_path, monkeypatch, dataset):
         return bev, BEV_PATH
 
     monkeypatch.setattr(costmaps, "world_bev", world_bev)
-    monkeypatch.setattr(costmaps, "ensure_dataset", lambda prof, progress=True: dataset)
+    log = BuildLog()
+
+    def ensure_dataset(prof, progress=True):
+        log.dataset_loads += 1
+        return dataset
+
+    monkeypatch.setattr(costmaps, "ensure_dataset", ensure_dataset)
+    monkeypatch.setattr(costmaps, "dataset_digest",  # from the cache's metadata: no loading
+                        lambda prof, progress=True: dataset_fingerprint(dataset))
     monkeypatch.setattr(costmaps, "ensure_tau_s", lambda prof: 0.6)
-    log = []
     real_load = costmaps.ensure_model
     monkeypatch.setattr(costmaps, "ensure_model",
                         lambda *a, **k: log.append("load model") or real_load(*a, **k,
@@ -77,11 +91,15 @@ def test_a_model_retrained_to_the_same_weights_invalidates_no_costmap(built):
 
 def test_a_cached_costmap_is_served_without_loading_its_model(built):
     """`dgt plan` on cached maps checks the model's key, not its weights: no checkpoint
-    is loaded (and torch is not imported) unless a costmap must be built."""
+    is loaded (and torch is not imported) unless a costmap must be built, nor the dataset
+    (60,000 patches in `paper`) unless a model is trained or the slope fit."""
     _maps(PROFILE)
     assert built == ["load model", "network", "slope"]
+    loads = built.dataset_loads  # to train and to fit
+    assert loads >= 1
     maps = _maps(PROFILE)
     assert built == ["load model", "network", "slope"]
+    assert built.dataset_loads == loads  # its fingerprint keys them, not its patches
     assert maps.costmap("dgt", "jeep").shape[0] == PROFILE.costmap.n_headings
 
 

@@ -1,6 +1,8 @@
 """The patch–label dataset: patches along the runs, labels, 70/15/15 split by trajectory."""
 
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,7 +12,13 @@ from dgt_lib.core.config import VEHICLES, get_profile
 from dgt_lib.core.executors import SerialExecutor
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL, patch_times, split_by_trajectory
 from dgt_lib.stages.collect import collect_episodes, ensure_bev
-from dgt_lib.stages.dataset import DATASET_RELPATH, ensure_dataset, stage_dataset
+from dgt_lib.stages.dataset import (
+    DATASET_RELPATH,
+    dataset_digest,
+    dataset_fingerprint,
+    ensure_dataset,
+    stage_dataset,
+)
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import get_world
 
@@ -88,6 +96,29 @@ def test_dataset_is_cached(built):
     assert bev.grid == get_world("training", prof).grid
     out = stage_dataset(prof)
     assert str(len(ds)) in out.summary and all(v in out.summary for v in VEHICLES)
+
+
+def test_a_cached_datasets_digest_is_read_without_loading_its_patches(built, monkeypatch):
+    """What keys the models and the slope fit (``dgt plan`` checks it on every query) comes
+    from the metadata: the same as hashing the loaded arrays, and no patch is read — also
+    for a dataset cached before the metadata recorded it, once it has been recorded."""
+    prof, ds = built
+    meta_path = data_dir(prof) / (DATASET_RELPATH + ".meta.json")
+    meta = json.loads(meta_path.read_text())
+    assert meta["fingerprint"] == dataset_fingerprint(ds)
+    del meta["fingerprint"]  # as a dataset cached before it was recorded
+    meta_path.write_text(json.dumps(meta, indent=1))
+    assert dataset_digest(prof, progress=False) == dataset_fingerprint(ds)  # loads once
+    assert json.loads(meta_path.read_text())["fingerprint"] == dataset_fingerprint(ds)
+
+    load = artifacts.load
+
+    def load_but_the_dataset(path):
+        assert Path(path).name != DATASET_RELPATH, "the dataset's patches were loaded"
+        return load(path)
+
+    monkeypatch.setattr(artifacts, "load", load_but_the_dataset)
+    assert dataset_digest(prof, progress=False) == dataset_fingerprint(ds)
 
 
 def test_patch_times_follow_interval_start_and_glitches():

@@ -41,13 +41,22 @@ def profile_dir(profile: str) -> Path:
     return data_root() / profile
 
 
-def _jsonable(obj: Any) -> Any:
+def _jsonable(obj: Any, memo: dict[int, Any] | None = None) -> Any:
+    """``obj`` as plain JSON values (a dataclass tagged with its type, an array by its
+    SHA-256). ``memo`` maps ``id`` of a dataclass already converted in this call to its
+    value: a configuration that repeats one settings object (1,300 episodes of one
+    profile) converts it once."""
+    memo = {} if memo is None else memo
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {"__type__": type(obj).__name__, **_jsonable(dataclasses.asdict(obj))}
+        if id(obj) not in memo:
+            memo[id(obj)] = {"__type__": type(obj).__name__,
+                             **_jsonable(dataclasses.asdict(obj), memo)}
+        return memo[id(obj)]
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))}
+        return {str(k): _jsonable(v, memo)
+                for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [_jsonable(v, memo) for v in obj]
     if isinstance(obj, np.ndarray):
         return {"__array__": hashlib.sha256(np.ascontiguousarray(obj).tobytes()).hexdigest(),
                 "shape": list(obj.shape), "dtype": str(obj.dtype)}
@@ -246,6 +255,26 @@ def stored_digest(relpath: str | Path, *, profile: str) -> str:
         return meta.get("fingerprint") or meta["sha256"]
     except (OSError, ValueError, KeyError) as exc:
         raise FileNotFoundError(f"no valid artifact at {meta_path.with_suffix('')}: {exc}") from exc
+
+
+def fresh_fingerprint(relpath: str | Path, config: Any, fingerprint: Callable[[Any], str],
+                      *, profile: str) -> str | None:
+    """The ``fingerprint`` of a fresh artifact (see :func:`ensure`) without loading it: read
+    from its metadata, where :func:`ensure` records it; an artifact written before it was
+    recorded is loaded once, and its fingerprint added to the metadata. None when
+    :func:`ensure` would rebuild the artifact."""
+    path = profile_dir(profile) / Path(relpath)
+    if _check(path, config) is not None:
+        return None
+    meta_path = _meta_path(path)
+    meta = json.loads(meta_path.read_text())
+    if "fingerprint" not in meta:
+        try:
+            meta["fingerprint"] = fingerprint(load(path))
+        except Exception:  # noqa: BLE001 - unreadable: ensure will say why and rebuild
+            return None
+        _atomic_write(meta_path, lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
+    return meta["fingerprint"]
 
 
 def is_fresh(relpath: str | Path, config: Any, *, profile: str) -> bool:

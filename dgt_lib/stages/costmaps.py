@@ -13,6 +13,7 @@ for isotropic and binary); layer k is heading θ_k = 2πk/K.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -45,10 +46,10 @@ from dgt_lib.stages.collect import (
     ensure_bev,
     warn_if_unobserved,
 )
-from dgt_lib.stages.dataset import ensure_dataset
+from dgt_lib.stages.dataset import dataset_digest, dataset_fingerprint, ensure_dataset
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
-from dgt_lib.stages.train import dataset_fingerprint, ensure_model, model_digest
+from dgt_lib.stages.train import ensure_model, model_digest
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
@@ -101,15 +102,20 @@ def load_model(profile: Profile | str | None, kind: str = "multitask", *,
 
 
 def ensure_slope_models(profile: Profile | str | None = None, *,
-                        dataset: PatchDataset | None = None,
+                        dataset: PatchDataset | None = None, dataset_hash: str | None = None,
                         progress: bool = True) -> dict[str, SlopeModel]:
     """The slope-based baseline's {θ0, θmin, θmax, p_u, p_d} per vehicle, fitted with
-    Optuna on the training split (cached as ``baselines/slope_models.json``)."""
+    Optuna on the training split (cached as ``baselines/slope_models.json``, keyed by the
+    dataset's :func:`~dgt_lib.stages.dataset.dataset_fingerprint`, ``dataset_hash`` when
+    the caller has it: the dataset is then loaded only to fit)."""
     prof = as_profile(profile)
-    ds = dataset if dataset is not None else ensure_dataset(prof, progress=progress)
-    train = ds.part("train")
+    if dataset_hash is None:
+        dataset_hash = (dataset_fingerprint(dataset) if dataset is not None
+                        else dataset_digest(prof, progress=progress))
 
     def build() -> dict[str, dict[str, float]]:
+        ds = dataset if dataset is not None else ensure_dataset(prof, progress=progress)
+        train = ds.part("train")
         theta = forward_slope(train.patches, train.observed)
         out = {}
         for v, name in enumerate(VEHICLES):
@@ -121,7 +127,7 @@ def ensure_slope_models(profile: Profile | str | None = None, *,
                                         seed=prof.seed).to_dict()
         return out
 
-    config = {"stage": "slope_models", "dataset": artifacts.config_hash(ds.to_arrays()),
+    config = {"stage": "slope_models", "dataset": dataset_hash,
               "trials": prof.costmap.slope_trials, "seed": prof.seed}
     fitted = artifacts.ensure("baselines/slope_models.json", config, build,
                               profile=cache_dir(prof))
@@ -193,30 +199,33 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
             check_method(m, v)
     bev, bev_path = world_bev(world, prof, progress=progress)
     key = _world_key(world, bev_path)
-    ds = None
-    if {"dgt", "isotropic", "single-task", "slope"} & set(methods):
-        ds = ensure_dataset(prof, progress=progress)
+    # the dataset's fingerprint keys every model and the slope fit; its patches are loaded
+    # only to train or fit (a cached map's keys are checked without them)
+    ds_hash = (dataset_digest(prof, progress=progress)
+               if {"dgt", "isotropic", "single-task", "slope"} & set(methods) else None)
     kwargs = {"stride": prof.costmap.stride, "batch_size": prof.costmap.batch_size,
               "progress": progress}
     k = prof.costmap.n_headings
     maps: dict[tuple[str, str], np.ndarray] = {}
 
-    uses_models = bool({"dgt", "isotropic", "single-task"} & set(methods))
-    ds_hash = dataset_fingerprint(ds) if uses_models else None  # once for every model's key
+    @functools.cache
+    def dataset() -> PatchDataset:
+        return ensure_dataset(prof, progress=progress)
 
     def model_costmap(kind: str) -> tuple[np.ndarray, tuple[str, ...]]:
         """Model ``kind``'s (n_heads, K, H, W) costmap of this world, and its heads'
         vehicles: the model is loaded (torch imported) only to build a costmap."""
         from dgt_lib.learning.training import predict
 
-        model = ensure_model(prof, ds, kind, dataset_hash=ds_hash, progress=progress).model
+        model = ensure_model(prof, dataset(), kind, dataset_hash=ds_hash,
+                             progress=progress).model
         cost = directional_costmap(bev, lambda p: predict(model, p, prof.costmap.batch_size),
                                    k, **kwargs)
         return cost, model.vehicles
 
     if {"dgt", "isotropic"} & set(methods):
         config = _costmap_config(prof, bev_path, "dgt",
-                                 model_digest(prof, ds, "multitask", dataset_hash=ds_hash,
+                                 model_digest(prof, None, "multitask", dataset_hash=ds_hash,
                                               progress=progress))
 
         def build_dgt() -> dict[str, np.ndarray]:
@@ -234,7 +243,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
         for v in vehicles:
             kind = f"single:{v}"
             config = _costmap_config(prof, bev_path, kind,
-                                     model_digest(prof, ds, kind, dataset_hash=ds_hash,
+                                     model_digest(prof, None, kind, dataset_hash=ds_hash,
                                                   progress=progress))
 
             def build_st(kind=kind) -> dict[str, np.ndarray]:
@@ -244,7 +253,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
                 f"costmaps/{key}/single_{v}.npz", config, build_st,
                 profile=cache_dir(prof))["cost"]
     if "slope" in methods:
-        slope_models = ensure_slope_models(prof, dataset=ds, progress=progress)
+        slope_models = ensure_slope_models(prof, dataset_hash=ds_hash, progress=progress)
         config = _costmap_config(prof, bev_path, "slope",
                                  artifacts.stored_digest("baselines/slope_models.json",
                                                          profile=cache_dir(prof)))

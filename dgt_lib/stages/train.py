@@ -23,7 +23,7 @@ from dgt_lib.learning.checkpoints import (
     prediction_digest,
 )
 from dgt_lib.perception.dataset import PatchDataset
-from dgt_lib.stages.dataset import ensure_dataset
+from dgt_lib.stages.dataset import dataset_fingerprint, ensure_dataset
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.registry import StageOutput
 
@@ -64,11 +64,6 @@ def snapshot_relpath(kind: str) -> Path:
     return model_relpath(kind).with_suffix(".resume.pt")
 
 
-def dataset_fingerprint(dataset: PatchDataset) -> str:
-    """A hash of every array of ``dataset`` (what a cached model was trained on)."""
-    return artifacts.config_hash(dataset.to_arrays())
-
-
 def default_rgb_weights() -> Path | None:
     """torchvision's ResNet-18 ImageNet file if the user has it, else None.
 
@@ -102,7 +97,7 @@ def rgb_weights_for(cfg: TrainConfig, rgb_weights: str | Path | None) -> Path | 
     return rgb_weights
 
 
-def model_config(profile: Profile, dataset: PatchDataset, kind: str = "multitask", *,
+def model_config(profile: Profile, dataset: PatchDataset | None, kind: str = "multitask", *,
                  seed: int | None = None, rgb_weights: str | Path | None = None,
                  dataset_hash: str | None = None) -> dict[str, Any]:
     """What model ``kind`` of ``profile`` depends on (its artifact's cache key): the
@@ -176,16 +171,21 @@ def ensure_model(
     return load_checkpoint(ckpt, vehicles=vehicles, device=device)
 
 
-def model_digest(profile: Profile, dataset: PatchDataset, kind: str = "multitask", *,
+def model_digest(profile: Profile, dataset: PatchDataset | None, kind: str = "multitask", *,
                  dataset_hash: str | None = None, progress: bool = True) -> str:
     """The digest that keys what is built on model ``kind`` (its
     :func:`~dgt_lib.learning.checkpoints.prediction_digest`, from the cache's metadata).
     A cached model is checked against :func:`model_config` but not loaded (no torch: a
     cached ``dgt plan`` stays quick); a missing or stale one is trained first
     (:func:`ensure_model`). ``dataset_hash``: :func:`dataset_fingerprint` of ``dataset``
-    when the caller has it."""
+    when the caller has it; with it, ``dataset`` may be None, and the profile's dataset is
+    loaded only if the model must be trained."""
+    if dataset is None and dataset_hash is None:
+        raise ValueError("model_digest needs the dataset or its dataset_hash")
     config = model_config(profile, dataset, kind, dataset_hash=dataset_hash)
     if not artifacts.is_fresh(model_relpath(kind), config, profile=cache_dir(profile)):
+        if dataset is None:
+            dataset = ensure_dataset(profile, progress=progress)
         ensure_model(profile, dataset, kind, dataset_hash=dataset_hash, progress=progress)
     return artifacts.stored_digest(model_relpath(kind), profile=cache_dir(profile))
 
