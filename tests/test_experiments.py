@@ -20,7 +20,7 @@ from dgt_lib.evaluation.trials import (
     run_trials,
     trial_tasks,
 )
-from dgt_lib.navigation.drive import drive
+from dgt_lib.navigation.drive import MPPI_DT_S, drive
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.stages.experiments import experiment_stem, trial_maps
 from dgt_lib.world.terrain import get_world
@@ -64,6 +64,32 @@ def test_a_short_closed_loop_trial_succeeds_on_flat_ground():
     assert np.hypot(*(traj[-1, 1:3] - [60.0, 20.0])) < 5.0
     assert speed.max() > 3.0  # it drove, at close to the commanded 5 m/s
     assert np.abs(traj[:, 2] - 20.0).max() < 1.0  # and stayed on the line
+
+
+def test_watching_a_trials_commands_does_not_change_the_trial():
+    """`benchmarks/replay_trial.py` prints every command MPPI gives through `on_command`:
+    one per ~50 ms control period, the speed command and the steering within the
+    vehicle's lock (−1 … 1), and the trial driven the same to the bit as without watching."""
+    world = from_heightmap(np.zeros((200, 200), np.float32), 0.4, name="flat")  # 80 m × 80 m
+    t = np.linspace(0.0, np.pi / 2, 60)  # a quarter circle of 20 m radius, then straight
+    arc = np.column_stack([10 + 20 * np.sin(t), 40 - 20 * np.cos(t), t])
+    path = np.vstack([arc, np.column_stack([np.full(40, 30.0), np.linspace(41, 70, 40),
+                                            np.full(40, np.pi / 2)])])
+    kwargs = {"time_limit_s": 30.0, "mppi_batch_size": 128, "seed": 5}
+    seen = []
+    watched = drive(world, "jeep", path, (30.0, 70.0),
+                    on_command=lambda s, v, steer: seen.append((s.time_s, v, steer)), **kwargs)
+    plain = drive(world, "jeep", path, (30.0, 70.0), **kwargs)
+    np.testing.assert_array_equal(watched[1], plain[1])
+    assert watched[0] == plain[0] and plain[0].success
+    times = np.array([s[0] for s in seen])
+    period = np.diff(times)  # MPPI_DT_S in whole physics steps (6 × 8 ms)
+    np.testing.assert_allclose(period, period[0], atol=1e-9)
+    assert abs(period[0] - MPPI_DT_S) < 0.005
+    assert times[-1] <= plain[0].duration_s
+    steer = np.array([s[2] for s in seen])
+    assert np.abs(steer).max() <= 1.0
+    assert steer[:20].mean() > 0.05  # the left turn is steered left (positive)
 
 
 def test_a_crashing_trial_is_recorded_as_an_error_not_raised():

@@ -58,7 +58,8 @@ def drive_loop(sim: Simulator, policy: Policy, rule: OutcomeRule, *, goal=None,
 
 
 def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None, grid=None,
-          time_limit_s: float, mppi_batch_size: int = 1000, seed: int = 0
+          time_limit_s: float, mppi_batch_size: int = 1000, seed: int = 0,
+          on_command: Callable[[VehicleState, float, float], None] | None = None
           ) -> tuple[TrialOutcome, np.ndarray, np.ndarray]:
     """Track ``path`` (N, 3) in MuJoCo with MPPI at 20 Hz from its first pose.
 
@@ -67,6 +68,9 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     A path of one pose (the planner's answer when the start is already within its goal
     tolerance) has nothing to track: the vehicle holds still and the rule judges where
     it stands (success at t = 0 when that is within 5 m of the goal).
+    ``on_command(state, speed_cmd [m/s], steer ∈ [−1, 1] of the steering lock)`` sees every
+    command MPPI gives, with the state it answered (``benchmarks/replay_trial.py`` prints
+    them).
     """
     spec = get_vehicle(vehicle)
     sim = Simulator(world, spec)
@@ -83,7 +87,10 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
             def policy(state: VehicleState) -> tuple[float, float]:
                 pose = rear_axle_pose(state.position, state.yaw, spec.wheelbase_m)
                 v_x, w_z = ctrl.compute(pose, state.speed_mps, occupancy, grid)
-                return v_x, steering_from_twist(v_x, w_z, spec.wheelbase_m, spec.max_steer_rad)
+                steer = steering_from_twist(v_x, w_z, spec.wheelbase_m, spec.max_steer_rad)
+                if on_command is not None:
+                    on_command(state, v_x, steer)
+                return v_x, steer
         else:
             def policy(state: VehicleState) -> tuple[float, float]:
                 return 0.0, 0.0  # hold still: nothing to track

@@ -1,0 +1,104 @@
+"""Replay one recorded closed-loop trial and print what MPPI commanded, state by state.
+
+    .venv/bin/python benchmarks/replay_trial.py --profile demo --seed 6 \\
+        --experiment experiment1 --method dgt --label ascent --index 0 --from-s 14
+
+A trial of a cached experiment (``data/<profile>/seed-<S>/experiments/<name>.pkl``) is
+driven again from its stored plan with :func:`dgt_lib.navigation.drive.drive`, the way
+:func:`dgt_lib.evaluation.trials.run_trial` drove it (same occupancy map, time limit, MPPI
+batch and seed), so on the machine that recorded it the replay ends where the trial ended
+(the script checks it and says so). Every ``--every-s`` seconds from ``--from-s`` it prints
+the pose, the height of the chassis origin above the terrain, pitch and roll, the speed,
+MPPI's speed command and steering (a fraction of the lock, + left), the wheels in contact
+and how long the vehicle has been immobile: what a person wants to see to tell a physical
+limit (a wheel off the ground, a roll past the tipping angle) from a controller's choice (a
+crawl commanded, full lock at full speed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.evaluation.trials import trial_time_limit_s
+from dgt_lib.navigation.drive import drive
+from dgt_lib.stages.experiments import trial_maps
+from dgt_lib.stages.paths import data_dir
+from dgt_lib.world.simulator import VehicleState
+from dgt_lib.world.terrain import get_world
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default="demo")
+    ap.add_argument("--seed", type=int, default=0, help="run seed of the cached experiment")
+    ap.add_argument("--experiment", default="experiment1")
+    ap.add_argument("--method", default="dgt")
+    ap.add_argument("--label", default=None, help="query label, e.g. ascent (default: any)")
+    ap.add_argument("--vehicle", default=None, help="default: any")
+    ap.add_argument("--index", type=int, default=0,
+                    help="which of the matching trials, in the recorded order")
+    ap.add_argument("--from-s", type=float, default=0.0, help="print from this time [s]")
+    ap.add_argument("--every-s", type=float, default=0.5, help="print interval [s]")
+    args = ap.parse_args()
+
+    prof = get_profile(args.profile).with_(seed=args.seed)
+    path = data_dir(prof) / "experiments" / f"{args.experiment}.pkl"
+    if not path.exists():
+        raise SystemExit(f"no cached {args.experiment} at {path}: run `dgt reproduce "
+                         f"--profile {args.profile} --seeds {args.seed + 1}` first")
+    result = artifacts.load(path)
+    trials = [r for r in result.results if r.task.method == args.method
+              and (args.label is None or r.task.query.label == args.label)
+              and (args.vehicle is None or r.task.vehicle == args.vehicle)]
+    if not trials:
+        raise SystemExit(f"no {args.method} trial with label {args.label!r} in {path}")
+    if not 0 <= args.index < len(trials):
+        raise SystemExit(f"--index must be in 0..{len(trials) - 1}")
+    rec = trials[args.index]
+    task = rec.task
+    print(f"{args.experiment} seed {args.seed}: {task.method} {task.vehicle} "
+          f"{task.query.label} #{args.index} (route {rec.route or '-'}), recorded: "
+          f"{rec.outcome.reason} after {rec.outcome.duration_s:.1f} s at "
+          f"({rec.trajectory[-1, 1]:.1f}, {rec.trajectory[-1, 2]:.1f}) m")
+    if len(rec.path) == 0:
+        raise SystemExit("the trial has no plan to drive")
+    world = get_world(task.world, prof)
+    maps = trial_maps(task.world, task.method, task.vehicle, task.profile)
+    length_m = float(np.hypot(*np.diff(rec.path[:, :2], axis=0).T).sum())
+    next_print = [args.from_s]
+    print(f"{'t [s]':>6} {'x [m]':>6} {'y [m]':>6} {'z-h':>5} {'yaw':>4} {'pitch':>6} "
+          f"{'roll':>6} {'v':>5} {'v_cmd':>5} {'steer':>6} wheels  chassis  immobile [s]")
+    print("(z-h: chassis origin above the terrain [m]; yaw, pitch (+ nose up), roll (+ left "
+          "side up) [°]; v, v_cmd [m/s]; steer: fraction of the lock, + left; wheels fl fr rl rr "
+          "touching)")
+
+    def show(state: VehicleState, speed_cmd: float, steer: float) -> None:
+        if state.time_s + 1e-9 < next_print[0]:
+            return
+        next_print[0] += args.every_s
+        x, y, z = state.position
+        print(f"{state.time_s:6.2f} {x:6.1f} {y:6.1f} {z - world.height_at(x, y):5.2f} "
+              f"{math.degrees(state.yaw):4.0f} {math.degrees(state.pitch):6.1f} "
+              f"{math.degrees(state.roll):6.1f} {state.speed_mps:5.2f} {speed_cmd:5.2f} "
+              f"{steer:+6.2f} {''.join(str(int(c)) for c in state.wheel_contacts)}"
+              f"    {int(state.chassis_contact)}        {state.immobilized_s:4.1f}")
+
+    outcome, traj, _ = drive(world, task.vehicle, rec.path, task.query.goal,
+                             occupancy=maps.occupancy, grid=maps.grid,
+                             time_limit_s=trial_time_limit_s(prof.experiments, length_m),
+                             mppi_batch_size=prof.experiments.mppi_batch_size, seed=task.seed,
+                             on_command=show)
+    same = (outcome.reason == rec.outcome.reason
+            and np.allclose(traj[-1, 1:3], rec.trajectory[-1, 1:3], atol=0.05))
+    print(f"replay: {outcome.reason} after {outcome.duration_s:.1f} s at "
+          f"({traj[-1, 1]:.1f}, {traj[-1, 2]:.1f}) m — "
+          + ("as recorded" if same else "NOT as recorded (another machine or code?)"))
+
+
+if __name__ == "__main__":
+    main()
