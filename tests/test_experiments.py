@@ -92,6 +92,23 @@ def test_watching_a_trials_commands_does_not_change_the_trial():
     assert steer[:20].mean() > 0.05  # the left turn is steered left (positive)
 
 
+def test_a_drive_takes_other_mppi_settings_for_itself_only():
+    """`benchmarks/controller_variants.py` drives recorded plans with other MPPI settings:
+    a lower target speed is driven slower, the next drive without it at 5 m/s again, and a
+    name that is no MPPI setting is refused."""
+    world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
+    path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
+    kwargs = {"time_limit_s": 40.0, "mppi_batch_size": 128}
+    slow = drive(world, "jeep", path, (60.0, 20.0), mppi_settings={"target_speed": 2.5},
+                 **kwargs)
+    again = drive(world, "jeep", path, (60.0, 20.0), **kwargs)
+    assert slow[0].success and again[0].success
+    assert slow[2].max() < 3.2 < 4.0 < again[2].max()
+    with pytest.raises(TypeError):
+        drive(world, "jeep", path, (60.0, 20.0), mppi_settings={"no_such_setting": 1.0},
+              **kwargs)
+
+
 def test_a_crashing_trial_is_recorded_as_an_error_not_raised():
     task = TrialTask("x", "no_such_world", "binary", "jeep", Query((0, 0, 0), (1, 1)), 0,
                      PROFILE, 0)

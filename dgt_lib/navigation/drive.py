@@ -14,7 +14,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -59,7 +59,8 @@ def drive_loop(sim: Simulator, policy: Policy, rule: OutcomeRule, *, goal=None,
 
 def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None, grid=None,
           time_limit_s: float, mppi_batch_size: int = 1000, seed: int = 0,
-          on_command: Callable[[VehicleState, float, float], None] | None = None
+          on_command: Callable[[VehicleState, float, float], None] | None = None,
+          mppi_settings: Mapping[str, object] | None = None
           ) -> tuple[TrialOutcome, np.ndarray, np.ndarray]:
     """Track ``path`` (N, 3) in MuJoCo with MPPI at 20 Hz from its first pose.
 
@@ -70,7 +71,9 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     it stands (success at t = 0 when that is within 5 m of the goal).
     ``on_command(state, speed_cmd [m/s], steer ∈ [−1, 1] of the steering lock)`` sees every
     command MPPI gives, with the state it answered (``benchmarks/replay_trial.py`` prints
-    them).
+    them). ``mppi_settings``: :class:`MPPIConfig` fields to change for this drive, e.g.
+    ``{"lateral_accel_max": 2.0}`` (``benchmarks/controller_variants.py``); the experiments
+    use the defaults.
     """
     spec = get_vehicle(vehicle)
     sim = Simulator(world, spec)
@@ -79,7 +82,8 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
         x, y, yaw = (float(v) for v in path[0])
         sim.reset(x, y, yaw)
         if _has_length(path):
-            cfg = replace(MPPIConfig(batch_size=mppi_batch_size), **vehicle_footprint(spec))
+            cfg = replace(MPPIConfig(batch_size=mppi_batch_size), **vehicle_footprint(spec),
+                          **(mppi_settings or {}))
             ctrl = MPPIController.from_vehicle(spec, cfg, seed=seed)
             # the controller works on the rear-axle centre, the planner on the body centre
             ctrl.set_path(rear_axle_pose(path[:, :2], path[:, 2], spec.wheelbase_m))
