@@ -11,8 +11,9 @@ does not depend on the controller — once per ``--variant`` (``FIELD=VALUE[,FIE
 of :class:`dgt_lib.navigation.mppi_config.MPPIConfig`; several fields in one variant are
 changed together), with the trial's own seed, time limit and occupancy map, in a pool of
 ``--workers`` processes. It prints, per variant and query label, how many arrived and how
-the others ended, beside the recorded outcomes; ``--check`` also drives the defaults again
-and counts the trials that did not end as recorded (0 on the machine that recorded them).
+the others ended, beside the recorded outcomes, and which trials ended otherwise than
+recorded (named as ``replay_trial.py --mppi`` replays them); ``--check`` also drives the
+defaults again (none should end otherwise on the machine that recorded them).
 An exploration tool: the experiments keep the default settings.
 """
 
@@ -31,24 +32,18 @@ from dgt_lib.core.config import get_profile
 from dgt_lib.core.executors import limit_threads
 from dgt_lib.evaluation.trials import trial_time_limit_s
 from dgt_lib.navigation.drive import drive
-from dgt_lib.navigation.mppi_config import MPPIConfig
+from dgt_lib.navigation.mppi_config import parse_mppi_settings
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import get_world
 
 
 def parse_variant(text: str) -> dict[str, object]:
-    """``"lateral_accel_max=2.0,constraint_weight=20"`` → MPPIConfig fields, typed by the
-    field's default (a float field takes ``20`` as 20.0)."""
-    defaults = MPPIConfig()
-    out: dict[str, object] = {}
-    for part in text.split(","):
-        name, _, value = part.partition("=")
-        name = name.strip()
-        if not hasattr(defaults, name) or not value:
-            raise SystemExit(f"--variant {text!r}: {name!r} is not an MPPIConfig field=value")
-        out[name] = type(getattr(defaults, name))(value)
-    return out
+    """``--variant``'s value as MPPIConfig fields (argparse reports a bad one)."""
+    try:
+        return parse_mppi_settings(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _drive(job: tuple) -> tuple[str, bool, float]:
@@ -92,17 +87,21 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
 
-    trials = []
+    trials, names = [], []  # names: as replay_trial.py's --seed/--method/--label/--index
     for seed in range(args.seeds):
         prof = get_profile(args.profile).with_(seed=seed)
         path = data_dir(prof) / "experiments" / f"{args.experiment}.pkl"
         if not path.exists():
             raise SystemExit(f"no cached {args.experiment} for seed {seed} at {path}")
+        index: collections.Counter = collections.Counter()
         for r in artifacts.load(path).results:
+            key = (r.task.method, r.task.query.label)
             if (len(r.path) > 1 and (args.route is None or r.route == args.route)
                     and (args.label is None or r.task.query.label == args.label)
                     and (args.method is None or r.task.method == args.method)):
                 trials.append(r)
+                names.append(f"seed {seed} {key[0]} {key[1]} #{index[key]}")
+            index[key] += 1
     if not trials:
         raise SystemExit("no recorded trial matches the filters")
     recorded = [(r.task.query.label, r.outcome.reason, r.outcome.success,
@@ -122,9 +121,12 @@ def main() -> None:
             rows = [(r.task.query.label, *o) for r, o in zip(trials, out, strict=True)]
             name = ", ".join(f"{k}={v}" for k, v in settings.items()) or "defaults again"
             print(f"  {name}: {summary(rows)}  [{time.perf_counter() - t0:.0f} s]")
-            if not settings:
-                differ = sum(o[0] != r.outcome.reason for r, o in zip(trials, out, strict=True))
-                print(f"    {differ} of {len(trials)} ended otherwise than recorded")
+            changed = [(who, r.outcome.reason, o[0])
+                       for who, r, o in zip(names, trials, out, strict=True)
+                       if o[0] != r.outcome.reason]
+            print(f"    {len(changed)} of {len(trials)} ended otherwise than recorded"
+                  + ("" if not changed or len(changed) > 12 else ": " + "; ".join(
+                      f"{who} {was} → {now}" for who, was, now in changed)))
 
 
 if __name__ == "__main__":

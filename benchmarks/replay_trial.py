@@ -12,7 +12,8 @@ the pose, the height of the chassis origin above the terrain, pitch and roll, th
 MPPI's speed command and steering (a fraction of the lock, + left), the wheels in contact
 and how long the vehicle has been immobile: what a person wants to see to tell a physical
 limit (a wheel off the ground, a roll past the tipping angle) from a controller's choice (a
-crawl commanded, full lock at full speed).
+crawl commanded, full lock at full speed). ``--mppi FIELD=VALUE[,…]`` drives the same plan
+with other MPPI settings (``controller_variants.py`` names the trials they change).
 """
 
 from __future__ import annotations
@@ -26,10 +27,19 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.trials import trial_time_limit_s
 from dgt_lib.navigation.drive import drive
+from dgt_lib.navigation.mppi_config import parse_mppi_settings
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.simulator import VehicleState
 from dgt_lib.world.terrain import get_world
+
+
+def mppi_settings(text: str) -> dict[str, object]:
+    """``--mppi``'s value as MPPIConfig fields (argparse reports a bad one)."""
+    try:
+        return parse_mppi_settings(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def main() -> None:
@@ -44,6 +54,8 @@ def main() -> None:
                     help="which of the matching trials, in the recorded order")
     ap.add_argument("--from-s", type=float, default=0.0, help="print from this time [s]")
     ap.add_argument("--every-s", type=float, default=0.5, help="print interval [s]")
+    ap.add_argument("--mppi", default=None, type=mppi_settings, metavar="FIELD=VALUE[,…]",
+                    help="drive with these MPPIConfig settings instead of the recorded ones")
     args = ap.parse_args()
 
     prof = get_profile(args.profile).with_(seed=args.seed)
@@ -92,12 +104,13 @@ def main() -> None:
                              occupancy=maps.occupancy, grid=maps.grid,
                              time_limit_s=trial_time_limit_s(prof.experiments, length_m),
                              mppi_batch_size=prof.experiments.mppi_batch_size, seed=task.seed,
-                             on_command=show)
+                             on_command=show, mppi_settings=args.mppi)
     same = (outcome.reason == rec.outcome.reason
             and np.allclose(traj[-1, 1:3], rec.trajectory[-1, 1:3], atol=0.05))
-    print(f"replay: {outcome.reason} after {outcome.duration_s:.1f} s at "
-          f"({traj[-1, 1]:.1f}, {traj[-1, 2]:.1f}) m — "
-          + ("as recorded" if same else "NOT as recorded (another machine or code?)"))
+    verdict = ("as recorded" if same else "otherwise than recorded" if args.mppi
+               else "NOT as recorded (another machine or code?)")
+    print(f"replay{' with ' + str(args.mppi) if args.mppi else ''}: {outcome.reason} after "
+          f"{outcome.duration_s:.1f} s at ({traj[-1, 1]:.1f}, {traj[-1, 2]:.1f}) m — {verdict}")
 
 
 if __name__ == "__main__":

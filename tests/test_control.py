@@ -18,7 +18,7 @@ from dgt_lib.navigation.bicycle import (
     steering_from_twist,
 )
 from dgt_lib.navigation.mppi import MPPIController
-from dgt_lib.navigation.mppi_config import MPPIConfig, vehicle_footprint
+from dgt_lib.navigation.mppi_config import MPPIConfig, parse_mppi_settings, vehicle_footprint
 
 WHEELBASE, MAX_STEER = 2.46, math.radians(35.0)  # the jeep
 R_MIN = WHEELBASE / math.tan(MAX_STEER)  # 3.51 m
@@ -337,3 +337,15 @@ def test_mppi_tracks_paths_in_mujoco(shape):
     assert math.dist(poses[-1, :2], path[-1, :2]) < 1.5  # stopped at the goal
     outcome = evaluate_trial(times, poses, speeds, path[-1])
     assert outcome.success and outcome.reason == "success"
+
+
+def test_mppi_settings_are_read_typed_and_checked():
+    """`replay_trial.py --mppi` and `controller_variants.py --variant` take MPPI settings as
+    text: each typed like its default, a misspelt one refused with the valid names."""
+    got = parse_mppi_settings("lateral_accel_max=2, w_rate_std=0.75,batch_size=500")
+    assert got == {"lateral_accel_max": 2.0, "w_rate_std": 0.75, "batch_size": 500}
+    assert type(got["lateral_accel_max"]) is float and type(got["batch_size"]) is int
+    with pytest.raises(ValueError, match="lateral_accel_max"):
+        parse_mppi_settings("lateral_acel_max=2")
+    with pytest.raises(ValueError):
+        parse_mppi_settings("w_rate_std")

@@ -3,7 +3,7 @@ footprint a vehicle gives it."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from dgt_lib.core.vehicles import footprint_circles
 
@@ -85,3 +85,18 @@ def vehicle_footprint(vehicle, margin_m: float = 0.2) -> dict[str, object]:
         "collision_radius_m": radius,
         "inflation_radius_m": radius + 1.5,
     }
+
+
+def parse_mppi_settings(text: str) -> dict[str, object]:
+    """``"lateral_accel_max=2.0,w_rate_std=0.75"`` → :class:`MPPIConfig` fields for
+    ``drive(mppi_settings=…)``, each typed by its default (``20`` for a float field is
+    20.0). Raises ValueError naming the valid fields for anything else."""
+    defaults = MPPIConfig()
+    out: dict[str, object] = {}
+    for part in text.split(","):
+        name, _, value = (p.strip() for p in part.partition("="))
+        if not name or not value or not hasattr(defaults, name):
+            raise ValueError(f"{part.strip()!r} is not FIELD=VALUE of an MPPI setting; fields: "
+                             f"{', '.join(f.name for f in fields(MPPIConfig))}")
+        out[name] = type(getattr(defaults, name))(value)
+    return out
