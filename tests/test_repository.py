@@ -37,7 +37,7 @@ def test_no_file_points_outside_the_repository():
     assert offenders == []
 
 
-@pytest.mark.parametrize("document", ["README.md", "docs/ARCHITECTURE.md"])
+@pytest.mark.parametrize("document", ["README.md", "docs/ARCHITECTURE.md", "docs/speed.md"])
 def test_every_relative_link_of_the_documentation_exists(document):
     text = (ROOT / document).read_text()
     links = re.findall(r"\]\(([^)#\s]+)[^)]*\)", text)

@@ -368,7 +368,7 @@ def _demo() -> Profile:
         costmap=CostmapConfig(stride=(4, 2)),
         experiments=ExperimentsConfig(n_hill=6, n_ridge=6, n_eval_jeep=10, n_eval_vw_van=10),
         # exact (unweighted) Hybrid A*, as the paper: the compiled search plans the experiment
-        # queries in 0.01–0.07 s median (README → Hybrid A*); weighting is no longer needed.
+        # queries in 0.01–0.07 s median (docs/speed.md → Hybrid A*); weighting is no longer needed.
         planner=PlannerConfig(heuristic_weight=1.0),
         # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives, once for all three
         # seeds: 39 s on 2 otherwise idle cores (a fresh clone's `make reproduce`, 9c7b4c7).

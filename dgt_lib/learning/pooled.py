@@ -80,7 +80,7 @@ class PooledNet(nn.Module):
 
     ``depth`` 6 (a 15 × 15-cell, 6 m view per trunk feature, margin 7): of depth 4, 6, 8 and
     width 64 at depth 4, trained on the ``demo`` data (3 seeds each), it came closest to the
-    ridge's measured ground truth (``benchmarks/eval_pooled.py``; README). Picked on those
+    ridge's measured ground truth (``benchmarks/eval_pooled.py``; docs/speed.md). Picked on those
     results, so the ``paper`` profile's seeds are its independent check.
     """
 

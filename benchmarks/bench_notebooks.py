@@ -1,0 +1,109 @@
+"""How long a person waits for each notebook: every notebook run top to bottom in a fresh
+kernel, as ``Run All`` would, under a profile.
+
+    .venv/bin/python benchmarks/bench_notebooks.py --profile demo
+    .venv/bin/python benchmarks/bench_notebooks.py --profile demo --notebooks 03 04 --cells 5
+
+Prints one row per notebook (wall seconds, its slowest cells) and the total. The notebooks
+read the profile's artifact cache; a notebook whose artifacts are not cached builds them
+first (the pipeline's stages), so time a warm cache — run ``dgt reproduce --profile P
+--seeds 1`` before — unless that first wait is what you want to measure. The executed
+copies go to a temporary directory (``--keep DIR`` keeps them); ``notebooks/`` is never
+written. What a notebook writes under ``data/`` (its rerun recordings) is written as usual.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import nbformat
+from nbclient import NotebookClient
+
+ROOT = Path(__file__).resolve().parent.parent
+NOTEBOOKS = ROOT / "notebooks"
+
+
+def _cell_seconds(cell) -> float | None:
+    """Wall seconds a code cell ran, from the timing nbclient records in its metadata."""
+    t = cell.get("metadata", {}).get("execution", {})
+    try:
+        start = dt.datetime.fromisoformat(t["iopub.execute_input"].replace("Z", "+00:00"))
+        end = dt.datetime.fromisoformat(t["shell.execute_reply"].replace("Z", "+00:00"))
+    except KeyError:
+        return None
+    return (end - start).total_seconds()
+
+
+def _first_line(cell) -> str:
+    lines = [s for s in "".join(cell.source).splitlines() if s.strip() and not s.startswith("#")]
+    text = lines[0] if lines else ""
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def run_notebook(path: Path, profile: str, timeout_s: int, keep: Path) -> tuple[float, list]:
+    """Execute ``path`` under ``profile``; its wall seconds and ``(seconds, cell index,
+    first line)`` of each code cell, slowest first. Raises if a cell fails."""
+    nb = nbformat.read(path, as_version=4)
+    env = {"DGT_PROFILE": profile}
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)  # the kernel inherits the environment it is started in
+    try:
+        client = NotebookClient(nb, timeout=timeout_s, kernel_name="python3",
+                                resources={"metadata": {"path": str(NOTEBOOKS)}})
+        start = time.perf_counter()
+        try:
+            client.execute()
+        finally:
+            wall = time.perf_counter() - start
+            nbformat.write(nb, keep / path.name)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    cells = [(_cell_seconds(c), i, _first_line(c)) for i, c in enumerate(nb.cells)
+             if c.cell_type == "code"]
+    return wall, sorted((c for c in cells if c[0] is not None), reverse=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--profile", default="demo", choices=("smoke", "demo", "paper"))
+    parser.add_argument("--notebooks", nargs="*", default=None,
+                        help="names or number prefixes (e.g. 03 04); default: all")
+    parser.add_argument("--cells", type=int, default=2, help="slowest cells shown per notebook")
+    parser.add_argument("--timeout", type=int, default=1800, help="per cell [s]")
+    parser.add_argument("--keep", type=Path, default=None,
+                        help="directory for the executed copies (default: a temporary one)")
+    args = parser.parse_args()
+
+    paths = sorted(NOTEBOOKS.glob("[0-9][0-9]_*.ipynb"))
+    if args.notebooks:
+        paths = [p for p in paths if any(p.stem.startswith(n) or p.name == n
+                                         for n in args.notebooks)]
+        if not paths:
+            sys.exit(f"no notebook matches {args.notebooks} in {NOTEBOOKS}")
+    keep = args.keep or Path(tempfile.mkdtemp(prefix="bench_notebooks_"))
+    keep.mkdir(parents=True, exist_ok=True)
+    print(f"profile {args.profile}, {os.cpu_count()} CPUs, load average "
+          f"{os.getloadavg()[0]:.2f} at the start; executed copies in {keep}\n")
+    print("| notebook | wall [s] | slowest cells [s] |\n| --- | --- | --- |")
+    total = 0.0
+    for path in paths:
+        wall, cells = run_notebook(path, args.profile, args.timeout, keep)
+        total += wall
+        slow = "; ".join(f"{s:.1f} (cell {i}: `{line}`)" for s, i, line in cells[:args.cells])
+        print(f"| {path.stem} | {wall:.1f} | {slow} |", flush=True)
+    print(f"| **all {len(paths)}** | **{total:.1f}** | load average {os.getloadavg()[0]:.2f} "
+          f"at the end |")
+
+
+if __name__ == "__main__":
+    main()
