@@ -14,12 +14,20 @@ and how long the vehicle has been immobile: what a person wants to see to tell a
 limit (a wheel off the ground, a roll past the tipping angle) from a controller's choice (a
 crawl commanded, full lock at full speed). ``--mppi FIELD=VALUE[,…]`` drives the same plan
 with other MPPI settings (``controller_variants.py`` names the trials they change).
+``--critics`` adds what MPPI's last call saw among its sampled sequences: the share whose
+footprint collides with the occupancy map (cost ≥ ``collision_weight``), the same share among
+the fast ones (mean speed over the horizon ≥ ``--fast-mps``), the mean speed of the cheapest
+sequence, and how much more the cheapest fast one costs (∞: every fast one collides) — to
+tell a crawl chosen because every fast sequence collides from one chosen for other critics.
+Watching changes nothing: the sequences, costs and commands are those of the trial.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, nullcontext
 
 import numpy as np
 
@@ -27,6 +35,7 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.trials import trial_time_limit_s
 from dgt_lib.navigation.drive import drive
+from dgt_lib.navigation.mppi import MPPIController
 from dgt_lib.navigation.mppi_config import parse_mppi_settings
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
@@ -40,6 +49,42 @@ def mppi_settings(text: str) -> dict[str, object]:
         return parse_mppi_settings(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+@contextmanager
+def watching_sampled_costs(fast_mps: float) -> Iterator[Callable[[], str]]:
+    """Within the block, MPPI's sampled-cost step (compiled backend) keeps statistics of
+    each call's sampled sequences; yields a function that formats the latest call's (share
+    colliding [%], share of the fast ones colliding [%], the cheapest sequence's mean speed
+    [m/s], the cheapest collision-free fast one's extra cost). The wrapper returns what it
+    was given, so the trial is unchanged; the method is restored on leaving."""
+    original = MPPIController._sampled_costs_compiled
+    last: dict[str, float] = {}
+
+    def wrapped(self, *args, **kwargs):
+        v, w, cost = original(self, *args, **kwargs)
+        mean_v = v.mean(axis=0)  # (B,) commanded speed over the horizon [m/s]
+        hit = cost >= self.cfg.collision_weight
+        fast = mean_v >= fast_mps
+        best = int(np.argmin(cost))
+        last.update(collide=float(hit.mean()),
+                    fast_collide=float(hit[fast].mean()) if fast.any() else math.nan,
+                    best_v=float(mean_v[best]),
+                    fast_extra=(float(cost[fast & ~hit].min() - cost[best])
+                                if (fast & ~hit).any() else math.inf))
+        return v, w, cost
+
+    def latest() -> str:
+        if not last:
+            return ""
+        return (f"  {100 * last['collide']:5.1f} {100 * last['fast_collide']:5.1f} "
+                f"{last['best_v']:5.2f} {last['fast_extra']:7.2f}")
+
+    MPPIController._sampled_costs_compiled = wrapped
+    try:
+        yield latest
+    finally:
+        MPPIController._sampled_costs_compiled = original
 
 
 def main() -> None:
@@ -56,6 +101,10 @@ def main() -> None:
     ap.add_argument("--every-s", type=float, default=0.5, help="print interval [s]")
     ap.add_argument("--mppi", default=None, type=mppi_settings, metavar="FIELD=VALUE[,…]",
                     help="drive with these MPPIConfig settings instead of the recorded ones")
+    ap.add_argument("--critics", action="store_true",
+                    help="also print what MPPI's sampled sequences cost (see above)")
+    ap.add_argument("--fast-mps", type=float, default=1.5,
+                    help="--critics: a sequence is fast from this mean speed [m/s]")
     args = ap.parse_args()
 
     prof = get_profile(args.profile).with_(seed=args.seed)
@@ -84,10 +133,14 @@ def main() -> None:
     length_m = float(np.hypot(*np.diff(rec.path[:, :2], axis=0).T).sum())
     next_print = [args.from_s]
     print(f"{'t [s]':>6} {'x [m]':>6} {'y [m]':>6} {'z-h':>5} {'yaw':>4} {'pitch':>6} "
-          f"{'roll':>6} {'v':>5} {'v_cmd':>5} {'steer':>6} wheels  chassis  immobile [s]")
+          f"{'roll':>6} {'v':>5} {'v_cmd':>5} {'steer':>6} wheels  chassis  immobile [s]"
+          + ("  hit % fast% best_v fast+ΔS" if args.critics else ""))
     print("(z-h: chassis origin above the terrain [m]; yaw, pitch (+ nose up), roll (+ left "
           "side up) [°]; v, v_cmd [m/s]; steer: fraction of the lock, + left; wheels fl fr rl rr "
           "touching)")
+
+    watching = (watching_sampled_costs(args.fast_mps) if args.critics
+                else nullcontext(lambda: ""))
 
     def show(state: VehicleState, speed_cmd: float, steer: float) -> None:
         if state.time_s + 1e-9 < next_print[0]:
@@ -98,13 +151,15 @@ def main() -> None:
               f"{math.degrees(state.yaw):4.0f} {math.degrees(state.pitch):6.1f} "
               f"{math.degrees(state.roll):6.1f} {state.speed_mps:5.2f} {speed_cmd:5.2f} "
               f"{steer:+6.2f} {''.join(str(int(c)) for c in state.wheel_contacts)}"
-              f"    {int(state.chassis_contact)}        {state.immobilized_s:4.1f}")
+              f"    {int(state.chassis_contact)}        {state.immobilized_s:4.1f}"
+              + critics())
 
-    outcome, traj, _ = drive(world, task.vehicle, rec.path, task.query.goal,
-                             occupancy=maps.occupancy, grid=maps.grid,
-                             time_limit_s=trial_time_limit_s(prof.experiments, length_m),
-                             mppi_batch_size=prof.experiments.mppi_batch_size, seed=task.seed,
-                             on_command=show, mppi_settings=args.mppi)
+    with watching as critics:
+        outcome, traj, _ = drive(world, task.vehicle, rec.path, task.query.goal,
+                                 occupancy=maps.occupancy, grid=maps.grid,
+                                 time_limit_s=trial_time_limit_s(prof.experiments, length_m),
+                                 mppi_batch_size=prof.experiments.mppi_batch_size,
+                                 seed=task.seed, on_command=show, mppi_settings=args.mppi)
     same = (outcome.reason == rec.outcome.reason
             and np.allclose(traj[-1, 1:3], rec.trajectory[-1, 1:3], atol=0.05))
     verdict = ("as recorded" if same else "otherwise than recorded" if args.mppi

@@ -1,7 +1,9 @@
 """Closed-loop trials: routes, queries, the trial runner's error handling, and tables."""
 
+import importlib.util
 import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +23,8 @@ from dgt_lib.evaluation.trials import (
     trial_tasks,
 )
 from dgt_lib.navigation.drive import MPPI_DT_S, drive
+from dgt_lib.navigation.mppi import MPPIController
+from dgt_lib.navigation.mppi_config import MPPIConfig
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.stages.experiments import experiment_stem, trial_maps
 from dgt_lib.world.terrain import get_world
@@ -90,6 +94,39 @@ def test_watching_a_trials_commands_does_not_change_the_trial():
     steer = np.array([s[2] for s in seen])
     assert np.abs(steer).max() <= 1.0
     assert steer[:20].mean() > 0.05  # the left turn is steered left (positive)
+
+
+def test_watching_mppis_sampled_costs_does_not_change_the_trial():
+    """`benchmarks/replay_trial.py --critics` reports, per MPPI call, how many sampled
+    sequences collide: beside a wall some do, the shares are percentages, the cheapest
+    sequence's speed is within the controller's range, the trial is driven the same to the
+    bit as without watching, and the controller is itself again afterwards."""
+    spec = importlib.util.spec_from_file_location(
+        "replay_trial", Path(__file__).resolve().parent.parent / "benchmarks" / "replay_trial.py")
+    replay = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(replay)
+    world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")  # 80 m × 40 m
+    occupancy = np.zeros(world.grid.shape, np.uint8)
+    rows = slice(*(int((y - world.grid.origin_xy[1]) / 0.4) for y in (22.0, 25.0)))
+    cols = slice(*(int((x - world.grid.origin_xy[0]) / 0.4) for x in (25.0, 45.0)))
+    occupancy[rows, cols] = 1  # a wall 2 m beside the path
+    path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
+    kwargs = {"occupancy": occupancy, "grid": world.grid, "time_limit_s": 30.0,
+              "mppi_batch_size": 128, "seed": 3}
+    original = MPPIController._sampled_costs_compiled
+    reports = []
+    with replay.watching_sampled_costs(1.5) as latest:
+        watched = drive(world, "jeep", path, (60.0, 20.0),
+                        on_command=lambda s, v, steer: reports.append(latest()), **kwargs)
+    assert MPPIController._sampled_costs_compiled is original
+    plain = drive(world, "jeep", path, (60.0, 20.0), **kwargs)
+    np.testing.assert_array_equal(watched[1], plain[1])
+    assert watched[0] == plain[0]
+    numbers = np.array([[float(x) for x in r.split()] for r in reports])
+    hit, fast_hit, best_v = numbers[:, 0], numbers[:, 1], numbers[:, 2]
+    assert ((0 <= hit) & (hit <= 100)).all() and hit.max() > 0  # near the wall some collide
+    assert np.nanmax(fast_hit) <= 100
+    assert ((0 <= best_v) & (best_v <= MPPIConfig().v_max)).all()
 
 
 def test_a_drive_takes_other_mppi_settings_for_itself_only():
