@@ -50,24 +50,14 @@ def run_notebook(path: Path, profile: str, timeout_s: int, keep: Path) -> tuple[
     """Execute ``path`` under ``profile``; its wall seconds and ``(seconds, cell index,
     first line)`` of each code cell, slowest first. Raises if a cell fails."""
     nb = nbformat.read(path, as_version=4)
-    env = {"DGT_PROFILE": profile}
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)  # the kernel inherits the environment it is started in
-    try:
-        client = NotebookClient(nb, timeout=timeout_s, kernel_name="python3",
-                                resources={"metadata": {"path": str(NOTEBOOKS)}})
-        start = time.perf_counter()
-        try:
-            client.execute()
-        finally:
-            wall = time.perf_counter() - start
-            nbformat.write(nb, keep / path.name)
+    client = NotebookClient(nb, timeout=timeout_s, kernel_name="python3",
+                            resources={"metadata": {"path": str(NOTEBOOKS)}})
+    start = time.perf_counter()
+    try:  # the kernel's environment: this process's, with the profile
+        client.execute(env={**os.environ, "DGT_PROFILE": profile})
     finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        wall = time.perf_counter() - start
+        nbformat.write(nb, keep / path.name)
     cells = [(_cell_seconds(c), i, _first_line(c)) for i, c in enumerate(nb.cells)
              if c.cell_type == "code"]
     return wall, sorted((c for c in cells if c[0] is not None), reverse=True)
