@@ -20,13 +20,13 @@ import numpy as np  # noqa: E402
 
 from dgt_lib.core.geometry import GridSpec  # noqa: E402
 from dgt_lib.core.vehicles import get_vehicle  # noqa: E402
-from dgt_lib.navigation.bicycle import (  # noqa: E402
+from dgt_lib.navigation.control.bicycle import (  # noqa: E402
     KinematicBicycle,
     cross_track_errors,
     simulate_tracking,
 )
-from dgt_lib.navigation.mppi import BACKENDS, MPPIController  # noqa: E402
-from dgt_lib.navigation.mppi_config import MPPIConfig, vehicle_footprint  # noqa: E402
+from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E402
+from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
 

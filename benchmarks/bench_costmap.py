@@ -17,13 +17,13 @@ literal procedure costs the same for every heading, so ``--literal-headings N``
 (< 8) measures N headings and scales the time to 8 (the difference is measured
 on those N headings) — the table says so.
 
-The "equivariant" row (:mod:`dgt_lib.learning.equivariant`) is another network: one pass
+The "equivariant" row (:mod:`dgt_lib.beyond.equivariant`) is another network: one pass
 of a C8Net over the unrotated map gives all 8 headings; its time does not depend on its
 weights (``--equivariant`` loads a trained one, else it is untrained), and its difference
 from the literal map of DGTNet means nothing — its accuracy is measured against the ground
 truth by ``benchmarks/eval_equivariant.py``.
 
-The "PooledNet" rows (:mod:`dgt_lib.learning.pooled`, ``--pooled``: trained networks saved
+The "PooledNet" rows (:mod:`dgt_lib.beyond.pooled`, ``--pooled``: trained networks saved
 by ``benchmarks/eval_pooled.py``, else an untrained one per ``--pooled-widths``) are a third
 network, built to be evaluated densely: its own literal procedure (every window cut out
 with its context and run on its own, ``--literal-headings`` as above) against its dense
@@ -45,14 +45,14 @@ import torch  # noqa: E402
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.checkpoints import load_checkpoint
-from dgt_lib.learning.equivariant import C8Net, EquivariantResult, equivariant_costmap
-from dgt_lib.learning.pooled import PooledNet, bfloat16_copy
+from dgt_lib.beyond.equivariant import C8Net, EquivariantResult, equivariant_costmap
+from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import predict, train_model
+from dgt_lib.beyond.dense import directional_costmap_dense
 from dgt_lib.mapping.costmap import (
     _heading_layer,
     directional_costmap,
-    directional_costmap_dense,
     field_heading_layer,
 )
 from dgt_lib.perception.bev import BEVMap, height_gradient

@@ -3,7 +3,7 @@
 Target: an update after one new RGB-D frame ≤ 100 ms for one vehicle on 2 cores.
 
 A jeep explores the profile's eval world from nothing observed
-(:func:`dgt_lib.navigation.explore.explore`: a frame a second, Hybrid A* replanning, MPPI).
+(:func:`dgt_lib.beyond.explore.explore`: a frame a second, Hybrid A* replanning, MPPI).
 After every frame the incremental update's wall and CPU time (``time.process_time``) are
 recorded (``explore`` calls ``refresh``, which passes the changed cells as a mask; a
 shadow costmap given only their bounding box is timed beside it), the K = 8 layers are
@@ -19,9 +19,9 @@ load average (the numbers mean little on a loaded machine).
 Without ``--model`` it uses the profile's trained multitask model (smoke: width 8);
 a checkpoint (e.g. the `paper` profile's width-64
 ``data/paper/seed-0/models/multitask.pt``) times the paper's network. ``--pooled PATH``
-drives with a :class:`~dgt_lib.learning.pooled.PooledNet` saved by
+drives with a :class:`~dgt_lib.beyond.pooled.PooledNet` saved by
 ``benchmarks/eval_pooled.py`` instead: every window, evaluated densely
-(:class:`~dgt_lib.mapping.incremental.DenseIncrementalCostmap`), compared with
+(:class:`~dgt_lib.beyond.incremental.DenseIncrementalCostmap`), compared with
 ``directional_costmap_dense`` of the same map (``--stride`` does not apply).
 """
 
@@ -41,15 +41,15 @@ import dgt_lib as dgt  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
-from dgt_lib.learning.pooled import PooledNet, bfloat16_copy  # noqa: E402
+from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy  # noqa: E402
 from dgt_lib.learning.training import evaluate, predict, train_model  # noqa: E402
 from dgt_lib.mapping.costmap import directional_costmap, directional_costmap_dense  # noqa: E402
-from dgt_lib.mapping.incremental import (  # noqa: E402
+from dgt_lib.beyond.incremental import (  # noqa: E402
     DenseIncrementalCostmap,
     IncrementalCostmap,
     changed_cells,
 )
-from dgt_lib.navigation.explore import ExploreConfig, explore  # noqa: E402
+from dgt_lib.beyond.explore import ExploreConfig, explore  # noqa: E402
 from dgt_lib.perception.bev import bev_grid  # noqa: E402
 from dgt_lib.perception.dataset import PatchDataset  # noqa: E402
 from dgt_lib.stages.costmaps import ensure_tau_s, load_model  # noqa: E402

@@ -28,7 +28,7 @@ import dgt_lib.navigation.drive as drive_module  # noqa: E402
 from dgt_lib.core.config import get_profile  # noqa: E402
 from dgt_lib.evaluation.experiments import EXPERIMENTS  # noqa: E402
 from dgt_lib.evaluation.trials import TrialResult, _planner, run_trial  # noqa: E402
-from dgt_lib.navigation.mppi import BACKENDS, MPPIController  # noqa: E402
+from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E402
 from dgt_lib.stages.experiments import ensure_experiment, experiment_stem, trial_maps  # noqa: E402
 from dgt_lib.stages.paths import data_dir  # noqa: E402
 

@@ -8,7 +8,7 @@ changes, with the plans held fixed.
 Every trial of the cached experiments of run seeds ``0 … seeds-1`` that matches the filters
 (``--route``, ``--label``, ``--method``) is driven again from its recorded plan — the plan
 does not depend on the controller — once per ``--variant`` (``FIELD=VALUE[,FIELD=VALUE]``
-of :class:`dgt_lib.navigation.mppi_config.MPPIConfig`; several fields in one variant are
+of :class:`dgt_lib.navigation.control.mppi_config.MPPIConfig`; several fields in one variant are
 changed together), with the trial's own seed, time limit and occupancy map, in a pool of
 ``--workers`` processes. It prints, per variant and query label, how many arrived and how
 the others ended, beside the recorded outcomes, and which trials ended otherwise than
@@ -32,7 +32,7 @@ from dgt_lib.core.config import get_profile
 from dgt_lib.core.executors import limit_threads
 from dgt_lib.evaluation.trials import trial_time_limit_s
 from dgt_lib.navigation.drive import drive
-from dgt_lib.navigation.mppi_config import parse_mppi_settings
+from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import get_world

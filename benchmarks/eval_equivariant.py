@@ -1,6 +1,6 @@
 """The C8-equivariant network against DGT-Map's multi-task DGTNet, on a profile's cached data.
 
-For each run seed: train :class:`~dgt_lib.learning.equivariant.C8Net` on the seed's dataset
+For each run seed: train :class:`~dgt_lib.beyond.equivariant.C8Net` on the seed's dataset
 and training-world BEV (the dataset's own train/val/test split), then report
 
 - test MSE / Spearman ρ per vehicle beside the seed's cached multi-task DGTNet (same test
@@ -33,7 +33,7 @@ import torch  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES, as_profile  # noqa: E402
 from dgt_lib.evaluation import accuracy  # noqa: E402
-from dgt_lib.learning import equivariant as eq  # noqa: E402
+from dgt_lib.beyond import equivariant as eq  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate  # noqa: E402
 from dgt_lib.perception.dataset import TEST  # noqa: E402

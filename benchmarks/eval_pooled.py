@@ -1,6 +1,6 @@
 """The densely evaluable PooledNet against DGT-Map's multi-task DGTNet, on a profile's cached data.
 
-For each run seed: train :class:`~dgt_lib.learning.pooled.PooledNet` with the profile's own
+For each run seed: train :class:`~dgt_lib.beyond.pooled.PooledNet` with the profile's own
 training recipe (``profile.train``: epochs, batch size, learning rate, schedule, selection,
 mirror augmentation) through :func:`~dgt_lib.learning.training.train_model`, on the seed's
 dataset with each patch re-cut with its context margin from the training world's BEV (same
@@ -39,7 +39,7 @@ from eval_equivariant import (  # noqa: E402
 
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
-from dgt_lib.learning import pooled  # noqa: E402
+from dgt_lib.beyond import pooled  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate, train_model  # noqa: E402
 from dgt_lib.mapping.costmap import directional_costmap_dense  # noqa: E402

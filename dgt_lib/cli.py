@@ -237,12 +237,12 @@ def _glue_negative_coordinates(argv: list[str]) -> list[str]:
 
 
 def _plan(args: argparse.Namespace) -> int:
-    """``dgt plan``: :func:`dgt_lib.query.plan_query` checks the query before any data is
-    collected or model trained (:func:`dgt_lib.query.check_query`), then says when
+    """``dgt plan``: :func:`dgt_lib.plan_one.plan_query` checks the query before any data is
+    collected or model trained (:func:`dgt_lib.plan_one.check_query`), then says when
     training comes first."""
     from dgt_lib.core.config import VEHICLES
     from dgt_lib.navigation.planner import InvalidQueryError
-    from dgt_lib.query import plan_query
+    from dgt_lib.plan_one import plan_query
 
     profile = _with_execution(_profile(args), args)
     if args.vehicle not in VEHICLES:

@@ -20,7 +20,7 @@ import json
 
 import matplotlib.pyplot as plt  # noqa: E402
 
-from dgt_lib import rr, viz
+from dgt_lib import recording, viz
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.overrides import format_setting
 from dgt_lib.evaluation import accuracy, seeds
@@ -130,17 +130,17 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
 
 def write_recording(result: ExperimentResult, prof: Profile) -> Path:
     """``runs/<stem>.rrd`` of an experiment (``experiment_stem``: a variant's has its own),
-    rewritten when older than its results or than ``dgt_lib/rr.py`` (the code that lays
+    rewritten when older than its results or than ``dgt_lib/recording.py`` (the code that lays
     it out)."""
     out = data_dir(prof)
     stem = experiment_stem(result.name, prof)
     rrd = out / "runs" / f"{stem}.rrd"
     pkl = out / "experiments" / f"{stem}.pkl"
-    sources = [p for p in (pkl, Path(rr.__file__)) if p.exists()]
+    sources = [p for p in (pkl, Path(recording.__file__)) if p.exists()]
     if not rrd.exists() or rrd.stat().st_mtime < max(p.stat().st_mtime for p in sources):
         vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
         maps = ensure_world_costmaps(result.world, vehicles, prof, progress=False)
-        rr.log_experiment(result, get_world(result.world, prof), maps, rrd, prof)
+        recording.log_experiment(result, get_world(result.world, prof), maps, rrd, prof)
     return rrd
 
 

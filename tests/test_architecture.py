@@ -7,10 +7,10 @@ from pathlib import Path
 import dgt_lib
 
 PACKAGE = Path(dgt_lib.__file__).parent
-LAYERS = ("core", "world", "perception", "learning", "mapping", "navigation", "evaluation",
-          "stages")
+LAYERS = ("core", "world", "perception", "learning", "mapping", "navigation", "beyond",
+          "evaluation", "stages")
 """Sub-packages in pipeline order; modules at the top level (viz, rr, report, cli, query)
-sit above them all."""
+sit above them all. ``beyond`` holds what goes beyond the paper."""
 
 
 def _layer(module: str) -> int:

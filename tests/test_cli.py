@@ -303,7 +303,7 @@ def test_a_bad_set_is_a_clear_error_before_anything_runs(capsys, tmp_path, monke
 def test_dgt_plan_takes_set_too(capsys, monkeypatch):
     import types
 
-    import dgt_lib.query
+    import dgt_lib.plan_one
 
     seen = {}
 
@@ -312,7 +312,7 @@ def test_dgt_plan_takes_set_too(capsys, monkeypatch):
         return types.SimpleNamespace(summary=lambda: "planned",
                                      plan=types.SimpleNamespace(success=True))
 
-    monkeypatch.setattr(dgt_lib.query, "plan_query", fake_plan_query)
+    monkeypatch.setattr(dgt_lib.plan_one, "plan_query", fake_plan_query)
     assert main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2,0", "--goal",
                  "3,4", "--profile", "smoke", "--set", "planner.beta=0",
                  "--set", "planner.heuristic=euclidean"]) == 0

@@ -1,4 +1,4 @@
-"""MPPI path tracking, the steering conversion and the kinematic plant (dgt_lib.navigation.mppi)."""
+"""MPPI path tracking, the steering conversion and the kinematic plant (dgt_lib.navigation.control.mppi)."""
 
 import dataclasses
 import math
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.navigation.bicycle import (
+from dgt_lib.navigation.control.bicycle import (
     KinematicBicycle,
     cross_track_errors,
     rear_axle_pose,
@@ -17,8 +17,8 @@ from dgt_lib.navigation.bicycle import (
     simulate_tracking,
     steering_from_twist,
 )
-from dgt_lib.navigation.mppi import MPPIController
-from dgt_lib.navigation.mppi_config import MPPIConfig, parse_mppi_settings, vehicle_footprint
+from dgt_lib.navigation.control.mppi import MPPIController
+from dgt_lib.navigation.control.mppi_config import MPPIConfig, parse_mppi_settings, vehicle_footprint
 
 WHEELBASE, MAX_STEER = 2.46, math.radians(35.0)  # the jeep
 R_MIN = WHEELBASE / math.tan(MAX_STEER)  # 3.51 m

@@ -1,14 +1,15 @@
-"""Dense evaluation of the network (dgt_lib.learning.dense) against the per-window network
+"""Dense evaluation of the network (dgt_lib.beyond.dense) against the per-window network
 and the literal costmap procedure."""
 
 
 import numpy as np
 import torch
 
-from dgt_lib.learning.dense import dense_window_field
+from dgt_lib.beyond.dense import dense_window_field
 from dgt_lib.learning.model import DGTNet
 from dgt_lib.learning.training import predict
-from dgt_lib.mapping.costmap import directional_costmap_dense, directional_costmap_reference
+from dgt_lib.beyond.dense import directional_costmap_dense
+from dgt_lib.mapping.costmap import directional_costmap_reference
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS
 from tests.test_costmap import ramp, synthetic_bev
 

@@ -1,4 +1,4 @@
-"""The C8-equivariant network (dgt_lib.learning.equivariant): exact 90° equivariance, the
+"""The C8-equivariant network (dgt_lib.beyond.equivariant): exact 90° equivariance, the
 measured 45° error, the heading convention of costmap.py, one pass = per-heading crops."""
 
 import numpy as np
@@ -7,7 +7,7 @@ import torch
 from scipy import ndimage
 
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.learning import equivariant as eq
+from dgt_lib.beyond import equivariant as eq
 from dgt_lib.mapping.costmap import directional_costmap_reference
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.perception.patches import forward_grade

@@ -1,4 +1,4 @@
-"""MPPI's compiled backend (dgt_lib.navigation.mppi_compiled) against the numpy reference:
+"""MPPI's compiled backend (dgt_lib.navigation.control.mppi_compiled) against the numpy reference:
 the same commands to the bit, call after call, so closed-loop trials do not depend on it."""
 
 import dataclasses
@@ -9,8 +9,8 @@ import pytest
 
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.navigation.mppi import MPPIController
-from dgt_lib.navigation.mppi_config import MPPIConfig, vehicle_footprint
+from dgt_lib.navigation.control.mppi import MPPIController
+from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint
 
 
 def s_curve(length=60.0, amplitude=4.0, wavelength=40.0):

@@ -1,4 +1,4 @@
-"""PooledNet (dgt_lib.learning.pooled): the dense costmap equals running every window on its
+"""PooledNet (dgt_lib.beyond.pooled): the dense costmap equals running every window on its
 own, its inputs are altitude-free, and trained like DGTNet it learns that uphill costs more."""
 
 import numpy as np
@@ -7,9 +7,9 @@ import torch
 
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.learning import pooled
+from dgt_lib.beyond import pooled
 from dgt_lib.learning.training import train_model
-from dgt_lib.mapping.costmap import directional_costmap_dense
+from dgt_lib.beyond.dense import directional_costmap_dense
 from dgt_lib.perception.dataset import TRAIN, PatchDataset
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS, extract_patches, rotate_map
 from tests.test_costmap import synthetic_bev
@@ -153,7 +153,7 @@ def test_the_dense_incremental_costmap_equals_the_dense_costmap_after_every_fram
     """A map observed frame by frame (tests/test_incremental.py's terrain): after each
     refresh the incremental layers equal a full dense costmap of the same map, and a frame
     re-evaluates fewer windows than the whole map has."""
-    from dgt_lib.mapping.incremental import DenseIncrementalCostmap
+    from dgt_lib.beyond.incremental import DenseIncrementalCostmap
     from tests.test_incremental import explore, terrain
 
     heights, model = terrain(), small_net(seed=2)

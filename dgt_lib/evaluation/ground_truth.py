@@ -67,7 +67,7 @@ from dgt_lib.core.config import CollectConfig, GroundTruthConfig, Profile, as_pr
 from dgt_lib.core.executors import limit_threads
 from dgt_lib.core.geometry import heading_bins
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.navigation.pure_pursuit import PurePursuit
+from dgt_lib.navigation.control.pure_pursuit import PurePursuit
 from dgt_lib.perception.episodes import run_episode
 from dgt_lib.perception.locomotion import WINDOW_S, locomotion, locomotion_signal
 from dgt_lib.world.terrain import get_world

@@ -354,7 +354,7 @@ def train_model(
             has nothing to keep and is re-raised). False: the interrupt is re-raised at
             once (the caller stops; nothing is evaluated or saved).
         model: a network to train in place of a new DGTNet (e.g.
-            :class:`~dgt_lib.learning.pooled.PooledNet`): it must take batches of
+            :class:`~dgt_lib.beyond.pooled.PooledNet`): it must take batches of
             ``dataset.patches``, have one head per name of ``vehicles`` and its input
             normalisation already set; ``width``, ``fc_hidden`` and ``rgb_weights`` are then
             not used.

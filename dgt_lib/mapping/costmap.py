@@ -20,13 +20,8 @@ Two implementations of the same procedure:
   neighbouring windows differ little (the windows overlap by most of their 154
   cells), so interpolation costs little accuracy; the benchmark
   (``benchmarks/bench_costmap.py``) measures speed and the difference.
-* :func:`directional_costmap_dense` — the network run once over the rotated map,
-  every window's prediction read off the dense field, then the same averaging. For
-  DGTNet (:mod:`dgt_lib.learning.dense`) fast but not the per-window network: on
-  22 × 7 windows zero padding dominates every layer, a measured negative result. For
-  :class:`~dgt_lib.learning.pooled.PooledNet`, a network built for it (local
-  convolutions, window means), exact: the same numbers as running each window
-  (``benchmarks/bench_costmap.py``, notebook 04).
+* :func:`field_costmap` — the same averaging over a whole field of window predictions
+  computed at once; :mod:`dgt_lib.beyond.dense` plugs dense networks in here.
 
 All vehicles come from one backbone pass: ``predict`` maps patches (N, 6, 22, 7)
 to locomotion (N, V), one column per vehicle head. Unobserved cells cost 1.
@@ -35,7 +30,6 @@ to locomotion (N, V), one column per vehicle head. Unobserved cells cost 1.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -52,10 +46,6 @@ from dgt_lib.perception.patches import (
     unrotate_map,
     window_counts,
 )
-
-if TYPE_CHECKING:  # the networks import torch: only the dense pass needs them
-    from dgt_lib.learning.model import DGTNet
-    from dgt_lib.learning.pooled import PooledNet
 
 Predictor = Callable[[np.ndarray], np.ndarray]
 """patches (N, 6, 22, 7) float32 → locomotion L (N, V) in [0, 1]."""
@@ -295,29 +285,11 @@ def field_heading_layer(bev: BEVMap, theta: float, window_field: WindowField) ->
     return unrotate_map(np.nan_to_num(averaged, nan=0.0), rotated.transform)
 
 
-def directional_costmap_dense(bev: BEVMap, model: DGTNet | PooledNet, n_headings: int = 8, *,
-                              literal: bool = False, progress: bool = True) -> np.ndarray:
-    """The directional costmap (V, K, H, W) with every window's prediction from one dense
-    pass per heading; same layout as the reference.
-
-    A :class:`~dgt_lib.learning.pooled.PooledNet` is evaluated exactly
-    (:meth:`~dgt_lib.learning.pooled.PooledNet.window_field`); ``literal=True`` runs each of
-    its windows on its own instead (the reference the dense pass equals). A DGTNet is
-    evaluated by :mod:`dgt_lib.learning.dense`, which is not the per-window network (a
-    measured negative result)."""
-    from dgt_lib.learning.dense import dense_window_field
-    from dgt_lib.learning.pooled import PooledNet
-
-    if isinstance(model, PooledNet):
-        def field(rotated: RotatedMap, on_map: np.ndarray) -> np.ndarray:
-            if literal:
-                return model.literal_window_field(rotated.channels, rotated.observed, on_map)
-            return model.window_field(rotated.channels, rotated.observed, on_map)
-    elif literal:
-        raise ValueError("literal=True needs a PooledNet; a DGTNet's literal procedure is "
-                         "directional_costmap_reference")
-    else:
-        def field(rotated: RotatedMap, on_map: np.ndarray) -> np.ndarray:
-            return dense_window_field(model, rotated.channels)
-    return _costmap(bev, lambda theta: field_heading_layer(bev, theta, field), n_headings,
-                    progress)
+def field_costmap(bev: BEVMap, window_field: WindowField, n_headings: int = 8, *,
+                  progress: bool = True) -> np.ndarray:
+    """Cost (V, K, H, W) from a provider of whole window fields: for each heading rotate →
+    ``window_field`` → average over covering windows → rotate back. The plug-in point for
+    networks evaluated densely (:mod:`dgt_lib.beyond.dense`); same layout as the
+    reference."""
+    return _costmap(bev, lambda theta: field_heading_layer(bev, theta, window_field),
+                    n_headings, progress)

@@ -4,7 +4,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from dgt_lib import rr as dgt_rr
+from dgt_lib import recording as dgt_rr
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.evaluation.experiments import ExperimentResult

@@ -11,7 +11,7 @@ import numpy as np
 from dgt_lib.core.geometry import GridSpec
 
 if TYPE_CHECKING:  # the tracker under test (an annotation only: mppi imports this module)
-    from dgt_lib.navigation.mppi import MPPIController
+    from dgt_lib.navigation.control.mppi import MPPIController
 
 
 def steering_from_twist(v_x, w_z, wheelbase_m: float, max_steer_rad: float, v_eps: float = 0.05):

@@ -38,7 +38,7 @@ training and inference, and itself a regular field (rotating the map by g shifts
 one), so it enters the first layer through a group convolution beside the lifting of the
 five scalar channels R, G, B, σ_H, ‖∇H̄‖ (:data:`INPUT_CHANNELS`).
 
-Training is dense-ready (unlike :mod:`dgt_lib.learning.dense`): each sample is a square
+Training is dense-ready (unlike :mod:`dgt_lib.beyond.dense`): each sample is a square
 crop of the real map, of the network's receptive field, around the patch pose, so the
 network sees at training exactly the context it sees at inference; convolutions are
 "valid" and the crop's single output cell is the sample's prediction. Off-map and

@@ -1,7 +1,7 @@
 """A window network built to be evaluated densely, exactly (issue 20, item 1).
 
 The literal costmap runs the network once per 22 × 7 window, every window position, every
-heading. :mod:`dgt_lib.learning.dense` shows that :class:`~dgt_lib.learning.model.DGTNet`
+heading. :mod:`dgt_lib.beyond.dense` shows that :class:`~dgt_lib.learning.model.DGTNet`
 cannot be evaluated any other way: its ResNet sees each window through zero padding, so
 a fully convolutional pass over the map computes a different function. ``PooledNet`` is
 the network that can: every operation on a window is either local (a "valid"

@@ -245,9 +245,9 @@ def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
 
 
 def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Profile) -> Path:
-    from dgt_lib import rr
+    from dgt_lib import recording
 
-    with rr.Recording(path, f"plan_{world.name}", profile) as rec:
+    with recording.Recording(path, f"plan_{world.name}", profile) as rec:
         rec.log_terrain(world.heights, world.colors, world.grid)
         rec.log_bev(maps.bev.channels, maps.bev.observed)
         rec.log_occupancy(maps.occupancy)

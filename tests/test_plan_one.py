@@ -137,7 +137,7 @@ def test_a_start_on_steep_ground_fails_before_the_dataset_and_model(data_dir, mo
     before collection and training, with the planner's own rule."""
     import dgt_lib.stages.costmaps as costmaps
     from dgt_lib.navigation.planner import InvalidQueryError
-    from dgt_lib.query import plan_query
+    from dgt_lib.plan_one import plan_query
 
     monkeypatch.setattr(costmaps, "ensure_dataset", _no_artifacts)
     with pytest.raises(InvalidQueryError, match="in an obstacle: .* hits occupied cells"):
@@ -160,7 +160,7 @@ def test_negative_coordinates_parse_on_the_command_line(tmp_path, monkeypatch, c
 
 def test_a_goal_within_the_tolerance_plans_and_drives_a_zero_length_path(data_dir):
     """--drive with a goal 0.5 m away failed: "path needs at least two distinct points"."""
-    from dgt_lib.query import plan_query
+    from dgt_lib.plan_one import plan_query
 
     report = plan_query(tiny_world(), "jeep", (8.0, 16.0, 0.0), (8.5, 16.0), method="binary",
                         profile="smoke", drive=True, progress=False)
@@ -172,7 +172,7 @@ def test_a_goal_within_the_tolerance_plans_and_drives_a_zero_length_path(data_di
 def test_distinct_queries_write_distinct_files(data_dir):
     """Files were named by rounded x, y only: another heading, a start 0.3 m away or
     another terrain of the same name overwrote the previous query's figure and recording."""
-    from dgt_lib.query import plan_query
+    from dgt_lib.plan_one import plan_query
 
     world = tiny_world()
     starts = [(8.0, 16.0, 0.0), (8.0, 16.0, np.pi / 2), (8.3, 16.2, 0.0)]
@@ -198,7 +198,7 @@ def test_the_training_notice_says_which_stages_run_and_promises_no_time(tmp_path
     now says what will run before the costmap, and no duration."""
     import re
 
-    from dgt_lib.query import training_notice
+    from dgt_lib.plan_one import training_notice
     from dgt_lib.stages.paths import data_dir
     from dgt_lib.stages.train import model_relpath
 

@@ -24,8 +24,11 @@ import cv2
 import numpy as np
 import torch
 
+from dgt_lib.beyond.pooled import PooledNet
 from dgt_lib.learning.model import HEIGHT_CHANNELS, RGB_CHANNELS, DGTNet
-from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS
+from dgt_lib.mapping.costmap import field_costmap
+from dgt_lib.perception.bev import BEVMap
+from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS, RotatedMap
 
 TRUNK_STRIDE = 32
 """Pixels of the input per cell of a ResNet-18's layer-4 feature map."""
@@ -78,3 +81,27 @@ def dense_window_field(model: DGTNet, channels: np.ndarray) -> np.ndarray:
     map_c, map_r = np.meshgrid(cols.astype(np.float32), rows.astype(np.float32))
     return np.stack([cv2.remap(layer, map_c, map_r, cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_REPLICATE) for layer in coarse])
+
+
+def directional_costmap_dense(bev: BEVMap, model: DGTNet | PooledNet, n_headings: int = 8, *,
+                              literal: bool = False, progress: bool = True) -> np.ndarray:
+    """The directional costmap (V, K, H, W) with every window's prediction from one dense
+    pass per heading; same layout as :func:`dgt_lib.mapping.costmap.directional_costmap`.
+
+    A :class:`~dgt_lib.beyond.pooled.PooledNet` is evaluated exactly
+    (:meth:`~dgt_lib.beyond.pooled.PooledNet.window_field`); ``literal=True`` runs each of
+    its windows on its own instead (the reference the dense pass equals). A DGTNet is
+    evaluated by :func:`dense_window_field`, which is not the per-window network (a
+    measured negative result)."""
+    if isinstance(model, PooledNet):
+        def field(rotated: RotatedMap, on_map: np.ndarray) -> np.ndarray:
+            if literal:
+                return model.literal_window_field(rotated.channels, rotated.observed, on_map)
+            return model.window_field(rotated.channels, rotated.observed, on_map)
+    elif literal:
+        raise ValueError("literal=True needs a PooledNet; a DGTNet's literal procedure is "
+                         "directional_costmap_reference")
+    else:
+        def field(rotated: RotatedMap, on_map: np.ndarray) -> np.ndarray:
+            return dense_window_field(model, rotated.channels)
+    return field_costmap(bev, field, n_headings, progress=progress)

@@ -5,7 +5,7 @@ Nav2's MPPI controller, converts its twist (v_x, ω_z) to a steering angle with
 the kinematic bicycle relation, normalises it by the maximum steering angle,
 and regulates speed with a PID whose feed-forward compensates rolling
 resistance and drag. This module rebuilds those three parts in numpy (the per-sample
-loops also compiled, :mod:`dgt_lib.navigation.mppi_compiled`, the same numbers faster):
+loops also compiled, :mod:`dgt_lib.navigation.control.mppi_compiled`, the same numbers faster):
 
 - :class:`MPPIController` — Model Predictive Path Integral control as in Nav2:
   ``batch_size`` noisy (v, ω) sequences around the previous optimum are rolled
@@ -14,12 +14,12 @@ loops also compiled, :mod:`dgt_lib.navigation.mppi_compiled`, the same numbers f
   following, path alignment, speed, goal, occupancy, constraints), and averaged
   with softmax weights exp(−(S − S_min)/λ). Terrain cost is *not* a critic: the
   paper uses the directional costmap for planning only.
-- :func:`~dgt_lib.navigation.bicycle.steering_from_twist` — δ = atan(ℓ ω_z / v_x),
-  normalised by δ_max; settings in :mod:`dgt_lib.navigation.mppi_config`.
+- :func:`~dgt_lib.navigation.control.bicycle.steering_from_twist` — δ = atan(ℓ ω_z / v_x),
+  normalised by δ_max; settings in :mod:`dgt_lib.navigation.control.mppi_config`.
 - The speed loop (PID + feed-forward for rolling resistance, drag and grade) is
   ``dgt_lib.world.speed_control.SpeedController``; it takes the v_x computed here.
-- :class:`~dgt_lib.navigation.bicycle.KinematicBicycle` and
-  :func:`~dgt_lib.navigation.bicycle.simulate_tracking` — a small plant with
+- :class:`~dgt_lib.navigation.control.bicycle.KinematicBicycle` and
+  :func:`~dgt_lib.navigation.control.bicycle.simulate_tracking` — a small plant with
   actuator lag and noise, to try the controller without the physics simulator.
 
 Beyond Nav2's defaults (tuned for 0.5 m/s robots) the rollouts model what a
@@ -50,12 +50,12 @@ from scipy.ndimage import distance_transform_edt
 from scipy.signal import lfilter, savgol_coeffs
 
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.navigation.bicycle import resample_path, rollout_unicycle
-from dgt_lib.navigation.mppi_config import MPPIConfig
+from dgt_lib.navigation.control.bicycle import resample_path, rollout_unicycle
+from dgt_lib.navigation.control.mppi_config import MPPIConfig
 
 BACKENDS = ("compiled", "numpy")
 """How :meth:`MPPIController.compute` evaluates its samples: ``"compiled"`` (numba,
-:mod:`dgt_lib.navigation.mppi_compiled`) or ``"numpy"`` (the reference); the same
+:mod:`dgt_lib.navigation.control.mppi_compiled`) or ``"numpy"`` (the reference); the same
 commands to the bit."""
 
 
@@ -86,7 +86,7 @@ class MPPIController:
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         if backend == "compiled":
-            from dgt_lib.navigation import mppi_compiled  # numba: imported when used
+            from dgt_lib.navigation.control import mppi_compiled  # numba: imported when used
             self._kernels = mppi_compiled
         self.backend = backend
         self.cfg = cfg if cfg is not None else MPPIConfig()

@@ -25,7 +25,7 @@ windows and cells that can change, so the layers equal ``directional_costmap`` o
 same map (to float rounding of the box sums; ``tests/test_incremental.py``).
 
 :class:`DenseIncrementalCostmap` does the same for a
-:class:`~dgt_lib.learning.pooled.PooledNet` without a lattice: step 2 is one dense pass of
+:class:`~dgt_lib.beyond.pooled.PooledNet` without a lattice: step 2 is one dense pass of
 the network over the windows whose context reads a changed pixel, and its layers equal
 ``directional_costmap_dense`` of the same map (``tests/test_pooled.py``).
 """
@@ -420,7 +420,7 @@ class _DenseLayer:
 
 
 class DenseIncrementalCostmap(_GrowingCostmap):
-    """:class:`IncrementalCostmap` for a :class:`~dgt_lib.learning.pooled.PooledNet`: equal to
+    """:class:`IncrementalCostmap` for a :class:`~dgt_lib.beyond.pooled.PooledNet`: equal to
     ``directional_costmap_dense(bev, model, n_headings)`` of the latest map (exact, every
     window, no lattice). After a change, each heading resamples the rotated pixels that read
     a changed cell and runs the network densely over just the windows whose context (the

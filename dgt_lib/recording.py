@@ -57,7 +57,7 @@ from dgt_lib.world.worlds import World
 
 if TYPE_CHECKING:  # annotations only: importing them pulls in MPPI and the trials (~0.7 s)
     from dgt_lib.evaluation.experiments import ExperimentResult
-    from dgt_lib.navigation.explore import ExploreResult
+    from dgt_lib.beyond.explore import ExploreResult
 
 WORLD = "world"
 TERRAIN = "world/terrain"
@@ -481,7 +481,7 @@ def log_experiment(result: ExperimentResult, world: World, maps: WorldMaps,
 
 def write_exploration(path: str | Path, world: World, result: ExploreResult, vehicle: str,
                       profile: Profile, *, max_snapshots: int = 20) -> Path:
-    """The recording of a :func:`~dgt_lib.navigation.explore.explore` run: the terrain,
+    """The recording of a :func:`~dgt_lib.beyond.explore.explore` run: the terrain,
     the vehicle's costmap growing over ``sim_time`` (at most ``max_snapshots`` mapping
     steps, evenly spaced, the last included), the path followed after each replan, the
     track, the final BEV and a note with the update times. Returns the file's path."""

@@ -5,7 +5,7 @@ incremental updates as future work, its experiments plan on a map built beforeha
 :func:`explore` starts with nothing observed. Every ``frame_period_s`` of simulated time
 the onboard camera's RGB-D frame is added to a :class:`~dgt_lib.perception.bev.BEVAccumulator`
 and the vehicle's costmap is updated where the BEV changed
-(:class:`~dgt_lib.mapping.incremental.IncrementalCostmap`). The planner sees unobserved
+(:class:`~dgt_lib.beyond.incremental.IncrementalCostmap`). The planner sees unobserved
 cells optimistically — free, at cost ``unknown_cost`` — so it can plan into the unknown;
 it replans from the current pose every ``replan_period_s`` and as soon as the path runs
 over a cell whose cost (at the path's heading) rose by ``replan_cost_rise`` or that became
@@ -23,18 +23,18 @@ import numpy as np
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.learning.pooled import PooledNet
+from dgt_lib.beyond.pooled import PooledNet
 from dgt_lib.mapping.costmap import Predictor
-from dgt_lib.mapping.incremental import (
+from dgt_lib.beyond.incremental import (
     DenseIncrementalCostmap,
     IncrementalCostmap,
     UpdateStats,
 )
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED, occupancy_map
-from dgt_lib.navigation.bicycle import rear_axle_pose, steering_from_twist
+from dgt_lib.navigation.control.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.drive import MPPI_DT_S
-from dgt_lib.navigation.mppi import MPPIController
-from dgt_lib.navigation.mppi_config import MPPIConfig, vehicle_footprint
+from dgt_lib.navigation.control.mppi import MPPIController
+from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint
 from dgt_lib.navigation.outcome import OutcomeRule, TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar, InvalidQueryError
 from dgt_lib.perception.bev import BEVAccumulator, BEVMap, bev_grid
@@ -119,7 +119,7 @@ def explore(world: World, vehicle: str, predict: Predictor | PooledNet, start, g
     """Drive ``vehicle`` from ``start`` (x, y, θ) toward ``goal`` (x, y) [m, m, rad] on
     ``world`` knowing nothing of it beforehand; ``predict`` gives this vehicle's
     locomotion (N, 1) for patches (N, 6, 22, 7) (the lattice path,
-    :class:`IncrementalCostmap`), or is a :class:`~dgt_lib.learning.pooled.PooledNet` whose
+    :class:`IncrementalCostmap`), or is a :class:`~dgt_lib.beyond.pooled.PooledNet` whose
     ``vehicle`` head is evaluated densely (:class:`DenseIncrementalCostmap`, every window,
     ``cfg.stride`` unused). ``on_update(bev, costmap)`` sees the map
     and the costmap after every update (e.g. to compare with a full recompute). See the

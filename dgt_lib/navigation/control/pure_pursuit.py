@@ -1,5 +1,5 @@
 """Pure-pursuit path tracking: the simple tracker of the scripted drives (notebook 01, the
-physical-premise tests); closed-loop trials use MPPI (:mod:`dgt_lib.navigation.mppi`)."""
+physical-premise tests); closed-loop trials use MPPI (:mod:`dgt_lib.navigation.control.mppi`)."""
 
 from __future__ import annotations
 

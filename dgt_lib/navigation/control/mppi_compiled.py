@@ -1,7 +1,7 @@
 """MPPI's per-sample loops compiled with numba (``MPPIController(backend="compiled")``,
 the default).
 
-Each kernel is a transcription of the numpy code of :class:`~dgt_lib.navigation.mppi.
+Each kernel is a transcription of the numpy code of :class:`~dgt_lib.navigation.control.mppi.
 MPPIController` (``backend="numpy"``, the reference), with the same float32 operations
 in the same order, so that both backends compute the same costs to the bit and return
 the same commands (``tests/test_mppi_compiled.py`` checks it call by call):
@@ -9,7 +9,7 @@ the same commands (``tests/test_mppi_compiled.py`` checks it call by call):
 - :func:`sample_rollouts` — ``_sample`` (clipped, integrated noise around the warm
   start), ``_vehicle_response`` (``scipy.signal.lfilter``'s first-order lag, in its
   order of operations) and the yaw part of
-  :func:`~dgt_lib.navigation.bicycle.rollout_unicycle`;
+  :func:`~dgt_lib.navigation.control.bicycle.rollout_unicycle`;
 - :func:`project_on_path` — the positions' cumulative sums and ``_path_costs``'
   nearest-point projection (the reference's ``einsum`` score |w|² − 2 p·w, then its
   first minimum);

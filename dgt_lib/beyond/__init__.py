@@ -1,0 +1,18 @@
+"""Beyond the paper: research annexes built on the paper's pipeline, kept apart from it.
+
+The sub-packages ``learning``, ``mapping``, ``navigation`` hold the paper's method and
+its baselines only. What goes further lives here and plugs into them through small
+interfaces (e.g. :data:`dgt_lib.mapping.costmap.DENSE_EVALUATORS`), never through an
+``isinstance`` on an annex type inside a paper module:
+
+==================  ===================================================================
+``pooled``          PooledNet: a window network that dense evaluation computes exactly
+``equivariant``     C8Net: all K = 8 headings in one pass (a C8-equivariant network)
+``dense``           dense evaluation of DGTNet (a measured negative result)
+``incremental``     costmaps updated only where new BEV cells changed them
+``explore``         driving an unknown world: frames → BEV → incremental costmap → replan
+==================  ===================================================================
+
+This layer sits above ``navigation`` and below ``evaluation``: it may import any paper
+module, and no paper module imports it.
+"""
