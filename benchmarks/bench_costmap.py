@@ -42,14 +42,14 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
+from dgt_lib.beyond.dense import directional_costmap_dense
+from dgt_lib.beyond.equivariant import C8Net, EquivariantResult, equivariant_costmap
+from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.checkpoints import load_checkpoint
-from dgt_lib.beyond.equivariant import C8Net, EquivariantResult, equivariant_costmap
-from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import predict, train_model
-from dgt_lib.beyond.dense import directional_costmap_dense
 from dgt_lib.mapping.costmap import (
     _heading_layer,
     directional_costmap,

@@ -38,18 +38,18 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 import dgt_lib as dgt  # noqa: E402
-from dgt_lib.core import artifacts  # noqa: E402
-from dgt_lib.core.config import VEHICLES  # noqa: E402
-from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
-from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy  # noqa: E402
-from dgt_lib.learning.training import evaluate, predict, train_model  # noqa: E402
-from dgt_lib.mapping.costmap import directional_costmap, directional_costmap_dense  # noqa: E402
+from dgt_lib.beyond.explore import ExploreConfig, explore  # noqa: E402
 from dgt_lib.beyond.incremental import (  # noqa: E402
     DenseIncrementalCostmap,
     IncrementalCostmap,
     changed_cells,
 )
-from dgt_lib.beyond.explore import ExploreConfig, explore  # noqa: E402
+from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy  # noqa: E402
+from dgt_lib.core import artifacts  # noqa: E402
+from dgt_lib.core.config import VEHICLES  # noqa: E402
+from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
+from dgt_lib.learning.training import evaluate, predict, train_model  # noqa: E402
+from dgt_lib.mapping.costmap import directional_costmap, directional_costmap_dense  # noqa: E402
 from dgt_lib.perception.bev import bev_grid  # noqa: E402
 from dgt_lib.perception.dataset import PatchDataset  # noqa: E402
 from dgt_lib.stages.costmaps import ensure_tau_s, load_model  # noqa: E402

@@ -30,10 +30,10 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
+from dgt_lib.beyond import equivariant as eq  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES, as_profile  # noqa: E402
 from dgt_lib.evaluation import accuracy  # noqa: E402
-from dgt_lib.beyond import equivariant as eq  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate  # noqa: E402
 from dgt_lib.perception.dataset import TEST  # noqa: E402

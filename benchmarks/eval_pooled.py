@@ -37,9 +37,9 @@ from eval_equivariant import (  # noqa: E402
     test_lines,
 )
 
+from dgt_lib.beyond import pooled  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
-from dgt_lib.beyond import pooled  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate, train_model  # noqa: E402
 from dgt_lib.mapping.costmap import directional_costmap_dense  # noqa: E402

@@ -34,9 +34,9 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.trials import trial_time_limit_s
-from dgt_lib.navigation.drive import drive
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
+from dgt_lib.navigation.drive import drive
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.simulator import VehicleState

@@ -56,8 +56,8 @@ from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.world.worlds import World
 
 if TYPE_CHECKING:  # annotations only: importing them pulls in MPPI and the trials (~0.7 s)
-    from dgt_lib.evaluation.experiments import ExperimentResult
     from dgt_lib.beyond.explore import ExploreResult
+    from dgt_lib.evaluation.experiments import ExperimentResult
 
 WORLD = "world"
 TERRAIN = "world/terrain"

@@ -1,4 +1,5 @@
-"""MPPI path tracking, the steering conversion and the kinematic plant (dgt_lib.navigation.control.mppi)."""
+"""MPPI path tracking, the steering conversion and the kinematic plant
+(dgt_lib.navigation.control.mppi)."""
 
 import dataclasses
 import math
@@ -18,7 +19,11 @@ from dgt_lib.navigation.control.bicycle import (
     steering_from_twist,
 )
 from dgt_lib.navigation.control.mppi import MPPIController
-from dgt_lib.navigation.control.mppi_config import MPPIConfig, parse_mppi_settings, vehicle_footprint
+from dgt_lib.navigation.control.mppi_config import (
+    MPPIConfig,
+    parse_mppi_settings,
+    vehicle_footprint,
+)
 
 WHEELBASE, MAX_STEER = 2.46, math.radians(35.0)  # the jeep
 R_MIN = WHEELBASE / math.tan(MAX_STEER)  # 3.51 m

@@ -5,10 +5,9 @@ and the literal costmap procedure."""
 import numpy as np
 import torch
 
-from dgt_lib.beyond.dense import dense_window_field
+from dgt_lib.beyond.dense import dense_window_field, directional_costmap_dense
 from dgt_lib.learning.model import DGTNet
 from dgt_lib.learning.training import predict
-from dgt_lib.beyond.dense import directional_costmap_dense
 from dgt_lib.mapping.costmap import directional_costmap_reference
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS
 from tests.test_costmap import ramp, synthetic_bev

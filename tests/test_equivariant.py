@@ -6,8 +6,8 @@ import pytest
 import torch
 from scipy import ndimage
 
-from dgt_lib.core.geometry import GridSpec
 from dgt_lib.beyond import equivariant as eq
+from dgt_lib.core.geometry import GridSpec
 from dgt_lib.mapping.costmap import directional_costmap_reference
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.perception.patches import forward_grade

@@ -22,9 +22,9 @@ from dgt_lib.evaluation.trials import (
     run_trials,
     trial_tasks,
 )
-from dgt_lib.navigation.drive import MPPI_DT_S, drive
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import MPPIConfig
+from dgt_lib.navigation.drive import MPPI_DT_S, drive
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.stages.experiments import experiment_stem, trial_maps
 from dgt_lib.world.terrain import get_world

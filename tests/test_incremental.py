@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
+from dgt_lib.beyond.incremental import IncrementalCostmap, changed_cells, changed_mask
 from dgt_lib.core.geometry import heading_bins
 from dgt_lib.mapping.costmap import directional_costmap, explain_heading_layer
-from dgt_lib.beyond.incremental import IncrementalCostmap, changed_cells, changed_mask
 from tests.test_costmap import synthetic_bev
 
 STRIDE = (4, 2)
@@ -150,8 +150,8 @@ def test_unobserved_cells_cost_one_and_the_lattice_path_is_required(grown):
 
 
 def test_a_plan_is_redone_only_when_its_own_cells_got_costlier_in_its_own_direction():
-    from dgt_lib.mapping.occupancy import FREE, OCCUPIED
     from dgt_lib.beyond.explore import path_cost_rose
+    from dgt_lib.mapping.occupancy import FREE, OCCUPIED
 
     grid = synthetic_bev(np.zeros((40, 40), np.float32)).grid
     path = np.array([[2.0 + 0.4 * i, 8.0, 0.0] for i in range(20)])  # eastbound, row 20

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 import torch
 
+from dgt_lib.beyond import pooled
+from dgt_lib.beyond.dense import directional_costmap_dense
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.beyond import pooled
 from dgt_lib.learning.training import train_model
-from dgt_lib.beyond.dense import directional_costmap_dense
 from dgt_lib.perception.dataset import TRAIN, PatchDataset
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS, extract_patches, rotate_map
 from tests.test_costmap import synthetic_bev

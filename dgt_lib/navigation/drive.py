@@ -23,8 +23,8 @@ from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.control.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint
-from dgt_lib.navigation.outcome import OutcomeRule, TrialOutcome
 from dgt_lib.navigation.control.pure_pursuit import PurePursuit
+from dgt_lib.navigation.outcome import OutcomeRule, TrialOutcome
 from dgt_lib.world.simulator import CONTROL_DT_S, Simulator, VehicleState
 from dgt_lib.world.worlds import World
 
