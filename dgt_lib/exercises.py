@@ -392,3 +392,19 @@ def check(name: str, learner_fn: Callable[..., Any]) -> None:
     """Grade ``learner_fn`` against exercise ``name`` and print the verdict (``right``,
     ``wrong: <hint>`` or ``not answered yet``) — the notebooks' check cells."""
     print(grade(name, learner_fn).message)
+
+
+def plug(name: str, learner_fn: Callable[..., Any]) -> Callable[..., Any]:
+    """The function the pipeline cells after an exercise run: the learner's own once it
+    answers (right or not — a wrong one shows what it changes downstream), the library's
+    reference while it is unanswered, so a notebook run top to bottom still works.
+
+    Prints one line saying which is used and the grade, e.g.
+    ``edge_cost: your function (right) drives the cells below``.
+    """
+    result = grade(name, learner_fn)
+    if result.status == NOT_ANSWERED:
+        print(f"{name}: not answered yet — the cells below use the library's reference")
+        return EXERCISES[name].reference
+    print(f"{name}: your function ({result.status}) drives the cells below")
+    return learner_fn
