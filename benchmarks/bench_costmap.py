@@ -1,9 +1,9 @@
 """Directional costmap speed and accuracy: literal stride-1 procedure vs lattice vs dense,
-and the one-pass C8-equivariant network (issue 20).
+and the one-pass C8-equivariant network.
 
-Targets: the lattice path (issue: Directional costmaps) — the K = 8 costmaps of all four
+Targets: the lattice path — the K = 8 costmaps of all four
 vehicles for a 400 × 400-cell map in ≤ 30 s on this 2-core machine, ≥ 10× faster than the
-literal procedure, mean |ΔC| ≤ 0.02 from it; dense evaluation (issue 20) — ≤ 3 s for
+literal procedure, mean |ΔC| ≤ 0.02 from it; dense evaluation — ≤ 3 s for
 width 64 (≥ 100× literal) at mean |ΔC| ≤ 0.01. Each row reports mean and max |ΔC|
 from the literal procedure over all cells of the measured headings.
 
@@ -21,10 +21,10 @@ The "equivariant" row (:mod:`dgt_lib.beyond.equivariant`) is another network: on
 of a C8Net over the unrotated map gives all 8 headings; its time does not depend on its
 weights (``--equivariant`` loads a trained one, else it is untrained), and its difference
 from the literal map of DGTNet means nothing — its accuracy is measured against the ground
-truth by ``benchmarks/eval_equivariant.py``.
+truth by ``studies/eval_equivariant.py``.
 
 The "PooledNet" rows (:mod:`dgt_lib.beyond.pooled`, ``--pooled``: trained networks saved
-by ``benchmarks/eval_pooled.py``, else an untrained one per ``--pooled-widths``) are a third
+by ``studies/eval_pooled.py``, else an untrained one per ``--pooled-widths``) are a third
 network, built to be evaluated densely: its own literal procedure (every window cut out
 with its context and run on its own, ``--literal-headings`` as above) against its dense
 evaluation, and the speed-up also against DGTNet's literal procedure of the same run.
@@ -92,9 +92,9 @@ def main() -> None:
     parser.add_argument("--strides", default="6x3,4x2")
     parser.add_argument("--model", default=None, help="a checkpoint instead of a synthetic model")
     parser.add_argument("--equivariant", default=None,
-                        help="a trained C8Net (benchmarks/eval_equivariant.py); default: untrained")
+                        help="a trained C8Net (studies/eval_equivariant.py); default: untrained")
     parser.add_argument("--pooled", nargs="+", default=[],
-                        help="trained PooledNet state dicts (benchmarks/eval_pooled.py)")
+                        help="trained PooledNet state dicts (studies/eval_pooled.py)")
     parser.add_argument("--pooled-widths", type=int, nargs="*", default=[],
                         help="untrained PooledNets of these widths (timing only); default 32 "
                              "when no --pooled is given")

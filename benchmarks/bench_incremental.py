@@ -1,4 +1,4 @@
-"""Incremental costmap: per-frame update time against a full recompute (issue 20, item 3).
+"""Incremental costmap: per-frame update time against a full recompute.
 
 Target: an update after one new RGB-D frame ≤ 100 ms for one vehicle on 2 cores.
 
@@ -20,7 +20,7 @@ Without ``--model`` it uses the profile's trained multitask model (smoke: width 
 a checkpoint (e.g. the `paper` profile's width-64
 ``data/paper/seed-0/models/multitask.pt``) times the paper's network. ``--pooled PATH``
 drives with a :class:`~dgt_lib.beyond.pooled.PooledNet` saved by
-``benchmarks/eval_pooled.py`` instead: every window, evaluated densely
+``studies/eval_pooled.py`` instead: every window, evaluated densely
 (:class:`~dgt_lib.beyond.incremental.DenseIncrementalCostmap`), compared with
 ``directional_costmap_dense`` of the same map (``--stride`` does not apply).
 """
@@ -38,6 +38,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 import dgt_lib as dgt  # noqa: E402
+from dgt_lib.beyond.dense import directional_costmap_dense  # noqa: E402
 from dgt_lib.beyond.explore import ExploreConfig, explore  # noqa: E402
 from dgt_lib.beyond.incremental import (  # noqa: E402
     DenseIncrementalCostmap,
@@ -49,7 +50,7 @@ from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate, predict, train_model  # noqa: E402
-from dgt_lib.mapping.costmap import directional_costmap, directional_costmap_dense  # noqa: E402
+from dgt_lib.mapping.costmap import directional_costmap  # noqa: E402
 from dgt_lib.perception.bev import bev_grid  # noqa: E402
 from dgt_lib.perception.dataset import PatchDataset  # noqa: E402
 from dgt_lib.stages.costmaps import ensure_tau_s, load_model  # noqa: E402
@@ -84,7 +85,7 @@ def main() -> None:
     ap.add_argument("--stride", type=int, nargs=2, default=None,
                     help="lattice stride (default: the profile's costmap stride)")
     ap.add_argument("--pooled", default=None,
-                    help="a PooledNet state dict (benchmarks/eval_pooled.py): dense updates")
+                    help="a PooledNet state dict (studies/eval_pooled.py): dense updates")
     ap.add_argument("--bf16", action="store_true",
                     help="with --pooled: drive and recompute with its bfloat16 copy")
     ap.add_argument("--width", type=int, default=None,

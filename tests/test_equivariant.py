@@ -55,7 +55,7 @@ def test_rotating_the_map_by_90_degrees_shifts_the_headings_by_2_exactly():
 def test_45_degree_equivariance_error_is_small_but_not_zero():
     # A random (untrained) network on random terrain, |ΔL̂| at 200 cells: measured mean
     # 0.010–0.034 and max 0.16–0.54 over seeds 0–2 (outputs' std 0.03–0.22); 90°: < 1e-6.
-    # The trained demo networks do far better (benchmarks/eval_equivariant.py).
+    # The trained demo networks do far better (studies/eval_equivariant.py).
     err = eq.equivariance_error(small_net(), hilly_bev(), n=200)
     assert err["max_90"] < 1e-5
     assert 1e-4 < err["mean_45"] < 0.05 and err["max_45"] < 0.6

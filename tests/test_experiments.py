@@ -71,7 +71,7 @@ def test_a_short_closed_loop_trial_succeeds_on_flat_ground():
 
 
 def test_watching_a_trials_commands_does_not_change_the_trial():
-    """`benchmarks/replay_trial.py` prints every command MPPI gives through `on_command`:
+    """`studies/replay_trial.py` prints every command MPPI gives through `on_command`:
     one per ~50 ms control period, the speed command and the steering within the
     vehicle's lock (−1 … 1), and the trial driven the same to the bit as without watching."""
     world = from_heightmap(np.zeros((200, 200), np.float32), 0.4, name="flat")  # 80 m × 80 m
@@ -97,12 +97,12 @@ def test_watching_a_trials_commands_does_not_change_the_trial():
 
 
 def test_watching_mppis_sampled_costs_does_not_change_the_trial():
-    """`benchmarks/replay_trial.py --critics` reports, per MPPI call, how many sampled
+    """`studies/replay_trial.py --critics` reports, per MPPI call, how many sampled
     sequences collide: beside a wall some do, the shares are percentages, the cheapest
     sequence's speed is within the controller's range, the trial is driven the same to the
     bit as without watching, and the controller is itself again afterwards."""
     spec = importlib.util.spec_from_file_location(
-        "replay_trial", Path(__file__).resolve().parent.parent / "benchmarks" / "replay_trial.py")
+        "replay_trial", Path(__file__).resolve().parent.parent / "studies" / "replay_trial.py")
     replay = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(replay)
     world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")  # 80 m × 40 m
@@ -130,7 +130,7 @@ def test_watching_mppis_sampled_costs_does_not_change_the_trial():
 
 
 def test_a_drive_takes_other_mppi_settings_for_itself_only():
-    """`benchmarks/controller_variants.py` drives recorded plans with other MPPI settings:
+    """`studies/controller_variants.py` drives recorded plans with other MPPI settings:
     a lower target speed is driven slower, the next drive without it at 5 m/s again, and a
     name that is no MPPI setting is refused."""
     world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")

@@ -50,8 +50,8 @@ def test_code_passes_ruff():
     ruff = Path(sys.executable).parent / "ruff"
     if not ruff.exists():
         pytest.skip("ruff is not installed in this environment")
-    done = subprocess.run([str(ruff), "check", "dgt_lib", "tests", "benchmarks"], cwd=ROOT,
-                          capture_output=True, text=True)
+    done = subprocess.run([str(ruff), "check", "dgt_lib", "tests", "benchmarks", "studies"],
+                          cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stdout + done.stderr
 
 
@@ -64,12 +64,13 @@ APPLICATIONS = {"jupyterlab": "the notebook app of the README's `jupyter lab not
 
 
 def _imported_top_level_modules() -> set[str]:
-    """Top-level modules imported by the library, the notebooks, the tests and the benchmarks."""
+    """Top-level modules imported by the library, the notebooks, the tests, the benchmarks
+    and the studies."""
     import ast
     import json
 
     modules: set[str] = set()
-    sources = [p.read_text() for d in ("dgt_lib", "tests", "benchmarks")
+    sources = [p.read_text() for d in ("dgt_lib", "tests", "benchmarks", "studies")
                for p in (ROOT / d).rglob("*.py")]
     for nb in (ROOT / "notebooks").glob("*.ipynb"):
         cells = json.loads(nb.read_text())["cells"]

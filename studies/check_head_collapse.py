@@ -1,7 +1,7 @@
 """Does single-task training collapse to a constant prediction on skewed labels?
 
-    .venv/bin/python benchmarks/check_head_collapse.py --profile paper --vehicle jeep
-    .venv/bin/python benchmarks/check_head_collapse.py --profile paper --seeds 0 1 2 --device cuda
+    .venv/bin/python studies/check_head_collapse.py --profile paper --vehicle jeep
+    .venv/bin/python studies/check_head_collapse.py --profile paper --seeds 0 1 2 --device cuda
 
 Trains the single-task model of ``--vehicle`` on the profile's cached dataset
 (``dgt reproduce --stages collect bev dataset`` builds it) with the profile's

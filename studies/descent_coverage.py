@@ -1,6 +1,6 @@
 """How often does a collection run drive down steep ground? Four collection variants:
 
-    .venv/bin/python benchmarks/descent_coverage.py --profile demo --vehicle carla_cola --runs 20
+    .venv/bin/python studies/descent_coverage.py --profile demo --vehicle carla_cola --runs 20
 
 Each variant drives the profile's first ``--runs`` episodes of the vehicle (seed 0's episode
 seeds) on the training world without rendering, samples every run like the dataset does

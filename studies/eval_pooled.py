@@ -15,7 +15,7 @@ poses, labels and train/val/test split); then report
 Nothing of the profile is rebuilt (it stops if an artifact is not cached fresh). Results go
 to ``data/pooled/``.
 
-    DGT_DATA_DIR=... python benchmarks/eval_pooled.py --profile demo --seeds 0 1 2
+    DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 0 1 2
 """
 
 from __future__ import annotations
@@ -38,11 +38,11 @@ from eval_equivariant import (  # noqa: E402
 )
 
 from dgt_lib.beyond import pooled  # noqa: E402
+from dgt_lib.beyond.dense import directional_costmap_dense  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate, train_model  # noqa: E402
-from dgt_lib.mapping.costmap import directional_costmap_dense  # noqa: E402
 from dgt_lib.perception.dataset import TEST, TRAIN  # noqa: E402
 from dgt_lib.stages.collect import ensure_bev  # noqa: E402
 from dgt_lib.stages.dataset import ensure_dataset  # noqa: E402

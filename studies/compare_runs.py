@@ -1,7 +1,7 @@
 """Did a rerun give the same artifacts? Compares two data directories of one profile and seed.
 
     DGT_DATA_DIR=/tmp/fresh dgt reproduce --profile paper --seeds 1
-    .venv/bin/python benchmarks/compare_runs.py data /tmp/fresh --profile paper --seed 0
+    .venv/bin/python studies/compare_runs.py data /tmp/fresh --profile paper --seed 0
 
 For each artifact group of ``<dir>/<profile>/seed-<seed>/`` present in both directories —
 episodes, BEV maps, the dataset, models, slope fit and τ_s, costmaps, the accuracy scores

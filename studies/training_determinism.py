@@ -1,7 +1,7 @@
 """Is training bit-reproducible from one process to the next on this machine?
 
-    .venv/bin/python benchmarks/training_determinism.py --profile paper --processes 6
-    .venv/bin/python benchmarks/training_determinism.py --profile demo --kind single:jeep
+    .venv/bin/python studies/training_determinism.py --profile paper --processes 6
+    .venv/bin/python studies/training_determinism.py --profile demo --kind single:jeep
 
 Trains the profile's model ``--kind`` (default the multi-task one) for the first epoch —
 the profile's recipe, the run seed's cached dataset (run ``dgt reproduce`` first), the

@@ -1,6 +1,6 @@
 """Why does DGT-Map's mercedes_van cross the ridge at the sharp section? Per run seed:
 
-    .venv/bin/python benchmarks/diagnose_ridge.py --profile demo
+    .venv/bin/python studies/diagnose_ridge.py --profile demo
 
 reads the cached `dgt reproduce` artifacts of each seed (nothing is trained) and prints
 1. each head's DGT cost (heading north, 5 × 5 cells) at the ridge world's landmarks — the

@@ -14,7 +14,7 @@ and training-world BEV (the dataset's own train/val/test split), then report
 Nothing of the profile is rebuilt: every cached artifact must be fresh, or the script stops
 (it never writes under ``data/<profile>/``). Results go to ``data/equivariant/``.
 
-    DGT_DATA_DIR=... python benchmarks/eval_equivariant.py --profile demo --seeds 0 1 2
+    DGT_DATA_DIR=... python studies/eval_equivariant.py --profile demo --seeds 0 1 2
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ distance uniform in ``eval_distance_m``, a uniform direction, the goal 10 m insi
 footprints and feasibility, which need the mapped occupancy, are not checked here — the
 ``dgt reproduce`` run's draw reports those (``QueryDraw.rejected``).
 
-    .venv/bin/python benchmarks/query_rule.py [PROFILE ...] [--candidates N]
+    .venv/bin/python studies/query_rule.py [PROFILE ...] [--candidates N]
 """
 
 from __future__ import annotations

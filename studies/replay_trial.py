@@ -1,6 +1,6 @@
 """Replay one recorded closed-loop trial and print what MPPI commanded, state by state.
 
-    .venv/bin/python benchmarks/replay_trial.py --profile demo --seed 6 \\
+    .venv/bin/python studies/replay_trial.py --profile demo --seed 6 \\
         --experiment experiment1 --method dgt --label ascent --index 0 --from-s 14
 
 A trial of a cached experiment (``data/<profile>/seed-<S>/experiments/<name>.pkl``) is

@@ -1,7 +1,7 @@
 """Which training recipe gives models whose conclusions hold in every seed? Per recipe:
 
-    .venv/bin/python benchmarks/training_recipes.py --profile demo --train-seeds 0 100
-    .venv/bin/python benchmarks/training_recipes.py --profile paper --run-seeds 0 \
+    .venv/bin/python studies/training_recipes.py --profile demo --train-seeds 0 100
+    .venv/bin/python studies/training_recipes.py --profile paper --run-seeds 0 \
         --recipes cosine-last --epochs 8          # a shorter paper training budget
 
 For every run seed of the profile (its cached dataset, BEV maps, τ_s and ground truth — run

@@ -1,7 +1,7 @@
 """How faithful the BEV's H̄, σ_H and ‖∇H̄‖ are on slopes, on rendered surveys of synthetic
 terrain, per estimator — and τ_s recomputed with each.
 
-Run: ``.venv/bin/python benchmarks/bev_slopes.py [--tau PROFILE]``.
+Run: ``.venv/bin/python studies/bev_slopes.py [--tau PROFILE]``.
 
 Each world (ramps of 10–28° in four orientations, a 9 m wide 24° ramp between cliffs up
 to a plateau, a smooth ridge, a sharp 14° ridge, a bump) is surveyed as every kit world is

@@ -1,7 +1,7 @@
 """Recorded closed-loop trials driven again with other MPPI settings: what the controller
 changes, with the plans held fixed.
 
-    .venv/bin/python benchmarks/controller_variants.py --profile demo --seeds 8 \\
+    .venv/bin/python studies/controller_variants.py --profile demo --seeds 8 \\
         --experiment experiment1 --route A \\
         --variant lateral_accel_max=2.0 --variant constraint_weight=20
 

@@ -1,6 +1,6 @@
 """Does the model know what carla_cola's Route B descent costs? Measured against predicted:
 
-    .venv/bin/python benchmarks/diagnose_descent.py --profile demo
+    .venv/bin/python studies/diagnose_descent.py --profile demo
 
 1. **Measured.** carla_cola drives Route B of the hill world up and down in the simulator
    (pure pursuit + the collection's PID speed controller at 5 m/s, the way the data were
