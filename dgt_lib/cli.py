@@ -1,37 +1,50 @@
 """Command line: ``dgt`` (or ``python -m dgt_lib``).
 
-    dgt reproduce [--profile P] [--stages a b …] [--seeds N] [--set NAME=VALUE …]
-                  [--executor process|dask|ray] [--address A] [--workers N]
-                  [--device auto|cpu|cuda]         run the cached pipeline stages
+    dgt reproduce [--profile P] [--stages a b …] [--seeds N | --seed S]
+                  [--set NAME=VALUE …] [--executor process|dask|ray] [--address A]
+                  [--workers N] [--device auto|cpu|cuda]   run the cached pipeline stages
     dgt stages                                     list the stages
+    dgt settings [--profile P] [--set NAME=VALUE …]  every NAME --set takes, its type and value
     dgt plan --world W --vehicle V --start x,y,yaw --goal x,y [--method M] [--drive]
-             [--set NAME=VALUE …]                  plan (and drive) one query
+             [--json] [--set NAME=VALUE …]         plan (and drive) one query
+    dgt --version
 
 ``--set planner.beta=50`` changes one setting of the profile (repeatable; names and types
-as in ``dgt_lib/core/config.py``, checked before anything runs).
+as in ``dgt_lib/core/config.py``, checked before anything runs; ``dgt settings`` lists them).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
+import json
 import math
+import os
 import re
 import shlex
 import sys
 import time
 from dataclasses import replace
 
+from dgt_lib import __version__
 from dgt_lib.core.config import (
     DEVICES,
     EXECUTORS,
     PROFILE_NAMES,
+    VEHICLES,
     Profile,
     UnknownProfileError,
     get_profile,
     profile_name,
 )
-from dgt_lib.core.overrides import InvalidOverrideError, parse_overrides
+from dgt_lib.core.overrides import (
+    InvalidOverrideError,
+    format_setting,
+    parse_overrides,
+    setting_names,
+    setting_type,
+)
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import profile_root
 
@@ -108,13 +121,7 @@ def _executor_text(profile: Profile) -> str:
 def _reproduce(args: argparse.Namespace) -> int:
     from dgt_lib.core.executors import use_executor
 
-    profile = _profile(args)
-    if args.seeds is not None:
-        if args.seeds < 1:
-            print(f"dgt: error: --seeds must be ≥ 1, got {args.seeds}", file=sys.stderr)
-            return 2
-        profile = profile.with_(seeds=args.seeds)
-    profile = _with_execution(profile, args)
+    profile = _with_execution(_with_seeds(_profile(args), args), args)
     stages = registry.select(args.stages)
     runs = profile.seed_profiles()
     print(f"dgt reproduce — profile {profile.describe()}, seed(s) "
@@ -159,10 +166,29 @@ def _reproduce(args: argparse.Namespace) -> int:
             print(f"  {'':<19} → {p}")
     print(f"Stage wall times (with the load when each started): {stage_times_path(profile)}")
     if "experiments" in [s.name for s in stages]:
+        if args.seed is not None:  # one seed alone: the pooled report keeps every seed's
+            print(f"\nSeed {args.seed} alone: the pooled results were left as they were; "
+                  f"`dgt reproduce --profile {profile.name}` pools every seed.")
+            return 0
         from dgt_lib.report import write_seeds_report
 
         print(f"\nResults over {len(runs)} seed(s): {write_seeds_report(profile)}")
     return 0
+
+
+def _with_seeds(profile: Profile, args: argparse.Namespace) -> Profile:
+    """``profile`` with ``--seeds N`` (N seeds, from the profile's first) or
+    ``--seed S`` (seed S alone) applied; :class:`UsageError` for a count below 1 or a
+    negative seed."""
+    if args.seeds is not None:
+        if args.seeds < 1:
+            raise UsageError(f"--seeds must be ≥ 1, got {args.seeds}")
+        return profile.with_(seeds=args.seeds)
+    if args.seed is not None:
+        if args.seed < 0:
+            raise UsageError(f"--seed must be ≥ 0, got {args.seed}")
+        return profile.with_(seed=args.seed, seeds=1)
+    return profile
 
 
 def _stages(_: argparse.Namespace) -> int:
@@ -170,6 +196,35 @@ def _stages(_: argparse.Namespace) -> int:
         print("(no stages yet)")
     for s in registry.STAGES:
         print(f"{s.name:<14} {s.description}")
+    return 0
+
+
+def _type_text(hint: object) -> str:
+    """A setting's annotation as it reads in the code: ``float``, ``int | None``,
+    ``tuple[int, int]``."""
+    return hint.__name__ if isinstance(hint, type) else str(hint)
+
+
+def settings_table(profile: Profile) -> list[tuple[str, str, str]]:
+    """Every name ``--set`` accepts, its type and the profile's value as it would be
+    typed: ``("planner.beta", "float", "150.0")``, read from the Profile's dataclasses
+    (:func:`dgt_lib.core.overrides.setting_names`), so it lists exactly what ``--set``
+    checks against."""
+    rows = []
+    for name in setting_names():
+        section, field_name, hint = setting_type(name)
+        owner = profile if section is None else getattr(profile, section)
+        rows.append((name, _type_text(hint), format_setting(getattr(owner, field_name))))
+    return rows
+
+
+def _settings(args: argparse.Namespace) -> int:
+    profile = _profile(args)
+    rows = settings_table(profile)
+    print(f"Settings of profile {profile.describe()} (change one with --set NAME=VALUE):")
+    widths = [max(len(r[i]) for r in rows) for i in range(2)]
+    for name, kind, value in rows:
+        print(f"  {name:<{widths[0]}}  {kind:<{widths[1]}}  {value}")
     return 0
 
 
@@ -184,7 +239,8 @@ def _profile_arg(text: str) -> str:
 PROFILE_METAVAR = "{" + ",".join(PROFILE_NAMES) + "}"
 PROFILE_HELP = "profile (default: $DGT_PROFILE or demo; case-insensitive)"
 SET_HELP = ("change one setting of the profile, e.g. planner.beta=50 or "
-            "experiments.n_hill=10 (repeatable; SECTION.FIELD of dgt_lib/core/config.py)")
+            "experiments.n_hill=10 (repeatable; SECTION.FIELD of dgt_lib/core/config.py; "
+            "dgt settings lists them)")
 
 
 def _add_set_option(parser: argparse.ArgumentParser) -> None:
@@ -236,27 +292,47 @@ def _glue_negative_coordinates(argv: list[str]) -> list[str]:
     return out
 
 
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """Everything written to stdout inside goes to stderr: Python's prints and, at the file
+    descriptor, what worker processes and compiled code write (``dgt plan --json`` keeps
+    stdout for the JSON alone)."""
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:
+        saved = None
+    try:
+        if saved is not None:
+            os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stderr.flush()
+        if saved is not None:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
 def _plan(args: argparse.Namespace) -> int:
     """``dgt plan``: :func:`dgt_lib.plan_one.plan_query` checks the query before any data is
     collected or model trained (:func:`dgt_lib.plan_one.check_query`), then says when
-    training comes first."""
-    from dgt_lib.core.config import VEHICLES
+    training comes first. ``--json``: the report as one JSON object, alone on stdout."""
     from dgt_lib.navigation.planner import InvalidQueryError
     from dgt_lib.plan_one import plan_query
 
     profile = _with_execution(_profile(args), args)
-    if args.vehicle not in VEHICLES:
-        print(f"dgt: error: unknown vehicle {args.vehicle!r}; valid vehicles: "
-              f"{', '.join(VEHICLES)}", file=sys.stderr)
-        return 2
+    quiet = _stdout_to_stderr() if args.json else contextlib.nullcontext()
     try:
-        report = plan_query(args.world, args.vehicle, args.start, args.goal,
-                            method=args.method, profile=profile, drive=args.drive,
-                            resolution_m=args.resolution, vertical_scale_m=args.vertical_scale)
+        with quiet:
+            report = plan_query(args.world, args.vehicle, args.start, args.goal,
+                                method=args.method, profile=profile, drive=args.drive,
+                                resolution_m=args.resolution,
+                                vertical_scale_m=args.vertical_scale)
     except (InvalidQueryError, FileNotFoundError, ValueError) as exc:
         print(f"dgt plan: error: {exc}", file=sys.stderr)
         return 2
-    print(report.summary())
+    print(json.dumps(report.as_dict()) if args.json else report.summary())
     return 0 if report.plan.success else 1
 
 
@@ -266,17 +342,26 @@ def _device_arg(parser: argparse.ArgumentParser) -> None:
                              "when there is one, the default), cpu or cuda")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dgt", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
-    rep = sub.add_parser("reproduce", help="run the pipeline stages (cached) for a profile")
+DESCRIPTION = ("dgt-kit: the DGT-Map pipeline (collection, BEV maps, training, directional "
+               "costmaps, planning, the experiments) and one-query planning")
+"""What ``dgt --help`` opens with (plain text: argparse prints it as it is)."""
+
+
+def _add_reproduce(sub) -> None:
+    rep = sub.add_parser("reproduce", help="run the pipeline stages (cached) for a profile",
+                         description="Run the pipeline's stages for every seed of a profile; "
+                                     "finished stages are cached, so a rerun resumes.")
     rep.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
                      help=PROFILE_HELP)
     rep.add_argument("--stages", nargs="+", metavar="STAGE",
-                     help="only these stages (see `dgt stages`)")
-    rep.add_argument("--seeds", type=int, default=None, metavar="N",
-                     help="run every stage for N seeds (default: the profile's; demo 3) and "
-                          "report each seed and the pooled results")
+                     help="only these stages (see: dgt stages)")
+    seeds = rep.add_mutually_exclusive_group()
+    seeds.add_argument("--seeds", type=int, default=None, metavar="N",
+                       help="run every stage for N seeds (default: the profile's; demo 3) and "
+                            "report each seed and the pooled results")
+    seeds.add_argument("--seed", type=int, default=None, metavar="S",
+                       help="run every stage for seed S alone (its own directory seed-S; the "
+                            "pooled results are left as they are)")
     _add_set_option(rep)
     rep.add_argument("--executor", choices=EXECUTORS, default=None,
                      help="what runs collection episodes and trials: a process pool on this "
@@ -291,12 +376,18 @@ def build_parser() -> argparse.ArgumentParser:
                           "profile's, 2)")
     _device_arg(rep)
     rep.set_defaults(func=_reproduce)
-    st = sub.add_parser("stages", help="list the pipeline stages")
-    st.set_defaults(func=_stages)
-    pl = sub.add_parser("plan", help="plan (and drive) one query on a world or your terrain")
+
+
+def _add_plan(sub) -> None:
+    pl = sub.add_parser("plan", help="plan (and drive) one query on a world or your terrain",
+                        description="Plan one query with Hybrid A* on a method's directional "
+                                    "costmap (building what it needs first), save a figure and "
+                                    "a rerun recording, and optionally drive the path in "
+                                    "MuJoCo. Exit status 0: a path was found; 1: none; 2: an "
+                                    "invalid query.")
     pl.add_argument("--world", required=True,
                     help="hill, ridge, eval, training, or a .npy / 16-bit .png heightmap")
-    pl.add_argument("--vehicle", required=True, help="jeep, vw_van, mercedes_van, carla_cola")
+    pl.add_argument("--vehicle", required=True, choices=VEHICLES)
     pl.add_argument("--start", required=True, type=lambda t: _floats(t, 3, "--start"),
                     help="x,y,yaw [m, m, rad]; negative values are fine (-5,14,0.8)")
     pl.add_argument("--goal", required=True, type=lambda t: _floats(t, 2, "--goal"),
@@ -304,6 +395,10 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--method", default="dgt",
                     choices=("dgt", "isotropic", "single-task", "slope", "binary"))
     pl.add_argument("--drive", action="store_true", help="drive the path in MuJoCo")
+    pl.add_argument("--json", action="store_true",
+                    help="print only the report as one JSON object on stdout (the path's rows "
+                         "x, y, yaw; length; cost; the named route; the drive's outcome); "
+                         "progress goes to stderr")
     pl.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
                     help=PROFILE_HELP)
     pl.add_argument("--resolution", type=float, default=0.4,
@@ -313,6 +408,24 @@ def build_parser() -> argparse.ArgumentParser:
     _add_set_option(pl)
     _device_arg(pl)
     pl.set_defaults(func=_plan)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dgt", description=DESCRIPTION)
+    parser.add_argument("--version", action="version", version=f"dgt {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_reproduce(sub)
+    st = sub.add_parser("stages", help="list the pipeline stages",
+                        description="List the pipeline's stages in the order they run.")
+    st.set_defaults(func=_stages)
+    se = sub.add_parser("settings", help="list every setting --set takes, its type and value",
+                        description="List every NAME that --set NAME=VALUE accepts, its type "
+                                    "and the profile's value (with the --set given applied).")
+    se.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
+                    help=PROFILE_HELP)
+    _add_set_option(se)
+    se.set_defaults(func=_settings)
+    _add_plan(sub)
     return parser
 
 
@@ -320,7 +433,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status.
 
     Ctrl-C ends any command with one line on stderr and status 130 (no traceback):
-    what the artifact cache holds stays, and the same command resumes from it.
+    what the artifact cache holds stays, and the same command resumes from it. A reader
+    that stops early (``dgt settings | head``) ends it quietly.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(_glue_negative_coordinates(argv))
@@ -335,6 +449,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dgt: interrupted; kept everything finished so far. Rerun "
               f"`{args.command_line}` to resume.", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # stdout's reader is gone: say nothing more to it
+        os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
+        return 1
 
 
 if __name__ == "__main__":

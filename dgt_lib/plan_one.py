@@ -15,6 +15,7 @@ passes high cost — saves a figure and a rerun recording named by the query
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -25,6 +26,7 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.evaluation.queries import classify_route
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.navigation.planner import HybridAStar, PlanResult, check_query_on_world
 from dgt_lib.stages.costmaps import ensure_world_costmaps, world_occupancy
@@ -68,6 +70,10 @@ class QueryReport:
     plan: PlanResult
     high_cost: list[tuple[float, float, float, float]] = field(default_factory=list)
     """Stretches of the path above :data:`HIGH_COST`: (x, y, θ_k [deg], max C) at their start."""
+    route: str | None = None
+    """Which of the world's named routes the path takes (the hill's "A" or "B", the
+    ridge's "smooth" or "sharp" crossing: :func:`~dgt_lib.evaluation.queries.classify_route`);
+    None on a world without routes or when no path was found."""
     figure: Path | None = None
     recording: Path | None = None
     outcome: TrialOutcome | None = None
@@ -89,6 +95,8 @@ class QueryReport:
                     lines.append(f"    ({x:.1f}, {y:.1f}) m heading {th:.0f}°: max C = {c:.2f}")
             else:
                 lines.append(f"  no cell on the path costs more than {HIGH_COST}")
+            if self.route:
+                lines.append(f"  route: {self.route}")
         else:
             lines.append(f"  not found: {p.reason} ({p.expansions} expansions, {p.time_s:.2f} s)")
         if self.outcome is not None:
@@ -99,6 +107,34 @@ class QueryReport:
             if path is not None:
                 lines.append(f"  {label}: {path}")
         return "\n".join(lines)
+
+    def as_dict(self) -> dict:
+        """The report as plain JSON values (``dgt plan --json``): the query, whether a path
+        was found (else why), the path's rows [x m, y m, yaw rad], its length [m] and cost,
+        the named route, the drive's outcome (None when not driven) and the files written.
+        Non-finite numbers (an unknown goal distance) become None."""
+        p = self.plan
+        out = {"world": self.world, "vehicle": self.vehicle, "method": self.method,
+               "start": list(self.start), "goal": list(self.goal), "found": bool(p.success),
+               "reason": None if p.success else p.reason,
+               "path": np.asarray(p.path, float).reshape(-1, 3).tolist() if p.success else [],
+               "length_m": float(p.length_m) if p.success else None,
+               "cost": float(p.cost) if p.success else None,
+               "expansions": int(p.expansions), "time_s": float(p.time_s),
+               "route": self.route, "outcome": None,
+               "figure": None if self.figure is None else str(self.figure),
+               "recording": None if self.recording is None else str(self.recording)}
+        if self.outcome is not None:
+            o = self.outcome
+            out["outcome"] = {"success": bool(o.success), "reason": o.reason,
+                              "duration_s": _finite(o.duration_s),
+                              "goal_distance_m": _finite(o.goal_distance_m)}
+        return out
+
+
+def _finite(value: float) -> float | None:
+    """``value`` as a float, or None when it is NaN or infinite (JSON has neither)."""
+    return float(value) if math.isfinite(value) else None
 
 
 def _high_cost_cells(path: np.ndarray, cost: np.ndarray, grid) -> list:
@@ -209,6 +245,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     report = QueryReport(w.name, vehicle, method, start, goal, result)
     if result.success:
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
+        report.route = classify_route(w, result.path) if w.routes else None
     out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success)

@@ -332,3 +332,94 @@ def test_the_pipeline_bar_counts_stages_and_promises_no_time_left(capsys, tmp_pa
     bar = capsys.readouterr().err.replace("\r", "\n")
     assert "2/2 stages [" in bar
     assert "<" not in bar and "stage/s" not in bar and "s/stage" not in bar
+
+
+def test_version_is_the_package_s(capsys):
+    import dgt_lib
+
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out == f"dgt {dgt_lib.__version__}\n"
+
+
+def _subcommands() -> dict:
+    import argparse
+
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
+
+
+def test_every_help_text_is_plain_text_with_no_rst_markup():
+    """`dgt --help` printed the module docstring's ``dgt`` literally; argparse shows help
+    as it is written, so no double backticks and no :func:/:class: roles anywhere."""
+    import re
+
+    subcommands = _subcommands()
+    assert {"reproduce", "stages", "settings", "plan"} <= set(subcommands)
+    for name, text in [("dgt", build_parser().format_help()),
+                       *((n, p.format_help()) for n, p in subcommands.items())]:
+        assert "``" not in text, name
+        assert not re.search(r":[a-z]+:`", text), name
+        assert "dgt_lib." not in text, name  # no API names in the help
+
+
+def test_plan_takes_only_the_four_vehicles(capsys):
+    with pytest.raises(SystemExit):
+        main(["plan", "--world", "hill", "--vehicle", "tank", "--start", "1,2,0",
+              "--goal", "3,4"])
+    err = capsys.readouterr().err
+    assert "invalid choice: 'tank'" in err
+    assert all(v in err for v in ("jeep", "vw_van", "mercedes_van", "carla_cola"))
+
+
+def test_settings_lists_every_name_set_takes_with_its_type_and_the_profile_s_value(capsys):
+    from dataclasses import replace
+
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.core.overrides import setting_names
+
+    assert main(["settings", "--profile", "demo"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rows = {line.split()[0]: line.split(None, 1)[1] for line in lines[1:]}
+    assert list(rows) == setting_names()  # every name, nothing else
+    assert rows["planner.beta"].split() == ["float", "150.0"]
+    assert rows["costmap.stride"].split() == ["tuple[int,", "int]", "4,2"]  # demo's, not (6, 3)
+    assert rows["train.patience"].split()[:3] == ["int", "|", "None"]
+    # what it prints is what --set takes: typed back, every value gives demo itself
+    demo = get_profile("demo")
+    typed = {name: text.rsplit(None, 1)[1] for name, text in rows.items()}
+    assert replace(demo.with_overrides(typed), overrides=()) == demo
+    assert main(["settings", "--profile", "smoke", "--set", "planner.beta=50"]) == 0
+    out = capsys.readouterr().out
+    assert "with planner.beta=50.0" in out.splitlines()[0]
+    assert next(line for line in out.splitlines()[1:]
+                if line.split()[0] == "planner.beta").endswith(" 50.0")
+
+
+def test_seed_runs_that_one_seed_alone(capsys, tmp_path, two_stages):
+    assert main(["reproduce", "--profile", "demo", "--seed", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "seed(s) 2," in out and "read n=1 of seed 2" in out
+    assert [p.name for p in (tmp_path / "demo").iterdir() if p.is_dir()] == ["seed-2"]
+    assert main(["reproduce", "--profile", "demo", "--seed", "-1"]) == 2
+    assert "--seed must be ≥ 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--seed", "2", "--seeds", "3"])
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_one_seed_alone_leaves_the_pooled_results_as_they_are(capsys, tmp_path, monkeypatch):
+    import dgt_lib.report
+
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("experiments", "tests.stage_examples:first", "stands in")])
+    pooled = []
+    monkeypatch.setattr(dgt_lib.report, "write_seeds_report",
+                        lambda profile: pooled.append(profile.seed_profiles()) or tmp_path)
+    assert main(["reproduce", "--profile", "smoke", "--seed", "1"]) == 0
+    assert pooled == [] and "pooled results were left as they were" in capsys.readouterr().out
+    assert main(["reproduce", "--profile", "smoke", "--seeds", "2"]) == 0
+    assert [[p.seed for p in runs] for runs in pooled] == [[0, 1]]

@@ -219,3 +219,61 @@ def test_the_training_notice_says_which_stages_run_and_promises_no_time(tmp_path
     (data_dir(demo) / model_relpath("multitask")).parent.mkdir(parents=True)
     (data_dir(demo) / model_relpath("multitask")).write_bytes(b"")
     assert training_notice("dgt", "jeep", demo) is None
+
+
+def test_plan_json_is_the_only_thing_on_stdout_and_has_the_path_and_the_drive(data_dir,
+                                                                               tmp_path):
+    """`dgt plan --json` for scripts: one JSON object on stdout — the path's rows x, y, yaw,
+    its length and cost, the drive's outcome — and the progress on stderr, even what worker
+    processes and the simulator write."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    heights = np.zeros((80, 120), np.float32)
+    heights[30:50, 55:65] = 3.0
+    np.save(tmp_path / "tiny.npy", heights)
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, "-m", "dgt_lib", "plan", "--world", str(tmp_path / "tiny.npy"),
+         "--vehicle", "jeep", "--start", "8,16,0", "--goal", "20,16", "--method", "binary",
+         "--profile", "smoke", "--drive", "--json"],
+        capture_output=True, text=True, cwd=root, timeout=600,
+        env={**os.environ, "PYTHONPATH": str(root)})
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)  # the whole of stdout
+    assert report["found"] and report["reason"] is None
+    path = np.array(report["path"])
+    assert path.shape[1] == 3 and len(path) >= 2
+    np.testing.assert_allclose(path[0], [8.0, 16.0, 0.0], atol=1e-6)
+    assert np.hypot(*(path[-1, :2] - [20.0, 16.0])) <= 1.0  # within the goal tolerance
+    assert report["length_m"] == pytest.approx(
+        np.hypot(*np.diff(path[:, :2], axis=0).T).sum(), rel=0.05)
+    assert report["cost"] > 0 and report["route"] is None  # a custom world has no routes
+    assert report["outcome"]["success"] and report["outcome"]["reason"] == "success"
+    assert Path(report["figure"]).exists()
+    assert "found: length" not in done.stdout
+
+
+def test_a_world_with_named_routes_reports_the_route_taken(data_dir):
+    """On the hill the plan's route (A or B) is what Experiment 1 is about: `dgt plan`
+    names it (here a small world laid out like the hill, its Route A south of the block,
+    Route B north of it)."""
+    from dataclasses import replace
+
+    from dgt_lib.plan_one import plan_query
+
+    south = np.array([[8.0, 8.0], [34.0, 8.0]])
+    north = np.array([[8.0, 25.0], [34.0, 25.0]])
+    world = replace(tiny_world(), name="hill", routes={"A": south, "B": north})
+    report = plan_query(world, "jeep", (8.0, 8.0, 0.0), (34.0, 8.0), method="binary",
+                        profile="smoke", progress=False)
+    assert report.route == "A" and report.as_dict()["route"] == "A"
+    assert "route: A" in report.summary()
+    report = plan_query(world, "jeep", (8.0, 25.0, 0.0), (34.0, 25.0), method="binary",
+                        profile="smoke", progress=False)
+    assert report.route == "B"
+    assert plan_query(tiny_world(), "jeep", (8.0, 25.0, 0.0), (34.0, 25.0), method="binary",
+                      profile="smoke", progress=False).route is None
