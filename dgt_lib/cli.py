@@ -383,11 +383,12 @@ def _add_plan(sub) -> None:
                         description="Plan one query with Hybrid A* on a method's directional "
                                     "costmap (building what it needs first), save a figure and "
                                     "a rerun recording, and optionally drive the path in "
-                                    "MuJoCo. Exit status 0: a path was found; 1: none; 2: an "
+                                    "MuJoCo. Exit status 0: a path was found; 1: no path; 2: an "
                                     "invalid query.")
     pl.add_argument("--world", required=True,
                     help="hill, ridge, eval, training, or a .npy / 16-bit .png heightmap")
-    pl.add_argument("--vehicle", required=True, choices=VEHICLES)
+    pl.add_argument("--vehicle", required=True, choices=VEHICLES,
+                    help="whose costmap, footprint and turning radius the plan uses")
     pl.add_argument("--start", required=True, type=lambda t: _floats(t, 3, "--start"),
                     help="x,y,yaw [m, m, rad]; negative values are fine (-5,14,0.8)")
     pl.add_argument("--goal", required=True, type=lambda t: _floats(t, 2, "--goal"),
