@@ -42,7 +42,7 @@ test: $(STAMP)
 	$(SMOKE) $(PY) -m pytest -n 2 --dist loadfile --nbmake --nbmake-timeout=900 notebooks
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check dgt_lib tests benchmarks
+	$(VENV)/bin/ruff check dgt_lib tests benchmarks studies
 
 clean-data:
 	rm -rf data/smoke data/demo data/paper
