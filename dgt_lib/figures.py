@@ -154,10 +154,15 @@ FIGURES: dict[str, Callable[[Profile], object]] = {
 
 
 def _commit() -> str:
-    """The checkout's commit (``git describe --always --dirty``), or 'unknown'."""
+    """The commit of the library that drew the figures (``git rev-parse --short HEAD``, with
+    '+ changes' when ``dgt_lib/`` differs from it), or 'unknown' outside a git checkout."""
     try:
-        return subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, check=True,
-                              capture_output=True, text=True).stdout.strip()
+        def git(*args: str) -> str:
+            return subprocess.run(["git", *args], cwd=ROOT, check=True, capture_output=True,
+                                  text=True).stdout.strip()
+
+        changed = git("status", "--porcelain", "--", "dgt_lib")
+        return git("rev-parse", "--short", "HEAD") + (" + changes" if changed else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
