@@ -8,9 +8,9 @@ is built, as ``dgt reproduce`` would) and is drawn by :mod:`dgt_lib.viz`, the fu
 notebooks and the results report use. The hero figure shows the paper's two planning
 claims: DGT-Map plans carla_cola up the hill by Route A and down by Route B (Experiment 1),
 and on the ridge the jeep crosses the sharp ridge while the mercedes_van goes round by the
-smoothed section (Experiment 2). Each PNG is saved with a 256-colour palette, which keeps
-it under :data:`MAX_BYTES` for the repository. ``README.md`` beside the figures records the
-profile, seed and commit they come from.
+smoothed section (Experiment 2). A PNG over :data:`MAX_BYTES` is saved with a 256-colour
+palette, which keeps it small enough for the repository. ``README.md`` beside the figures
+records the profile, seed and commit they come from.
 """
 
 from __future__ import annotations
@@ -47,12 +47,16 @@ MAX_BYTES = 300_000
 DPI = 80
 
 
-def save_png(fig, path: Path, dpi: int = DPI) -> Path:
-    """Save ``fig`` as a PNG with an adaptive 256-colour palette (3.5–6× smaller than
-    matplotlib's RGBA for these plots, the colours indistinguishable) and close it."""
+def save_png(fig, path: Path, dpi: int = DPI, max_bytes: int = MAX_BYTES) -> Path:
+    """Save ``fig`` as a PNG and close it. A PNG over ``max_bytes`` is saved with an
+    adaptive 256-colour palette instead (3.5–6× smaller for these plots; smooth colour
+    ramps then show faint bands)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
+    if buf.tell() <= max_bytes:
+        Path(path).write_bytes(buf.getvalue())
+        return path
     buf.seek(0)
     image = Image.open(buf).convert("RGB").quantize(256, method=Image.Quantize.MAXCOVERAGE)
     image.save(path, format="PNG", optimize=True)
