@@ -1,6 +1,7 @@
 # dgt-kit: two commands do all set-up.
 #   make reproduce   run the whole pipeline (DGT_PROFILE, default demo)
 #   make test        unit tests + every notebook under nbmake (smoke profile)
+#   make figures     the README's figures from the demo run (docs/figures/)
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV ?= .venv
@@ -8,7 +9,7 @@ PY := $(VENV)/bin/python
 PROFILE ?= $(or $(DGT_PROFILE),demo)
 STAMP := $(VENV)/.installed
 
-.PHONY: reproduce test lint venv clean-data
+.PHONY: reproduce test lint figures venv clean-data
 
 venv: $(STAMP)
 
@@ -40,6 +41,11 @@ test: $(STAMP)
 	$(SMOKE) $(PY) -m pytest -n 2 --dist loadfile tests
 	$(SMOKE) $(VENV)/bin/dgt reproduce --profile smoke
 	$(SMOKE) $(PY) -m pytest -n 2 --dist loadfile --nbmake --nbmake-timeout=900 notebooks
+
+# The README's figures (docs/figures/*.png) from the demo run's seed 0: its cached
+# artifacts are read, missing ones built as `make reproduce` would.
+figures: $(STAMP)
+	MUJOCO_GL=egl $(PY) -m dgt_lib.figures --profile demo
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check dgt_lib tests benchmarks studies
