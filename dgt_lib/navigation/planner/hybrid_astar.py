@@ -202,13 +202,15 @@ class HybridAStar:
             if result is not None:
                 return result
             # a turn count beyond the compiled search's tables: the reference search
-        return self.search(start, goal).run(t0)
+        return self._search(query).run(t0)
 
     def search(self, start, goal) -> Search:
         """The reference search of one query (:class:`.search.Search`), not yet started:
         to step through (``push_start()``, then ``steps()``) or to ``run``. Raises
         :class:`InvalidQueryError` as :meth:`plan` does."""
-        query = self._check_query(start, goal)
+        return self._search(self._check_query(start, goal))
+
+    def _search(self, query: Query) -> Search:
         if self.edge_cost is None:
             return Search(self.maps, query)
         return Search(self.maps, query, self.edge_cost)

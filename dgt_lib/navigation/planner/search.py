@@ -171,10 +171,11 @@ class Search:
         their closed cell and the best goal so far."""
         table = self.primitives.table(node.turns)
         hits = self.maps.blocked.primitive_hits(node.x, node.y, table.cells)
-        return [self._price(node, j, table.closed_bins[j], hits[j]) for j in range(3)]
+        return [self.price(node, j, table.closed_bins[j], hits[j]) for j in range(3)]
 
-    def _price(self, node: Node, j: int, theta_bin: int, hit: bool) -> Priced:
-        """Primitive j from ``node``: the directional cost lookup, g, h, and the push."""
+    def price(self, node: Node, j: int, theta_bin: int, hit: bool) -> Priced:
+        """Primitive j from ``node`` (``hit``: its footprint collides; ``theta_bin``: the
+        closed-set heading bin of its end): the directional cost lookup, g, h, the push."""
         cfg = self.cfg
         end = self.primitives.successor(node.x, node.y, node.turns, node.row, node.col, j)
         if hit:
