@@ -285,7 +285,7 @@ def plot_expansions(world: World, expansions: Sequence, ax=None, *, title: str =
                     margin_m: float = 6.0):
     """The first steps of a Hybrid A* search (:class:`planner.Expansion` s from
     ``Search.steps()``) over the hill-shaded heights: each popped node (numbered in
-    expansion order for the first 20) and a segment to the end of each of its three
+    expansion order for the first 10) and a segment to the end of each of its three
     primitives, coloured by what became of it (pushed, collides, closed, not cheaper).
     Zoomed to the expanded area plus ``margin_m``. Returns the figure."""
     if ax is None:
@@ -303,7 +303,7 @@ def plot_expansions(world: World, expansions: Sequence, ax=None, *, title: str =
             ax.plot([node.x, p.x], [node.y, p.y], color=OUTCOME_COLORS[p.outcome], lw=1.2,
                     label=label)
         ax.plot(node.x, node.y, "o", color="k", ms=3)
-        if i < 20:
+        if i < 10:
             ax.annotate(str(i), (node.x, node.y), fontsize=7, xytext=(2, 2),
                         textcoords="offset points")
     xy = np.array([(s.node.x, s.node.y) for s in expansions]).reshape(-1, 2)
