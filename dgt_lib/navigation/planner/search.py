@@ -225,13 +225,11 @@ class Search:
         cfg = self.cfg
         if time.perf_counter() - t0 > cfg.max_time_s:
             return failure(f"no path within max_time_s={cfg.max_time_s}", self.expanded, t0)
-        for _ in self.steps():
-            if not self.open_list:
-                continue  # the loop ends: the open list is exhausted
-            if len(self.expanded) >= cfg.max_expansions:
+        for _ in self.steps():  # the limits stop a search with nodes left to pop
+            if self.open_list and len(self.expanded) >= cfg.max_expansions:
                 return failure(f"no path within max_expansions={cfg.max_expansions}",
                                self.expanded, t0)
-            if time.perf_counter() - t0 > cfg.max_time_s:
+            if self.open_list and time.perf_counter() - t0 > cfg.max_time_s:
                 return failure(f"no path within max_time_s={cfg.max_time_s}", self.expanded, t0)
         if self.goal is not None:
             return success(self.goal, self.primitives, self.expanded, t0)
