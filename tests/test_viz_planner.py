@@ -73,3 +73,29 @@ def test_plan_table_lists_each_plan_and_marks_failures():
     assert len(table) == 4
     assert table[2] == "| euclidean | yes | 7 | 0.25 | 12.5 | 5.0 |"
     assert table[3] == "| cost-to-go | no | 99 | 1.00 | — | — |"
+
+
+def test_expansion_table_and_figure_show_every_primitive_of_each_step():
+    import itertools
+    import types
+
+    from dgt_lib.viz.planner import expansion_table, plot_expansions
+
+    costmap = np.broadcast_to(0.1 * (np.arange(K) + 1.0)[:, None, None], (K, *GRID.shape))
+    occupancy = np.zeros(GRID.shape, np.uint8)
+    occupancy[40:60, 55:60] = 1  # a wall ahead (x 22–24 m, y 16–24 m)
+    planner = HybridAStar(costmap, occupancy, GRID, min_turn_radius_m=R_MIN,
+                          footprint=(4.0, 2.0), cfg=PlannerConfig(heuristic="euclidean"))
+    search = planner.search((15.0, 20.0, 0.0), (35.0, 20.0))
+    search.push_start()
+    steps = list(itertools.islice(search.steps(), 12))
+    rows = expansion_table(steps).splitlines()[2:]
+    assert len(rows) == 3 * len(steps) == 36
+    assert rows[0].startswith("| 0 | (15.0, 20.0), 0.00 | straight |")
+    assert all(r.endswith(("| pushed |", "| collides |", "| closed |", "| not cheaper |"))
+               for r in rows)
+    world = types.SimpleNamespace(heights=np.zeros(GRID.shape), resolution=GRID.resolution,
+                                  extent=GRID.extent)
+    fig = plot_expansions(world, steps)
+    segments = [line for line in fig.axes[0].lines if len(line.get_xdata()) == 2]
+    assert len(segments) == 3 * len(steps)

@@ -33,7 +33,9 @@ PLAN_COLORS = ("crimson", "black", "darkviolet", "white", "gold", "saddlebrown",
 def primitive_lookups(pose, min_turn_radius_m: float, grid, n_headings: int, *,
                       step_m: float = 1.6, substep_m: float = 0.2) -> dict[str, dict]:
     """The three Hybrid A* primitives from ``pose`` (x, y, θ) [m, m, rad] and the
-    costmap layer each one is priced in, computed as :class:`planner.HybridAStar` does.
+    costmap layer each one is priced in: the planner's own lookup
+    (:meth:`~dgt_lib.navigation.planner.primitives.PrimitiveSet.successor`), from the
+    pose's cell as the search's start node has it.
 
     Returns {"straight" | "left" | "right": {"curvature" κ [1/m] (left > 0),
     "substeps" (n, 3) poses every ≤ ``substep_m`` along the arc (the collision
@@ -42,28 +44,107 @@ def primitive_lookups(pose, min_turn_radius_m: float, grid, n_headings: int, *,
     (None when the cell does not change) and "k" k* = argmin_k |θ_k − θ'| (the bin of
     the arc's mid heading when the cell does not change)}.
     """
-    from dgt_lib.core.geometry import nearest_heading_bin
-    from dgt_lib.navigation.planner import arc_poses, travel_heading_bin
+    from dgt_lib.navigation.planner.primitives import PrimitiveSet
 
     if not min_turn_radius_m > 0:
         raise ValueError(f"min_turn_radius_m must be > 0, got {min_turn_radius_m}")
-    n_sub = math.ceil(step_m / substep_m)
-    arc_lengths = step_m * np.arange(1, n_sub + 1) / n_sub
     x, y, theta = (float(v) for v in pose)
+    primitives = PrimitiveSet(theta, step_m=step_m, min_turn_radius_m=min_turn_radius_m,
+                              substep_m=substep_m, circle_offsets=np.zeros(1),
+                              resolution=grid.resolution, theta_bins=1,
+                              n_headings=n_headings, origin_xy=grid.origin_xy)
     row, col = (int(v) for v in grid.xy_to_cell(x, y))
     out = {}
-    for name, kappa in zip(PRIMITIVES, (0.0, 1.0 / min_turn_radius_m, -1.0 / min_turn_radius_m),
-                           strict=True):
-        sub = arc_poses((x, y, theta), kappa, arc_lengths)
-        r1, c1 = (int(v) for v in grid.xy_to_cell(sub[-1, 0], sub[-1, 1]))
-        d = (r1 - row, c1 - col)
-        if d == (0, 0):
-            th, k = None, int(nearest_heading_bin(theta + kappa * step_m / 2, n_headings))
-        else:
-            th, k = math.atan2(*d), int(travel_heading_bin(*d, n_headings))
-        out[name] = {"curvature": kappa, "substeps": sub, "cell": (row, col),
-                     "next_cell": (r1, c1), "d_cell": d, "theta": th, "k": k}
+    for j, name in enumerate(PRIMITIVES):
+        end = primitives.successor(x, y, 0, row, col, j)
+        d = (end.row - row, end.col - col)
+        out[name] = {"curvature": primitives.curvatures[j],
+                     "substeps": primitives.poses(x, y, 0, j), "cell": (row, col),
+                     "next_cell": (end.row, end.col), "d_cell": d,
+                     "theta": None if d == (0, 0) else math.atan2(*d), "k": end.layer}
     return out
+
+
+def _draw_cells(ax, grid, x: float, y: float, span: float, cell) -> None:
+    """Grid lines within ``span`` [m] of (x, y) and the cell ``cell`` (row, col) filled."""
+    from matplotlib.patches import Rectangle
+
+    res, (ox, oy) = grid.resolution, grid.origin_xy
+    (r_lo, r_hi), (c_lo, c_hi) = grid.xy_to_cell([x - span, x + span], [y - span, y + span])
+    for r in range(int(r_lo), int(r_hi) + 2):
+        ax.axhline(oy + r * res, color="0.85", lw=0.6, zorder=0)
+    for c in range(int(c_lo), int(c_hi) + 2):
+        ax.axvline(ox + c * res, color="0.85", lw=0.6, zorder=0)
+    ax.add_patch(Rectangle((ox + cell[1] * res, oy + cell[0] * res), res, res, color="0.6",
+                           zorder=1))
+
+
+def _draw_primitive(ax, grid, pose, name: str, item: dict, step_m: float) -> None:
+    """One arc, its collision sub-steps, its end cell and the cell move it is priced by."""
+    from matplotlib.patches import Rectangle
+
+    from dgt_lib.navigation.planner import arc_poses
+
+    res, (ox, oy) = grid.resolution, grid.origin_xy
+    color = PRIMITIVE_COLORS[name]
+    arc = arc_poses(pose, item["curvature"], np.linspace(0, step_m, 50))
+    ax.plot(arc[:, 0], arc[:, 1], color=color, lw=2, zorder=3)
+    ax.plot(*item["substeps"][:, :2].T, "o", color=color, ms=3, zorder=4)
+    (r0, c0), (r1, c1) = item["cell"], item["next_cell"]
+    ax.add_patch(Rectangle((ox + c1 * res, oy + r1 * res), res, res, fill=False, ec=color,
+                           lw=2, zorder=2))
+    ax.annotate("", xy=(ox + (c1 + 0.5) * res, oy + (r1 + 0.5) * res),
+                xytext=(ox + (c0 + 0.5) * res, oy + (r0 + 0.5) * res),
+                arrowprops={"arrowstyle": "->", "color": color, "ls": ":"}, zorder=5)
+    theta = "—" if item["theta"] is None else f"{math.degrees(item['theta']):.0f}°"
+    ax.plot([], [], color=color, lw=2,
+            label=f"{name}: Δ(row, col) = {item['d_cell']}, θ' = {theta}, k* = {item['k']}")
+
+
+def _draw_footprint(ax, end, footprint: tuple[float, float]) -> None:
+    """The footprint rectangle and its covering circles at pose ``end`` (x, y, θ)."""
+    from matplotlib.patches import Circle, Rectangle
+
+    from dgt_lib.core.vehicles import footprint_circles
+
+    offsets, radius = footprint_circles(*footprint)
+    c, s = math.cos(end[2]), math.sin(end[2])
+    for o in offsets:
+        ax.add_patch(Circle((end[0] + o * c, end[1] + o * s), radius, fill=False, ls="--",
+                            color="0.3", lw=0.8, zorder=2))
+    ax.plot([], [], "--", color="0.3", lw=0.8,
+            label="footprint circles at the straight successor (collision check)")
+    length, width = footprint
+    corner = np.array(end[:2]) + np.array([[c, -s], [s, c]]) @ np.array([-length / 2,
+                                                                          -width / 2])
+    ax.add_patch(Rectangle(tuple(corner), length, width, angle=math.degrees(end[2]),
+                           fill=False, color="0.3", lw=1.2, zorder=2))
+
+
+def _draw_heading_bins(ax, look: dict, n_headings: int) -> None:
+    """The K layers' headings θ_k on the unit circle (bold: read by an arc) and each
+    move's direction θ'."""
+    from dgt_lib.core.geometry import heading_bins
+
+    circle = np.linspace(0, 2 * np.pi, 200)
+    ax.plot(np.cos(circle), np.sin(circle), color="0.8")
+    used = {item["k"] for item in look.values()}
+    for k, b in enumerate(heading_bins(n_headings)):
+        ax.plot([0, math.cos(b)], [0, math.sin(b)], color="k" if k in used else "0.75",
+                lw=2 if k in used else 1)
+        ax.annotate(f"k={k}\n{math.degrees(b):.0f}°", (1.18 * math.cos(b), 1.18 * math.sin(b)),
+                    ha="center", va="center", fontsize=8)
+    for name, item in look.items():
+        if item["theta"] is not None:
+            t = item["theta"]
+            ax.annotate("", xy=(0.8 * math.cos(t), 0.8 * math.sin(t)), xytext=(0, 0),
+                        arrowprops={"arrowstyle": "->", "color": PRIMITIVE_COLORS[name],
+                                    "lw": 2})
+    ax.set_xlim(-1.45, 1.45)
+    ax.set_ylim(-1.45, 1.45)
+    ax.set_aspect("equal")
+    ax.axis("off")
+    ax.set_title("layers θ_k (bold: read by an arc); arrows: θ'")
 
 
 def plot_motion_primitives(pose, min_turn_radius_m: float, grid, n_headings: int,
@@ -74,56 +155,16 @@ def plot_motion_primitives(pose, min_turn_radius_m: float, grid, n_headings: int
     the end of the straight arc, and the cell move (Δrow, Δcol) each successor is priced
     by; right, the K heading bins θ_k with each move's θ' and the layer k* it reads.
     Returns the figure."""
-    from matplotlib.patches import Circle, Rectangle
-
-    from dgt_lib.core.geometry import heading_bins
-    from dgt_lib.core.vehicles import footprint_circles
-    from dgt_lib.navigation.planner import arc_poses
-
     look = primitive_lookups(pose, min_turn_radius_m, grid, n_headings, step_m=step_m,
                              substep_m=substep_m)
     fig, (ax, ax_k) = plt.subplots(1, 2, figsize=(13, 6),
                                    gridspec_kw={"width_ratios": [1.4, 1]})
     x, y, th = (float(v) for v in pose)
-    res = grid.resolution
     span = step_m + 0.5 * footprint[0] + 0.6
-    ox, oy = grid.origin_xy
-    (r_lo, r_hi), (c_lo, c_hi) = grid.xy_to_cell([x - span, x + span], [y - span, y + span])
-    for r in range(int(r_lo), int(r_hi) + 2):
-        ax.axhline(oy + r * res, color="0.85", lw=0.6, zorder=0)
-    for c in range(int(c_lo), int(c_hi) + 2):
-        ax.axvline(ox + c * res, color="0.85", lw=0.6, zorder=0)
-    r0, c0 = look["straight"]["cell"]
-    ax.add_patch(Rectangle((ox + c0 * res, oy + r0 * res), res, res, color="0.6", zorder=1))
-    dense = np.linspace(0, step_m, 50)
+    _draw_cells(ax, grid, x, y, span, look["straight"]["cell"])
     for name, item in look.items():
-        color = PRIMITIVE_COLORS[name]
-        arc = arc_poses(pose, item["curvature"], dense)
-        ax.plot(arc[:, 0], arc[:, 1], color=color, lw=2, zorder=3)
-        sub = item["substeps"]
-        ax.plot(sub[:, 0], sub[:, 1], "o", color=color, ms=3, zorder=4)
-        r1, c1 = item["next_cell"]
-        ax.add_patch(Rectangle((ox + c1 * res, oy + r1 * res), res, res, fill=False,
-                               ec=color, lw=2, zorder=2))
-        theta = "—" if item["theta"] is None else f"{math.degrees(item['theta']):.0f}°"
-        ax.annotate("", xy=(ox + (c1 + 0.5) * res, oy + (r1 + 0.5) * res),
-                    xytext=(ox + (c0 + 0.5) * res, oy + (r0 + 0.5) * res),
-                    arrowprops={"arrowstyle": "->", "color": color, "ls": ":"}, zorder=5)
-        ax.plot([], [], color=color, lw=2,
-                label=f"{name}: Δ(row, col) = {item['d_cell']}, θ' = {theta}, k* = {item['k']}")
-    offsets, radius = footprint_circles(*footprint)
-    end = look["straight"]["substeps"][-1]
-    for o in offsets:
-        ax.add_patch(Circle((end[0] + o * math.cos(end[2]), end[1] + o * math.sin(end[2])),
-                            radius, fill=False, ls="--", color="0.3", lw=0.8, zorder=2))
-    ax.plot([], [], "--", color="0.3", lw=0.8,
-            label="footprint circles at the straight successor (collision check)")
-    length, width = footprint
-    corner = np.array([end[0], end[1]]) + np.array(
-        [[math.cos(end[2]), -math.sin(end[2])], [math.sin(end[2]), math.cos(end[2])]]
-    ) @ np.array([-length / 2, -width / 2])
-    ax.add_patch(Rectangle(tuple(corner), length, width, angle=math.degrees(end[2]),
-                           fill=False, color="0.3", lw=1.2, zorder=2))
+        _draw_primitive(ax, grid, pose, name, item, step_m)
+    _draw_footprint(ax, look["straight"]["substeps"][-1], footprint)
     ax.annotate("", xy=(x + 0.5 * math.cos(th), y + 0.5 * math.sin(th)), xytext=(x, y),
                 arrowprops={"arrowstyle": "-|>", "color": "k"}, zorder=6)
     ax.set_xlim(x - span, x + span)
@@ -133,27 +174,8 @@ def plot_motion_primitives(pose, min_turn_radius_m: float, grid, n_headings: int
     ax.set_ylabel("y [m]")
     ax.legend(fontsize=8, loc="lower left")
     ax.set_title(title or f"primitives from θ = {math.degrees(th):.0f}°: s = {step_m} m, "
-                 f"r_min = {min_turn_radius_m:.2f} m, cells {res} m")
-    bins = heading_bins(n_headings)
-    ax_k.plot(np.cos(np.linspace(0, 2 * np.pi, 200)), np.sin(np.linspace(0, 2 * np.pi, 200)),
-              color="0.8")
-    used = {item["k"] for item in look.values()}
-    for k, b in enumerate(bins):
-        ax_k.plot([0, math.cos(b)], [0, math.sin(b)], color="k" if k in used else "0.75",
-                  lw=2 if k in used else 1)
-        ax_k.annotate(f"k={k}\n{math.degrees(b):.0f}°", (1.18 * math.cos(b), 1.18 * math.sin(b)),
-                      ha="center", va="center", fontsize=8)
-    for name, item in look.items():
-        if item["theta"] is not None:
-            t = item["theta"]
-            ax_k.annotate("", xy=(0.8 * math.cos(t), 0.8 * math.sin(t)), xytext=(0, 0),
-                          arrowprops={"arrowstyle": "->", "color": PRIMITIVE_COLORS[name],
-                                      "lw": 2})
-    ax_k.set_xlim(-1.45, 1.45)
-    ax_k.set_ylim(-1.45, 1.45)
-    ax_k.set_aspect("equal")
-    ax_k.axis("off")
-    ax_k.set_title("layers θ_k (bold: read by an arc); arrows: θ'")
+                 f"r_min = {min_turn_radius_m:.2f} m, cells {grid.resolution} m")
+    _draw_heading_bins(ax_k, look, n_headings)
     fig.tight_layout()
     return fig
 
@@ -252,3 +274,62 @@ def plot_query(world: World, maps, cost: np.ndarray, report):
     fig.suptitle(report.summary().splitlines()[0])
     fig.tight_layout()
     return fig
+
+
+OUTCOME_COLORS = {"pushed": "tab:green", "collides": "tab:red", "closed": "0.5",
+                  "not cheaper": "tab:orange", "unreachable": "tab:purple"}
+"""Colours of :func:`plot_expansions` by what became of a primitive."""
+
+
+def plot_expansions(world: World, expansions: Sequence, ax=None, *, title: str = "",
+                    margin_m: float = 6.0):
+    """The first steps of a Hybrid A* search (:class:`planner.Expansion` s from
+    ``Search.steps()``) over the hill-shaded heights: each popped node (numbered in
+    expansion order for the first 10) and a segment to the end of each of its three
+    primitives, coloured by what became of it (pushed, collides, closed, not cheaper).
+    Zoomed to the expanded area plus ``margin_m``. Returns the figure."""
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 6.5))
+    shade = LightSource(azdeg=315, altdeg=45).hillshade(
+        world.heights.astype(np.float64), vert_exag=2.0, dx=world.resolution,
+        dy=world.resolution)
+    ax.imshow(shade, origin="lower", extent=world.extent, cmap="gray", alpha=0.8)
+    seen = set()
+    for i, step in enumerate(expansions):
+        node = step.node
+        for p in step.primitives:
+            label = p.outcome if p.outcome not in seen else None
+            seen.add(p.outcome)
+            ax.plot([node.x, p.x], [node.y, p.y], color=OUTCOME_COLORS[p.outcome], lw=1.2,
+                    label=label)
+        ax.plot(node.x, node.y, "o", color="k", ms=3)
+        if i < 10:
+            ax.annotate(str(i), (node.x, node.y), fontsize=7, xytext=(2, 2),
+                        textcoords="offset points")
+    xy = np.array([(s.node.x, s.node.y) for s in expansions]).reshape(-1, 2)
+    if len(xy):
+        ax.set_xlim(xy[:, 0].min() - margin_m, xy[:, 0].max() + margin_m)
+        ax.set_ylim(xy[:, 1].min() - margin_m, xy[:, 1].max() + margin_m)
+    ax.set_aspect("equal")
+    ax.legend(fontsize=8, loc="upper right", title="primitive")
+    ax.set_title(title or f"the first {len(expansions)} expansions")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    return ax.figure
+
+
+def expansion_table(expansions: Sequence) -> str:
+    """Markdown table of Hybrid A* steps: per expansion, the popped node (x, y, g) and,
+    per primitive, the cell move, the layer k* read, the cost C there, g, f and what
+    became of it."""
+    rows = ["| step | node (x, y) [m], g | primitive | Δ(row, col) | k* | C | g | f | outcome |",
+            "|---:|---|---|---|---:|---:|---:|---:|---|"]
+    for i, step in enumerate(expansions):
+        n = step.node
+        for p in step.primitives:
+            d = "—" if p.row is None else f"({p.row - n.row}, {p.col - n.col})"
+            num = ["—" if v is None else f"{v:.2f}" for v in (p.cost, p.g, p.f)]
+            rows.append(f"| {i} | ({n.x:.1f}, {n.y:.1f}), {n.g:.2f} | {PRIMITIVES[p.primitive]} "
+                        f"| {d} | {'—' if p.layer is None else p.layer} | {' | '.join(num)} "
+                        f"| {p.outcome} |")
+    return "\n".join(rows)

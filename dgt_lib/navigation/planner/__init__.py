@@ -12,11 +12,8 @@ Two decoupled map layers drive it:
   θ_k = 2πk/K) prices each primitive at its successor cell, in the layer
   nearest to the travel direction, amplified by β (paper: β = 150).
 
-Conventions (docs/ARCHITECTURE.md): rows grow with y, θ is counter-clockwise from +x. The
-paper writes the travel direction as atan2(j' − j, i' − i) on grid indices; in
-our grid the row index follows y and the column index follows x, so the same
-direction in world terms is θ' = atan2(Δrow, Δcol) — travel toward +x reads
-layer 0 and travel toward +y reads layer K/4.
+Rows grow with y, θ is counter-clockwise from +x, so the paper's travel direction
+atan2(j' − j, i' − i) reads θ' = atan2(Δrow, Δcol) here.
 
 Usage::
 
@@ -26,57 +23,44 @@ Usage::
     result.path            # (N, 3) x, y, θ at sub-step spacing
     result.cost            # Σ g_edge
 
-:func:`plan` is the one-call form. A :class:`HybridAStar` keeps what depends
-only on the map (footprint dilation, the 2D cost field) and the cost-to-go of
-recent goals, so repeated queries on one map are cheaper.
+    search = planner.search(start, goal)   # the reference search, step by step
+    search.push_start()
+    for step in search.steps():            # pop, expand the primitives, push
+        ...
 
-Footprint approximation: the vehicle rectangle (length × width, centred on the
-pose) is covered by an odd number n ≥ length/width of equal circles on its
-long axis (:func:`footprint_circles`). A circle centre is snapped to its cell,
-and the cell is blocked when an occupied or unobserved cell centre lies closer
-than r_circle + ``safety_margin_m`` + res·√2/2. Hence at every checked sub-step
-no occupied cell centre lies inside any footprint circle, hence none inside the
-vehicle rectangle; the price is up to ~res·√2 of extra clearance.
+:func:`plan` is the one-call form; :meth:`HybridAStar.for_vehicle` takes a vehicle's
+turning radius and footprint. A :class:`HybridAStar` keeps what depends only on the map
+(:class:`PlannerMaps`: footprint dilation, the 2D cost field) and the cost-to-go of recent
+goals, so repeated queries on one map are cheaper.
 
-Search: A* with f = g + w·h over the nodes' exact poses; a closed set over
-(x, y, θ) cells of ``closed_cell_m`` × ``closed_cell_m`` × 360°/``theta_bins``
-keeps the first node expanded in each cell (Hybrid A*'s state merging, the one
-source of sub-optimality besides the weight w = ``heuristic_weight``). The
-headings reachable from the start are θ_start + n·s/r_min, so the sub-step
-offsets of the three arcs are tabulated once per turn count n and each
-expansion checks all of them with one vectorised lookup. Heuristics:
-``"euclidean"`` (the paper's: distance to the goal point) or ``"cost_to_go"``
-(its max with a direction-aware 2D lower bound, :meth:`HybridAStar.cost_to_go`,
-which also refutes unreachable goals before the search starts).
+Search: A* with f = g + w·h over the nodes' exact poses and a closed set over (x, y, θ)
+cells (Hybrid A*'s state merging); heuristics ``"euclidean"`` (the paper's) or
+``"cost_to_go"`` (its max with a direction-aware 2D lower bound, which also refutes
+unreachable goals). Deterministic: ties break by insertion order.
 
-Deterministic: ties in the open list break by insertion order; no randomness.
+Two backends run the same search (``HybridAStar(..., backend=...)``): ``"compiled"``, the
+default, compiled by numba (:mod:`.compiled`; compiled once, then cached on disk), and
+``"python"``, the reference :class:`Search` (:mod:`.search`) it was transcribed from. They
+expand the same nodes in the same order and return the same plan to the bit
+(``tests/test_planner_exact.py``). Read :mod:`.search` to learn the algorithm.
 
-Two backends run the same search (``HybridAStar(..., backend=...)``): ``"compiled"``,
-the default, runs the search loop and the 2D cost-to-go's Dijkstra as machine code
-compiled by numba (:mod:`.compiled`; compiled once, then cached on disk), and
-``"python"`` is the plain-Python reference it was transcribed from. They expand the same
-nodes in the same order and return the same plan to the bit
-(``tests/test_planner_exact.py``); read ``_Search`` in :mod:`.search` to learn the
-algorithm, :mod:`.compiled` only to see how it was made fast.
-
-Modules: :mod:`.primitives` (arc primitives, the directional cost lookup and
-the paper's cost model), :mod:`.collision` (footprint checks), :mod:`.heuristics`
-(Euclidean and the 2D cost-to-go), :mod:`.shots` (Dubins / turn-then-straight
-analytic shots), :mod:`.search` (:class:`HybridAStar` and one query's search),
-:mod:`.compiled` (the same search, compiled), :mod:`.result` (search nodes,
-:class:`PlanResult`), :mod:`.validation`.
+The modules, the footprint check, the conventions and the heuristic's proof:
+docs/planner.md.
 """
 
 from dgt_lib.core.vehicles import footprint_circles
 from dgt_lib.navigation.planner.heuristics import HEURISTICS, CostToGo, step_cell_bounds
+from dgt_lib.navigation.planner.hybrid_astar import BACKENDS, HybridAStar, plan
+from dgt_lib.navigation.planner.maps import PlannerMaps
 from dgt_lib.navigation.planner.primitives import (
     amplified_cost,
     arc_poses,
     edge_cost,
+    step_cost,
     travel_heading_bin,
 )
 from dgt_lib.navigation.planner.result import InvalidQueryError, PlanResult
-from dgt_lib.navigation.planner.search import BACKENDS, HybridAStar, plan
+from dgt_lib.navigation.planner.search import Expansion, Priced, Search
 from dgt_lib.navigation.planner.shots import dubins_path, sample_segments, turn_then_straight
 from dgt_lib.navigation.planner.validation import check_query_on_world
 
@@ -84,9 +68,13 @@ __all__ = [
     "BACKENDS",
     "HEURISTICS",
     "CostToGo",
+    "Expansion",
     "HybridAStar",
     "InvalidQueryError",
     "PlanResult",
+    "PlannerMaps",
+    "Priced",
+    "Search",
     "amplified_cost",
     "arc_poses",
     "check_query_on_world",
@@ -96,6 +84,7 @@ __all__ = [
     "plan",
     "sample_segments",
     "step_cell_bounds",
+    "step_cost",
     "travel_heading_bin",
     "turn_then_straight",
 ]

@@ -56,7 +56,9 @@ class BlockedMap:
         self._shift = np.array([[0.0], [0.0], [1.0]])
         self._ones = np.ones(substeps * len(circle_offsets), dtype=bool)  # any() by matmul
         self._inv_res = inv_res = 1.0 / res
-        self._origin = ((grid.origin_xy[1] - res) * inv_res, (grid.origin_xy[0] - res) * inv_res)
+        # (row, col) [cells] of the origin of the map with a 1-cell border
+        self.cell_origin = ((grid.origin_xy[1] - res) * inv_res,
+                            (grid.origin_xy[0] - res) * inv_res)
 
     def collides(self, poses: np.ndarray) -> np.ndarray:
         """(N,) bool: whether the footprint at each pose (N, 3) hits an occupied or
@@ -77,17 +79,12 @@ class BlockedMap:
 
         cells: (3, 3·m) circle-centre offsets of the three primitives' sub-steps
         (``TurnTable.cells``: row, col in cells, then a row of zeros), from the
-        pose (x, y), which must be on the map.
-
-        A circle at v = (row, col) in the cells of a map with a 1-cell border lies
-        in cell ⌊v⌋. Truncation gives the same cell for v ≥ 0 and a border cell
-        (blocked, as ⌊v⌋ is) for v < 0, and the wide border keeps trunc(v) on the
-        padded map, so the flat index is (W', 1, b)·trunc(row, col, 1), W' the
-        padded width and b the flat offset of the 1-cell-border map's origin.
+        pose (x, y), which must be on the map. One matrix product, no clipping: why
+        truncation finds the right cells, docs/planner.md (Footprint check).
         """
         inv_res = self._inv_res
         shift = self._shift
-        shift[0, 0] = y * inv_res - self._origin[0]
-        shift[1, 0] = x * inv_res - self._origin[1]
+        shift[0, 0] = y * inv_res - self.cell_origin[0]
+        shift[1, 0] = x * inv_res - self.cell_origin[1]
         idx = self._stride @ (cells + shift).astype(np.int64)
         return (self.flat[idx].reshape(3, -1) @ self._ones).tolist()

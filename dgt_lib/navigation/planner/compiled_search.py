@@ -1,172 +1,164 @@
-"""The compiled backend's driver: sets up :mod:`dgt_lib.navigation.planner.compiled`'s
-arrays for one query of a :class:`~dgt_lib.navigation.planner.search.HybridAStar`, runs its
-numba search loop (pausing to check the time limit, growing its node arrays) and turns the
-result into the same :class:`~dgt_lib.navigation.planner.result.PlanResult` the Python
-reference search returns."""
+"""The compiled backend's driver: sets up the named arrays of :func:`.compiled.search` for one
+query on a :class:`~.maps.PlannerMaps`, runs its numba loop (pausing to check the time
+limit, growing its node arrays) and turns the result into the same
+:class:`~.result.PlanResult` the reference search (:mod:`.search`) returns."""
 
 from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dgt_lib.core.geometry import TWO_PI, angle_diff
-from dgt_lib.navigation.planner.heuristics import (
-    DijkstraRuns,
-    step_cell_bounds,
-)
-from dgt_lib.navigation.planner.primitives import (
-    PrimitiveSet,
-    distance,
-)
-from dgt_lib.navigation.planner.result import (
-    SHOT,
-    Node,
-    PlanResult,
-    failure,
-    success,
-)
+from dgt_lib.navigation.planner.maps import PlannerMaps, Query
+from dgt_lib.navigation.planner.primitives import distance
+from dgt_lib.navigation.planner.result import SHOT, Node, PlanResult, failure, success
 from dgt_lib.navigation.planner.shots import shot_poses
 
-if TYPE_CHECKING:  # an annotation only: search imports this module
-    from dgt_lib.navigation.planner.search import HybridAStar
 
-
-class _CompiledSearch:
-    """One query's search by :func:`.compiled.search`: the same steps as :class:`_Search`
-    on arrays (nodes, open list, closed set, turn tables), run in chunks of
-    :attr:`CHUNK` expansions so that ``max_time_s`` is checked between them."""
+class CompiledSearch:
+    """One query's search by :func:`.compiled.search`: the steps of :class:`.search.Search`
+    on arrays (nodes, open list, closed set, turn tables), run in chunks of :attr:`CHUNK`
+    expansions so that ``max_time_s`` is checked between them."""
 
     CHUNK = 4096  # expansions between two checks of max_time_s (a few ms)
     TURNS = 1024  # turn tables for turn counts −TURNS … TURNS (a path turns < 2π per 23)
     CAPACITY = 1 << 15  # nodes the arrays hold at first (doubled when full)
 
-    def __init__(self, planner: HybridAStar, sx: float, sy: float, sth: float,
-                 gx: float, gy: float, gth: float | None):
+    def __init__(self, maps: PlannerMaps, query: Query):
         from dgt_lib.navigation.planner import compiled
 
         self.kernel = compiled
-        cfg, grid = planner.cfg, planner.grid
-        self.planner, self.cfg = planner, cfg
-        self.start, self.goal, self.gth = (sx, sy, sth), (gx, gy), gth
-        self.primitives = PrimitiveSet(
-            sth, step_m=cfg.step_m, min_turn_radius_m=planner.min_turn_radius_m,
-            substep_m=cfg.substep_m, circle_offsets=planner.circle_offsets,
-            resolution=grid.resolution, theta_bins=cfg.theta_bins,
-            n_headings=planner.n_headings,
-        )
-        H, W = grid.shape
-        res = grid.resolution
-        blocked = planner._blocked
-        c = compiled
-        ip = np.zeros(c.I_N_I, dtype=np.int64)
-        ip[c.I_H], ip[c.I_W], ip[c.I_K] = H, W, planner.n_headings
-        ip[c.I_NX_CLOSED] = math.ceil(W * res / cfg.closed_cell_m) + 1
-        ip[c.I_BINS], ip[c.I_REACH] = cfg.theta_bins, planner._bin_reach
-        ip[c.I_HAS_GTH] = gth is not None
-        ip[c.I_USE_H] = cfg.heuristic == "cost_to_go"
-        ip[c.I_PAD_W], ip[c.I_PAD] = blocked.padded_shape[1], blocked.pad
-        ip[c.I_NSUB], ip[c.I_NCIRC] = len(self.primitives.sub_t), len(planner.circle_offsets)
-        ip[c.I_MAX_EXP], ip[c.I_TURN_OFFSET] = cfg.max_expansions, self.TURNS
-        fp = np.zeros(c.F_N_F)
-        fp[c.F_X0], fp[c.F_Y0] = grid.origin_xy
-        fp[c.F_INV_RES], fp[c.F_CELL], fp[c.F_RES] = 1.0 / res, cfg.closed_cell_m, res
-        fp[c.F_GX], fp[c.F_GY], fp[c.F_GTH] = gx, gy, 0.0 if gth is None else gth
-        fp[c.F_TOL2] = cfg.goal_tolerance_m * cfg.goal_tolerance_m
-        fp[c.F_HEADING_TOL], fp[c.F_WEIGHT] = cfg.goal_heading_tolerance_rad, cfg.heuristic_weight
-        fp[c.F_SHOT_RANGE2] = cfg.shot_distance_m**2 if cfg.analytic_shot else -1.0
-        fp[c.F_STEP], fp[c.F_BETA] = cfg.step_m, cfg.beta
-        fp[c.F_START_TH], fp[c.F_DTHETA] = sth, self.primitives.dtheta
-        fp[c.F_RADIUS], fp[c.F_SUBSTEP] = planner.min_turn_radius_m, planner._substep()
-        fp[c.F_ORIGIN_R], fp[c.F_ORIGIN_C] = blocked._origin
-        fp[c.F_PHI] = cfg.step_m / step_cell_bounds(cfg.step_m, res)[0]
-        self.ip, self.fp = ip, fp
-        self.ny_closed = math.ceil(H * res / cfg.closed_cell_m) + 1
+        self.maps, self.cfg, self.query = maps, maps.cfg, query
+        self.primitives = maps.primitives(query.sth)
+        self.params = self._params()
+        H, W = maps.grid.shape
+        res, cell = maps.grid.resolution, self.cfg.closed_cell_m
+        self.n_keys = (math.ceil(H * res / cell) + 1) * self.params.nx_closed \
+            * self.cfg.theta_bins
 
-    def _heuristic_runs(self):
-        """The goal's compiled Dijkstra runs (:class:`DijkstraRuns`), or 1-element dummies
-        of the same types without the cost-to-go heuristic."""
-        if self.cfg.heuristic == "cost_to_go":
-            return self.planner._cost_to_go.runs(self.goal)
-        return DijkstraRuns((np.zeros(1, np.bool_), np.zeros((1, 8)), None),
-                            np.zeros((8, 2), np.int64), (1, 1), np.zeros(0, np.int64), 1.0)
+    def _params(self):
+        """The query's :class:`.compiled.SearchParams`."""
+        maps, cfg, q, grid = self.maps, self.cfg, self.query, self.maps.grid
+        (H, W), res = grid.shape, grid.resolution
+        blocked = maps.blocked
+        return self.kernel.SearchParams(
+            H=int(H), W=int(W), K=int(maps.n_headings), x0=float(grid.origin_xy[0]),
+            y0=float(grid.origin_xy[1]), res=float(res), inv_res=1.0 / res,
+            nx_closed=math.ceil(W * res / cfg.closed_cell_m) + 1,
+            closed_cell=float(cfg.closed_cell_m), theta_bins=int(cfg.theta_bins),
+            reach=int(maps.bin_reach), pad_width=int(blocked.padded_shape[1]),
+            pad=int(blocked.pad), origin_row=float(blocked.cell_origin[0]),
+            origin_col=float(blocked.cell_origin[1]),
+            n_substeps=len(self.primitives.sub_t), n_circles=len(maps.circle_offsets),
+            step=float(cfg.step_m), radius=maps.min_turn_radius_m, substep=maps.substep_m,
+            start_heading=float(q.sth), dtheta=float(self.primitives.dtheta),
+            turn_offset=int(self.TURNS), gx=float(q.gx), gy=float(q.gy),
+            gth=0.0 if q.gth is None else float(q.gth), has_goal_heading=q.gth is not None,
+            tol2=float(cfg.goal_tolerance_m * cfg.goal_tolerance_m),
+            heading_tol=float(cfg.goal_heading_tolerance_rad), beta=float(cfg.beta),
+            weight=float(cfg.heuristic_weight), use_cost_to_go=cfg.heuristic == "cost_to_go",
+            shot_range2=float(cfg.shot_distance_m**2 if cfg.analytic_shot else -1.0),
+            max_expansions=int(cfg.max_expansions))
+
+    def _relaxations(self):
+        """The goal's compiled Dijkstra runs, or 1-cell dummies of the same types without
+        the cost-to-go heuristic."""
+        if self.params.use_cost_to_go:
+            return self.maps.cost_to_go.runs((self.query.gx, self.query.gy)).relaxations
+        from dgt_lib.navigation.planner.compiled_dijkstra import Relaxations, new_run
+
+        dummy = np.zeros((1, 8))
+        return Relaxations(np.zeros(1, np.bool_), np.zeros((8, 2), np.int64), dummy, dummy,
+                           new_run(1), new_run(1), True, 1.0, 1, 1)
+
+    def _start(self, h):
+        """The start node, as :meth:`.search.Search.push_start` makes it: (its f, key,
+        row, col, whether it is a goal), or None when the 2D bound refutes the goal."""
+        q, p = self.query, self.params
+        row, col = (int(v) for v in self.maps.grid.xy_to_cell(q.sx, q.sy))
+        estimate = distance(q.sx - q.gx, q.sy - q.gy)
+        if p.use_cost_to_go:
+            from dgt_lib.navigation.planner.compiled_dijkstra import bounds_at
+
+            h_full, h_terrain = bounds_at(row * p.W + col, h)
+            if not math.isfinite(h_full):
+                return None
+            estimate = max(h_full, estimate + h_terrain)
+        theta_bin = int(math.floor(q.sth / (TWO_PI / p.theta_bins) + 0.5)) % p.theta_bins
+        key = ((int((q.sy - p.y0) / p.closed_cell) * p.nx_closed
+                + int((q.sx - p.x0) / p.closed_cell)) * p.theta_bins + theta_bin)
+        is_goal = (q.sx - q.gx) ** 2 + (q.sy - q.gy) ** 2 <= p.tol2 and (
+            q.gth is None or abs(float(angle_diff(q.sth, q.gth))) <= p.heading_tol)
+        return p.weight * estimate, key, row, col, is_goal
+
+    def _arrays(self, start):
+        """The node, open-list, closed-set, progress and turn-table arrays, the start node
+        in them."""
+        c, p = self.kernel, self.params
+        capacity = min(1 + 4 * self.cfg.max_expansions, self.CAPACITY)
+        nodes = c.NodeArrays(*(np.empty(capacity) for _ in range(3)),
+                             *(np.empty(capacity, np.int64) for _ in range(6)),
+                             np.empty(capacity, np.bool_))
+        f, key, row, col, is_goal = start
+        for arr, value in zip(nodes, (self.query.sx, self.query.sy, 0.0, 0, row, col, -1, -1,
+                                      key, is_goal), strict=True):
+            arr[0] = value
+        open_list = c.OpenList(np.empty(capacity), np.empty(capacity, np.int64),
+                               np.empty(capacity, np.int64))
+        open_list.f[0], open_list.count[0], open_list.node[0] = f, 0, 0
+        closed = c.ClosedSet(np.zeros(self.n_keys, dtype=np.uint8), np.empty(self.n_keys))
+        closed.state[key], closed.best_g[key] = 1, 0.0
+        one = [np.zeros(1, np.int64) for _ in range(5)]
+        progress = c.Progress(np.empty(capacity, np.int64), *one, np.array([math.inf]))
+        progress.n_nodes[0] = progress.heap_size[0] = progress.counter[0] = 1
+        n_tables, m = 2 * self.TURNS + 1, p.n_substeps * p.n_circles
+        tables = c.TurnTables(self.maps.circle_offsets, self.primitives.sub_t,
+                              np.zeros(n_tables, dtype=np.bool_), np.empty((n_tables, 3, m)),
+                              np.empty((n_tables, 3, m)), np.empty((n_tables, 3, 2)),
+                              np.empty((n_tables, 3), np.int64),
+                              np.empty((n_tables, 3), np.int64))
+        return nodes, open_list, closed, progress, tables
 
     def run(self, t0: float) -> PlanResult | None:
         """The query's result, or None when a turn count left the tables (then the
         reference search must answer)."""
-        c, cfg, planner = self.kernel, self.cfg, self.planner
-        runs = self._heuristic_runs()
-        self.ip[c.I_ZERO_TERRAIN] = runs.zero_terrain
-        sx, sy, sth = self.start
-        gx, gy = self.goal
-        row, col = (int(v) for v in planner.grid.xy_to_cell(sx, sy))
-        flat = row * planner.grid.shape[1] + col
-        use_h = cfg.heuristic == "cost_to_go"
-        if use_h:
-            h_grid, h_terrain = runs.at(flat)
-            if not math.isfinite(h_grid):
-                return failure("no path: the goal is unreachable even in the 2D relaxation",
-                               [], t0)
-        # the start node, as _Search.push_start makes it
-        n_bins = cfg.theta_bins
-        theta_bin = int(math.floor(sth / (TWO_PI / n_bins) + 0.5)) % n_bins
-        x0, y0 = planner.grid.origin_xy
-        key = ((int((sy - y0) / cfg.closed_cell_m) * self.ip[c.I_NX_CLOSED]
-                + int((sx - x0) / cfg.closed_cell_m)) * n_bins + theta_bin)
-        h = distance(sx - gx, sy - gy)
-        if use_h:
-            h = max(h_grid, h + h_terrain)
-        heading_tol = cfg.goal_heading_tolerance_rad
-        start_is_goal = (sx - gx) ** 2 + (sy - gy) ** 2 <= self.fp[c.F_TOL2] and (
-            self.gth is None or abs(float(angle_diff(sth, self.gth))) <= heading_tol)
-
-        capacity = min(1 + 4 * cfg.max_expansions, self.CAPACITY)
-        nodes = self._node_arrays(capacity)
-        hf, hc, hnode = (np.empty(capacity), np.empty(capacity, np.int64),
-                         np.empty(capacity, np.int64))
-        nodes[0][0], nodes[1][0], nodes[2][0] = sx, sy, 0.0  # x, y, g
-        for arr, value in zip(nodes[3:], (0, row, col, -1, -1, key, start_is_goal),
-                              strict=True):
-            arr[0] = value  # turns, row, col, parent, primitive, key, is_goal
-        hf[0], hc[0], hnode[0] = cfg.heuristic_weight * h, 0, 0
-        n_keys = self.ny_closed * self.ip[c.I_NX_CLOSED] * n_bins
-        key_state = np.zeros(n_keys, dtype=np.uint8)
-        best_g = np.empty(n_keys)
-        key_state[key], best_g[key] = 1, 0.0
-        expanded = np.empty(capacity, np.int64)
-        state = np.zeros(c.S_N_S, dtype=np.int64)
-        state[c.S_NODES], state[c.S_HEAP], state[c.S_COUNTER] = 1, 1, 1
-        best_goal = np.array([math.inf])
-        n_tables = 2 * self.TURNS + 1
-        m = len(self.primitives.sub_t) * len(planner.circle_offsets)
-        tables = (np.zeros(n_tables, dtype=np.bool_), np.empty((n_tables, 3, m)),
-                  np.empty((n_tables, 3, m)), np.empty((n_tables, 3, 2)),
-                  np.empty((n_tables, 3), np.int64), np.empty((n_tables, 3), np.int64))
-        maps = planner._compiled_maps()
-        stop_at = 0  # max_time_s is checked first before the first expansion, as _Search does
+        c, cfg = self.kernel, self.cfg
+        # numba compiles the kernels (or loads them from its cache) on their first call in
+        # a process: that time does not count against max_time_s (it does in time_s)
+        compiling, t_setup = not c.search.signatures, time.perf_counter()
+        h = self._relaxations()
+        start = self._start(h)
+        if start is None:
+            return failure("no path: the goal is unreachable even in the 2D relaxation", [],
+                           t0)
+        nodes, open_list, closed, progress, tables = self._arrays(start)
+        maps = self.maps.compiled_arrays()
+        stop_at = 0  # max_time_s is checked first before the first expansion, as Search does
+        t_limit = t0  # the clock of max_time_s
         while True:
-            status = c.search(self.ip, self.fp, *maps, *runs.args,
-                              planner.circle_offsets, self.primitives.sub_t, *tables, *nodes,
-                              hf, hc, hnode, key_state, best_g, expanded, state, best_goal,
-                              stop_at)
+            status = c.search(self.params, maps, h, tables, nodes, open_list, closed,
+                              progress, stop_at)
+            if compiling:
+                t_limit, compiling = t0 + (time.perf_counter() - t_setup), False
             if status == c.NEED_ROOM:
-                capacity *= 2
-                nodes = tuple(np.resize(a, capacity) for a in nodes)
-                hf, hc, hnode, expanded = (np.resize(a, capacity)
-                                           for a in (hf, hc, hnode, expanded))
+                capacity = 2 * len(nodes.x)
+                nodes = c.NodeArrays(*(np.resize(a, capacity) for a in nodes))
+                open_list = c.OpenList(*(np.resize(a, capacity) for a in open_list))
+                progress = progress._replace(expanded=np.resize(progress.expanded, capacity))
                 continue
             if status == c.PAUSED:
-                if time.perf_counter() - t0 > cfg.max_time_s:
+                if time.perf_counter() - t_limit > cfg.max_time_s:
                     return failure(f"no path within max_time_s={cfg.max_time_s}",
-                                   self._expanded_xy(nodes, expanded, state), t0)
+                                   self._expanded_xy(nodes, progress), t0)
                 stop_at += self.CHUNK
                 continue
             break
-        done = self._expanded_xy(nodes, expanded, state)
+        done = self._expanded_xy(nodes, progress)
         if status == c.FOUND:
-            return success(self._chain(nodes, int(state[c.S_RESULT])), self.primitives, done, t0)
+            goal = self._chain(nodes, int(progress.result[0]))
+            return success(goal, self.primitives, done, t0)
         if status == c.CAPPED:
             return failure(f"no path within max_expansions={cfg.max_expansions}", done, t0)
         if status == c.EXHAUSTED:
@@ -175,32 +167,26 @@ class _CompiledSearch:
         return None  # OUT_OF_TABLES
 
     @staticmethod
-    def _node_arrays(capacity: int) -> tuple[np.ndarray, ...]:
-        """x, y, g, turns, row, col, parent, primitive, key, is_goal."""
-        return (*(np.empty(capacity) for _ in range(3)),
-                *(np.empty(capacity, np.int64) for _ in range(6)),
-                np.empty(capacity, np.bool_))
-
-    def _expanded_xy(self, nodes, expanded, state) -> np.ndarray:
-        ids = expanded[:state[self.kernel.S_EXPANDED]]
-        return np.column_stack([nodes[0][ids], nodes[1][ids]])
+    def _expanded_xy(nodes, progress) -> np.ndarray:
+        ids = progress.expanded[:progress.n_expanded[0]]
+        return np.column_stack([nodes.x[ids], nodes.y[ids]])
 
     def _chain(self, nodes, goal: int) -> Node:
         """The goal's :class:`Node`, linked to its ancestors (the shot's poses rebuilt)."""
-        x, y, g, turns, row, col, parent, primitive, key, is_goal = nodes
         ids = []
         i = goal
         while i >= 0:
             ids.append(i)
-            i = int(parent[i])
+            i = int(nodes.parent[i])
         node = None
         for i in reversed(ids):
             shot = None
-            if primitive[i] == SHOT:
+            if nodes.primitive[i] == SHOT:
                 pose = (node.x, node.y, self.primitives.heading(node.turns))
-                shot = shot_poses(pose, self.goal, self.gth, self.planner.min_turn_radius_m,
-                                  self.planner._substep(), math.inf)
-            node = Node(float(x[i]), float(y[i]), int(turns[i]), int(row[i]), int(col[i]),
-                        float(g[i]), node, int(primitive[i]), bool(is_goal[i]), int(key[i]),
+                shot = shot_poses(pose, (self.query.gx, self.query.gy), self.query.gth,
+                                  self.maps.min_turn_radius_m, self.maps.substep_m, math.inf)
+            node = Node(float(nodes.x[i]), float(nodes.y[i]), int(nodes.turns[i]),
+                        int(nodes.row[i]), int(nodes.col[i]), float(nodes.g[i]), node,
+                        int(nodes.primitive[i]), bool(nodes.is_goal[i]), int(nodes.key[i]),
                         shot)
         return node

@@ -52,45 +52,13 @@ def step_cell_bounds(step_m: float, resolution: float) -> tuple[float, float]:
 class CostToGo:
     """The 2D cost-to-go lower bound of one map, per goal (the last few goals cached).
 
-    Two direction-aware 2D relaxations on the 8-connected grid, solved once per
-    goal with ``scipy.sparse.csgraph.dijkstra`` (``compiled``: the same graphs by
-    :func:`.compiled.grid_dijkstra`, the same distances): D prices a grid move m
-    (direction ψ_m = m·45°, length ℓ_m = res or √2·res) into cell c at
-    ℓ_m·(1 + min_{k ∈ S_m} F_k(c)), and D_c at ℓ_m·min_{k ∈ S_m} F_k(c)
-    (the terrain part alone), where F_k = min of C'_k = C_k(1 + βC_k) over the
-    unblocked cells (those a footprint centre may occupy) within ρ of c, and
-    S_m = the layers within 45° + 180°/K of ψ_m. Let O
-    and E be the largest octile and Euclidean distances between the cells of
-    two points ≤ s apart (:func:`step_cell_bounds`; s = 1.6 m, res = 0.4 m: a
-    (4, 3)-cell jump, O = 2.10 m, E = 2.0 m); ρ = E + res/2. Cells whose
-    centre is closer than clearance − (res/2 + √2·res + σ + Δ/2) to an
-    occupied centre are impassable (σ = s²/(8 r_min) the arc's sagitta, Δ the
-    sub-step spacing); sources are free cells within tol + res·√2/2 of the
-    goal. With φ = s/O (0.76 at s = 1.6 m, res = 0.4 m) the bound is
-
-        h = max(φ·D, max(d − tol, 0) + φ·D_c),
-
-    d the distance from the pose to the goal point (here the cell's nearest
-    point to it). During the search d is the pose's own distance and the
-    "− tol" is dropped, as in the paper's Euclidean heuristic: that
-    overestimates by at most tol, so the search returns a cost within
-    ``goal_tolerance_m`` (× ``heuristic_weight``) of the optimum of its graph.
-
-    Why it is a lower bound. Take any collision-free primitive path p_0..p_n
-    ending within tol of the goal, with cells a_i ∋ p_i (centres c_i); an arc
-    of length s has a chord ≤ s. Join c_{i−1} to c_i by a digital straight
-    line (Bresenham): its moves are the one or two 45°-multiples bracketing the
-    direction of c_i − c_{i−1}, whose nearest layer k* (the one the step pays)
-    is therefore in S_m of every move; its length is the octile length ≤ O;
-    its cells lie within res/2 of the segment c_{i−1}c_i, hence within ρ of
-    c_i, an unblocked cell, so each move costs ≤ ℓ_m(1 + C'_i) and the line ≤ O(1 + C'_i) =
-    g_edge,i/φ (for D_c: ≤ O·C'_i = s·C'_i/φ). Those cells also lie within
-    res/2 + √2·res + σ + Δ/2 of a checked sub-step's cell centre, which is
-    ≥ clearance from occupied centres, so they are passable; a_n is a
-    source. Summing, φ·D(a_0) ≤ J = Σ s(1 + C'_i) and φ·D_c(a_0) ≤ Σ s·C'_i,
-    while Σ s ≥ |p_0 − p_n| ≥ d − tol. Each part is consistent on every edge,
-    hence so is the max. The analytic shot's last piece, shorter than s, is
-    the one place the per-step argument is loose.
+    Two direction-aware 2D relaxations on the 8-connected grid, solved once per goal by
+    Dijkstra (scipy's, or ``compiled``: :func:`.compiled_dijkstra.grid_dijkstra`, the same
+    distances): D prices a grid move by its length times (1 + the least amplified cost
+    C' = C(1 + βC) near the cell in the layers the move may read), D_c by the terrain part
+    alone; with φ = s/O (O the longest octile cell jump of one step) the bound is
+    h = max(φ·D, max(d − tol, 0) + φ·D_c), d the distance to the goal point. The
+    definitions and the proof that it is a lower bound: docs/planner.md.
 
     costmap: (K, H, W) in [0, 1]; blocked: (H, W) cells a footprint centre may
     not occupy; occupied_distance: (H, W) distance [m] from each cell centre to
@@ -254,53 +222,54 @@ class CostToGo:
 
 class DijkstraRuns:
     """One goal's two relaxations D and D_c as compiled Dijkstra runs that go only as far
-    as asked (:func:`.compiled.settle`): the compiled search settles the cells it prices,
-    :meth:`finish` every cell. Either way a settled cell holds the distance scipy's
+    as asked (:func:`.compiled_dijkstra.settle`): the compiled search settles the cells it
+    prices, :meth:`finish` every cell. Either way a settled cell holds the distance scipy's
     dijkstra gives it.
 
     weights: :meth:`CostToGo._compiled_weights`; steps: (8, 2) the grid moves; shape:
-    (H, W); source: the goal's flat cells; phi: φ (the bound is φ·D)."""
+    (H, W); source: the goal's flat cells; phi: φ (the bound is φ·D). ``relaxations`` is
+    what the compiled search reads (:class:`.compiled_dijkstra.Relaxations`)."""
 
     def __init__(self, weights: tuple, steps: np.ndarray, shape: tuple[int, int],
                  source: np.ndarray, phi: float):
-        from dgt_lib.navigation.planner.compiled import dijkstra_seed
+        from dgt_lib.navigation.planner.compiled_dijkstra import (
+            Relaxations,
+            dijkstra_seed,
+            new_run,
+        )
 
         passable, full, terrain = weights
         self.shape, self.phi = shape, phi
         self.zero_terrain = terrain is None
         n = shape[0] * shape[1]
-
-        def run(size):
-            return (np.empty(size), np.empty(size, np.int64), np.empty(size, np.int64),
-                    np.zeros(1, np.int64))
-
-        self.full = run(n)
-        self.terrain = run(1) if self.zero_terrain else run(n)
-        dijkstra_seed(source, *self.full)
+        full_run = new_run(n)
+        terrain_run = new_run(1) if self.zero_terrain else new_run(n)
+        dijkstra_seed(source, *full_run)
         if not self.zero_terrain:
-            dijkstra_seed(source, *self.terrain)
-        # the arguments of compiled.search / compiled._bounds_at, in their order
-        self.args = (passable, steps, full, full if terrain is None else terrain,
-                     *self.full, *self.terrain)
+            dijkstra_seed(source, *terrain_run)
+        self.relaxations = Relaxations(passable, steps, full,
+                                       full if terrain is None else terrain, full_run,
+                                       terrain_run, self.zero_terrain, float(phi),
+                                       int(shape[0]), int(shape[1]))
 
     def at(self, flat: int) -> tuple[float, float]:
         """(φ·D, φ·D_c) of flat cell ``flat``."""
-        from dgt_lib.navigation.planner.compiled import _bounds_at
+        from dgt_lib.navigation.planner.compiled_dijkstra import bounds_at
 
-        return _bounds_at(flat, *self.shape, self.phi, self.zero_terrain, *self.args)
+        return bounds_at(flat, self.relaxations)
 
     def finish(self) -> tuple[np.ndarray, np.ndarray]:
         """(φ·D, φ·D_c), each (H, W): both runs taken to the end."""
-        from dgt_lib.navigation.planner.compiled import settle
+        from dgt_lib.navigation.planner.compiled_dijkstra import settle
 
-        passable, steps, w_full, w_terrain = self.args[:4]
-        settle(-1, *self.shape, passable, w_full, steps, *self.full)
-        full = self.full[0]
+        r = self.relaxations
+        settle(-1, *self.shape, r.passable, r.w_full, r.moves, *r.full)
+        full = r.full.dist
         if self.zero_terrain:
             terrain = np.where(np.isfinite(full), 0.0, np.inf)
         else:
-            settle(-1, *self.shape, passable, w_terrain, steps, *self.terrain)
-            terrain = self.terrain[0]
+            settle(-1, *self.shape, r.passable, r.w_terrain, r.moves, *r.terrain)
+            terrain = r.terrain.dist
         return tuple(self.phi * d.reshape(self.shape) for d in (full, terrain))
 
 

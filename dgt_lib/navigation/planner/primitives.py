@@ -53,6 +53,13 @@ def edge_cost(length_m: float, amplified: float) -> float:
     return length_m * (1.0 + amplified)
 
 
+def step_cost(length_m: float, cost: float, beta: float) -> float:
+    """g_edge = s(1 + C(1 + βC)) [m]: :func:`edge_cost` of the :func:`amplified_cost` of a
+    move of length s = ``length_m`` over looked-up cost C = ``cost`` (the planner's default
+    edge cost; a function of the same signature can replace it, see ``HybridAStar``)."""
+    return edge_cost(length_m, amplified_cost(cost, beta))
+
+
 def travel_bin_table(step_m: float, resolution: float, n_headings: int) -> tuple[list[int], int]:
     """k* of :func:`travel_heading_bin` for every (Δrow, Δcol) one primitive can produce.
 
@@ -103,15 +110,31 @@ class TurnTable(NamedTuple):
     fallback_layers: tuple[int, ...]
 
 
+class Successor(NamedTuple):
+    """Where one primitive ends and the costmap layer its move is priced in: end position
+    (x, y) [m], its cell (row, col), and k* = ``layer`` (:func:`directional_layer` of the
+    cell move from the parent's cell, or of the mid-arc heading when the cell is kept)."""
+
+    x: float
+    y: float
+    row: int
+    col: int
+    layer: int
+
+
 class PrimitiveSet:
     """The arc primitives of one query: headings θ_start + n·Δθ (Δθ = s / r_min) are
     indexed by the turn count n, and the primitives' sub-step geometry is tabulated
-    once per n (:meth:`table`)."""
+    once per n (:meth:`table`). ``origin_xy`` [m]: the grid's origin, for the cells of
+    :meth:`successor`."""
 
     def __init__(self, start_heading: float, *, step_m: float, min_turn_radius_m: float,
                  substep_m: float, circle_offsets: np.ndarray, resolution: float,
-                 theta_bins: int, n_headings: int):
+                 theta_bins: int, n_headings: int, origin_xy: tuple[float, float] = (0.0, 0.0)):
         self.start_heading = start_heading
+        self.origin_xy = (float(origin_xy[0]), float(origin_xy[1]))
+        # k* of every cell move one primitive can make (travel_heading_bin, tabulated)
+        self.layer_table, self.reach = travel_bin_table(step_m, resolution, n_headings)
         self.curvatures = (0.0, 1.0 / min_turn_radius_m, -1.0 / min_turn_radius_m)
         self.dtheta = step_m / min_turn_radius_m
         n_sub = math.ceil(step_m / substep_m)
@@ -157,3 +180,24 @@ class PrimitiveSet:
     def poses(self, x: float, y: float, n: int, primitive: int) -> np.ndarray:
         """Sub-step poses (n_sub, 3) of ``primitive`` from (x, y, θ_start + n·Δθ)."""
         return arc_poses((x, y, self.heading(n)), self.curvatures[primitive], self.sub_t)
+
+    def move_layer(self, d_row: int, d_col: int) -> int | None:
+        """k* = :func:`travel_heading_bin` of a cell move (Δrow, Δcol) one primitive can
+        make (from a table), None for (0, 0): a move within one cell has no direction."""
+        k = self.layer_table[(d_row + self.reach) * (2 * self.reach + 1) + d_col + self.reach]
+        return None if k < 0 else k
+
+    def successor(self, x: float, y: float, n: int, row: int, col: int,
+                  primitive: int) -> Successor:
+        """The end of ``primitive`` (0 straight, 1 left, 2 right) from the pose (x, y,
+        θ_start + n·Δθ) in cell (row, col), and the layer k* its move reads: that of the
+        cell move, or, when the cell is kept, that of the arc's mid heading."""
+        table = self.table(n)
+        dx, dy = table.ends[primitive]
+        x_end, y_end = x + dx, y + dy
+        x0, y0 = self.origin_xy
+        row_end, col_end = int((y_end - y0) * self.inv_res), int((x_end - x0) * self.inv_res)
+        layer = self.move_layer(row_end - row, col_end - col)
+        if layer is None:
+            layer = table.fallback_layers[primitive]
+        return Successor(x_end, y_end, row_end, col_end, layer)

@@ -13,10 +13,9 @@ import numpy as np
 
 from dgt_lib.core.geometry import TWO_PI, GridSpec, nearest_heading_bin
 from dgt_lib.navigation.planner.primitives import (
-    amplified_cost,
     arc_poses,
     distance,
-    edge_cost,
+    step_cost,
     travel_heading_bin,
 )
 
@@ -130,10 +129,11 @@ def shot_poses(pose, goal_xy, goal_heading: float | None, radius: float, spacing
 
 
 def shot_cost(pose, poses: np.ndarray, grid: GridSpec, cost_flat: np.ndarray, n_headings: int,
-              step_m: float, beta: float) -> float:
+              step_m: float, beta: float, price=step_cost) -> float:
     """Σ g_edge along a shot, priced like primitives: pieces of arc length s = ``step_m``
     (the last one shorter, priced by its length), each at its end cell's directional
-    cost C' in ``cost_flat``, the flattened (K, H, W) costmap."""
+    cost C in ``cost_flat``, the flattened (K, H, W) costmap, by ``price`` (length, C, β)
+    (:func:`.primitives.step_cost`, or the search's own edge cost)."""
     s = step_m
     seg = np.hypot(*np.diff(np.vstack([np.asarray(pose)[None, :3], poses])[:, :2], axis=0).T)
     arc = np.cumsum(seg)
@@ -153,5 +153,5 @@ def shot_cost(pose, poses: np.ndarray, grid: GridSpec, cost_flat: np.ndarray, n_
         else:
             k = int(travel_heading_bin(dr, dc, n_headings))
         cost = cost_flat[(k * H + rows[i + 1]) * W + cols[i + 1]]
-        total += edge_cost(float(lengths[i]), amplified_cost(float(cost), beta))
+        total += price(float(lengths[i]), float(cost), beta)
     return total
