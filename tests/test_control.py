@@ -354,3 +354,37 @@ def test_mppi_settings_are_read_typed_and_checked():
         parse_mppi_settings("lateral_acel_max=2")
     with pytest.raises(ValueError):
         parse_mppi_settings("w_rate_std")
+
+
+# ----------------------------------------------------------------------------- pinned drive
+
+# A one-second drive from rest on the kinematic bicycle, beside an obstacle (every critic
+# on), recorded from the controller as the trials run it: both backends must give these
+# commands to the bit, so a refactoring that changes one operation shows here.
+PINNED_V = [
+    0.027154289186000824, 0.011755448766052723, 0.10895296931266785, 0.22361932694911957,
+    0.34829801321029663, 0.46904319524765015, 0.5947398543357849, 0.7085726261138916,
+    0.8303154706954956, 0.9416298270225525, 1.0346348285675049, 1.1211477518081665,
+    1.2562965154647827, 1.3745429515838623, 1.468470573425293, 1.6072168350219727,
+    1.7029356956481934, 1.7895772457122803, 1.886573314666748, 1.9797662496566772]
+PINNED_W = [
+    0.007600173354148865, 0.0001898016780614853, 0.01630765199661255, 0.0009342869743704796,
+    0.01855960488319397, 0.03726743906736374, 0.08655712008476257, 0.11256609857082367,
+    0.15198029577732086, 0.1989753246307373, 0.24321161210536957, 0.29148709774017334,
+    0.3285641074180603, 0.3671915829181671, 0.399061381816864, 0.4198751449584961,
+    0.43871328234672546, 0.4715968072414398, 0.496488094329834, 0.5284262895584106]
+
+
+@pytest.mark.parametrize("backend", ["numpy", "compiled"])
+def test_a_short_drive_gives_the_recorded_commands_to_the_bit(backend):
+    path = s_curve(amplitude=4.0, wavelength=30.0)
+    grid = GridSpec((-10.0, -20.0), 0.4, (100, 200))
+    X, Y = grid.cell_centers()
+    occ = ((np.abs(X - 12.0) < 1.0) & (np.abs(Y + 5.0) < 1.0)).astype(np.uint8)
+    ctrl = MPPIController(FAST, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0,
+                          backend=backend)
+    plant = KinematicBicycle(WHEELBASE, MAX_STEER, pose=(0.0, 0.5, 0.0), seed=1,
+                             steer_noise_std_rad=0.02)
+    tr = simulate_tracking(ctrl, plant, path, 1.0, occupancy=occ, grid=grid)
+    assert tr["v_cmd"].tolist() == PINNED_V
+    assert tr["w_cmd"].tolist() == PINNED_W
