@@ -388,3 +388,101 @@ def test_a_short_drive_gives_the_recorded_commands_to_the_bit(backend):
     tr = simulate_tracking(ctrl, plant, path, 1.0, occupancy=occ, grid=grid)
     assert tr["v_cmd"].tolist() == PINNED_V
     assert tr["w_cmd"].tolist() == PINNED_W
+
+
+# ----------------------------------------------------------------------------- the parts
+
+
+def test_weights_favour_the_cheap_samples_and_lambda_sets_how_much():
+    from dgt_lib.navigation.control.mppi import mppi_weights
+
+    cost = np.array([3.0, 1.0, 2.0, 1.0], np.float32)
+    w = mppi_weights(cost, 0.3)
+    assert w.sum() == pytest.approx(1.0) and w[1] == w[3] == w.max() and w[0] == w.min()
+    cold, hot = mppi_weights(cost, 0.01), mppi_weights(cost, 100.0)
+    np.testing.assert_allclose(cold, [0.0, 0.5, 0.0, 0.5], atol=1e-6)
+    np.testing.assert_allclose(hot, 0.25, atol=0.01)
+    assert np.isfinite(mppi_weights(cost + 1e4, 0.01)).all()  # min S subtracted first
+
+
+def test_kept_rollouts_are_the_critics_terms_of_the_cost_mppi_weighted():
+    grid = GridSpec((-10.0, -20.0), 0.4, (100, 200))
+    X, Y = grid.cell_centers()
+    occ = ((np.abs(X - 12.0) < 1.0) & (np.abs(Y + 1.5) < 1.0)).astype(np.uint8)
+    ref, kept = (MPPIController(FAST, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=2,
+                                backend="numpy") for _ in range(2))
+    kept.keep_rollouts = True
+    for c in (ref, kept):
+        c.set_path(straight(40.0))
+    for _ in range(5):  # keeping the rollouts changes no command
+        assert kept.compute((36.5, 0.3, 0.0), 3.0, occ, grid) == ref.compute(
+            (36.5, 0.3, 0.0), 3.0, occ, grid)
+    r = kept.last_rollouts
+    assert list(r.terms) == ["path", "path_angle", "speed", "goal", "occupancy", "constraint"]
+    np.testing.assert_allclose(sum(r.terms.values()), r.cost, rtol=1e-5)
+    np.testing.assert_array_equal(r.cost, kept.last_costs)
+    assert r.x.shape == (FAST.time_steps, FAST.batch_size)
+    assert abs(r.x[0, 0] - 36.5) < 0.5  # rollouts in the world frame, from the pose
+
+
+def test_a_stuck_vehicle_is_sent_what_the_warm_start_planned():
+    from dgt_lib.navigation.control.mppi import warm_start_trace
+
+    ctrl = MPPIController(FAST, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
+    ctrl.set_path(straight())
+    trace = warm_start_trace(ctrl, (0.0, 0.0, 0.0), 0.0, 12)
+    assert set(trace) == {"warm_v0", "warm_v1", "command", "plan_v1", "plan_mean"}
+    # the shift: each call's warm start begins with the previous call's weighted step 1
+    np.testing.assert_array_equal(trace["warm_v0"][1:], trace["plan_v1"][:-1])
+    assert trace["warm_v0"][0] == 0.0 and (trace["plan_mean"] > trace["command"]).all()
+
+
+def test_no_import_cycle_between_the_control_modules_and_the_drive():
+    import ast
+    from pathlib import Path
+
+    import dgt_lib.navigation as nav
+
+    root = Path(nav.__file__).parent
+    files = [*sorted((root / "control").glob("*.py")), root / "drive.py", root / "outcome.py"]
+    name = {f: f"dgt_lib.navigation.{f.relative_to(root).with_suffix('').as_posix()}"
+            .replace("/", ".") for f in files}
+    graph = {}
+    for f in files:
+        deps = set()
+        for node in ast.walk(ast.parse(f.read_text())):  # every import, TYPE_CHECKING too
+            if isinstance(node, ast.ImportFrom) and node.module:
+                deps |= {node.module, *(f"{node.module}.{a.name}" for a in node.names)}
+            elif isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names}
+        graph[name[f]] = deps & set(name.values()) - {name[f]}
+
+    def reaches(a, b, seen=()):
+        return any(d == b or (d not in seen and reaches(d, b, (*seen, d))) for d in graph[a])
+
+    assert not [m for m in graph if reaches(m, m)]
+
+
+@pytest.mark.slow
+def test_a_trial_stepped_by_hand_is_the_trial_drive_runs():
+    """Notebook 06 steps `drive_steps` itself: the states, commands and outcome are those
+    of `drive` to the bit."""
+    from dgt_lib.navigation.drive import MPPI_DT_S, drive, drive_steps, start_trial
+    from dgt_lib.navigation.outcome import OutcomeRule
+    from dgt_lib.world.simulator import Simulator
+    from dgt_lib.world.worlds import from_heightmap
+
+    world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
+    path = np.column_stack([np.linspace(10, 40, 76), np.full(76, 20.0), np.zeros(76)])
+    seen = []
+    outcome, traj, _ = drive(world, "jeep", path, (40.0, 20.0), time_limit_s=20.0,
+                             mppi_batch_size=64, seed=4,
+                             on_command=lambda s, v, steer: seen.append((s.time_s, v, steer)))
+    sim = Simulator(world, "jeep")
+    policy = start_trial(sim, path, mppi_batch_size=64, seed=4)
+    steps = list(drive_steps(sim, policy, OutcomeRule(time_limit_s=20.0), goal=(40.0, 20.0),
+                             dt_s=MPPI_DT_S))
+    sim.close()
+    assert steps[-1].outcome == outcome and outcome.success
+    assert [(s.state.time_s, s.speed_cmd, s.steer) for s in steps[:-1]] == seen
+    np.testing.assert_array_equal(steps[-1].state.position, traj[-1, 1:])

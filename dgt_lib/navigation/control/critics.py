@@ -76,15 +76,23 @@ def goal_critic(px: np.ndarray, py: np.ndarray, goal_xy: tuple[float, float],
     return cfg.goal_weight * np.hypot(px - f32(gx), py - f32(gy)).mean(0)
 
 
-def path_costs(cross, angle_err, speed_err, px, py, goal_xy: tuple[float, float] | None,
-               cfg: MPPIConfig) -> np.ndarray:
-    """The path, path-angle, speed and (``goal_xy`` given) goal critics summed ``(B,)``,
-    from :func:`path_errors`."""
-    cost = path_critic(cross, cfg)
-    cost += path_angle_critic(angle_err, cfg)
-    cost += speed_critic(speed_err, cfg)
+def path_terms(cross, angle_err, speed_err, px, py, goal_xy: tuple[float, float] | None,
+               cfg: MPPIConfig) -> dict[str, np.ndarray]:
+    """The path, path-angle, speed and (``goal_xy`` given) goal critics ``(B,)`` each, by
+    name, from :func:`path_errors`."""
+    terms = {"path": path_critic(cross, cfg), "path_angle": path_angle_critic(angle_err, cfg),
+             "speed": speed_critic(speed_err, cfg)}
     if goal_xy is not None:
-        cost += goal_critic(px, py, goal_xy, cfg)
+        terms["goal"] = goal_critic(px, py, goal_xy, cfg)
+    return terms
+
+
+def total_cost(terms: dict[str, np.ndarray]) -> np.ndarray:
+    """S_b: the critics' terms summed in their order ``(B,)`` (a new array)."""
+    values = iter(terms.values())
+    cost = next(values).copy()
+    for term in values:
+        cost += term
     return cost
 
 

@@ -35,6 +35,8 @@ exact (:func:`~dgt_lib.navigation.control.bicycle.rear_axle_pose`). A tiny demo:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.signal import savgol_coeffs
@@ -101,6 +103,21 @@ def shift(sequence: np.ndarray) -> None:
 # ----------------------------------------------------------------------------- controller
 
 
+@dataclass(frozen=True)
+class SampledRollouts:
+    """One call's samples, kept when ``MPPIController.keep_rollouts`` is set (numpy
+    backend): the commands ``v`` [m/s], ``w`` [rad/s] and the rollout positions ``x``,
+    ``y`` [m] in the world, all ``(T, B)``; each critic's term ``(B,)`` by name and their
+    sum, the cost S ``(B,)``."""
+
+    v: np.ndarray
+    w: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    terms: dict[str, np.ndarray]
+    cost: np.ndarray
+
+
 class MPPIController:
     """Nav2-style MPPI path tracker for an Ackermann vehicle (see the module docstring).
 
@@ -111,7 +128,14 @@ class MPPIController:
     ``(T, 3)`` holds the predicted (x, y, yaw) of the chosen sequence and ``last_costs``
     ``(B,)`` the sampled sequences' costs S (for plots). ``seed`` makes runs repeatable.
     ``backend`` (:data:`BACKENDS`) picks numba's kernels or the numpy reference.
+    ``weighting`` (default :func:`mppi_weights`) maps (S, λ) to the weights; with
+    ``keep_rollouts`` the numpy backend keeps each call's :class:`SampledRollouts` in
+    ``last_rollouts``.
     """
+
+    weighting: Callable[[np.ndarray, float], np.ndarray] = staticmethod(mppi_weights)
+    keep_rollouts: bool = False
+    last_rollouts: SampledRollouts | None = None
 
     def __init__(self, cfg: MPPIConfig | None = None, *, wheelbase_m: float,
                  max_steer_rad: float, min_turn_radius_m: float | None = None, seed: int = 0,
@@ -238,8 +262,8 @@ class MPPIController:
                          else self._sampled_costs)
         v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid)  # steps 1–3
         self.last_costs = cost
-        nominal = weighted_sequence(v, w, mppi_weights(cost, cfg.temperature),  # step 4
-                                    self._nominal)
+        weights = self.weighting(cost, cfg.temperature)  # step 4
+        nominal = weighted_sequence(v, w, weights, self._nominal)
         if len(self._w_history):
             nominal[:, 1] = smooth_yaw_rates(nominal[:, 1], self._w_history, self._savgol)
         bound = np.minimum(np.abs(nominal[:, 0]) / self.min_turn_radius_m, cfg.w_max)
@@ -276,12 +300,16 @@ class MPPIController:
         x, y, yaw = rollout_unicycle((0.0, 0.0, yaw0), v_act, w_act, cfg.model_dt)
         errors = critics.path_errors(x, y, yaw, v_act, self._ref.window(i_robot, x0, y0),
                                      self._ref.length_m, cfg)
-        cost = critics.path_costs(*errors, self._goal_xy(i_robot, x0, y0), cfg)
+        terms = critics.path_terms(*errors, self._goal_xy(i_robot, x0, y0), cfg)
         if grid is not None:
-            cost += critics.occupancy_critic(
+            terms["occupancy"] = critics.occupancy_critic(
                 x, y, yaw, self._clearance, (x0 - grid.origin_xy[0], y0 - grid.origin_xy[1]),
                 grid.resolution, cfg)
-        cost += critics.constraint_critic(v_act, w_act, cfg)
+        terms["constraint"] = critics.constraint_critic(v_act, w_act, cfg)
+        cost = critics.total_cost(terms)
+        if self.keep_rollouts:
+            self.last_rollouts = SampledRollouts(v.copy(), w.copy(), x + np.float32(x0),
+                                                 y + np.float32(y0), terms, cost)
         return v, w, cost
 
     def _sampled_costs_compiled(self, x0: float, y0: float, yaw0: float, speed: float,
@@ -295,3 +323,24 @@ class MPPIController:
             self._ref.window(i_robot, x0, y0), self._ref.length_m,
             self._goal_xy(i_robot, x0, y0), self.cfg, self.min_turn_radius_m, self._alpha,
             None if grid is None else (self._cells, grid), self._v, self._w)
+
+
+def warm_start_trace(ctrl: MPPIController, pose, speed: float, calls: int, occupancy=None,
+                     grid=None) -> dict[str, np.ndarray]:
+    """MPPI called ``calls`` times from the same ``pose`` and measured ``speed`` [m/s]: a
+    vehicle that does not move at the commands it gets (a heavy truck below its breakaway
+    speed). Per call ``(calls,)`` [m/s]: the warm start's first two speeds
+    (``warm_v0``, ``warm_v1``), the command sent (``command``, the weighted first step),
+    the weighted second step (``plan_v1``, the next call's warm start ``warm_v0``) and the
+    plan's mean speed over the horizon (``plan_mean``). A plan that speeds up while
+    ``plan_v1`` stays at ``warm_v1`` or below is a ramp planned every call and never sent."""
+    rows = []
+    for _ in range(calls):
+        warm = ctrl.optimal_sequence
+        v_cmd, _ = ctrl.compute(pose, speed, occupancy, grid)
+        plan = ctrl.optimal_sequence  # shifted: plan[0] is the weighted second step
+        rows.append((warm[0, 0], warm[1, 0], v_cmd, plan[0, 0],
+                     float(np.r_[v_cmd, plan[:-1, 0]].mean())))
+    cols = np.asarray(rows, float).T
+    return dict(zip(("warm_v0", "warm_v1", "command", "plan_v1", "plan_mean"), cols,
+                    strict=True))

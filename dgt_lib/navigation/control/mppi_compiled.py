@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.navigation.control.critics import constraint_critic, path_costs
+from dgt_lib.navigation.control.critics import constraint_critic, path_terms, total_cost
 from dgt_lib.navigation.control.mppi_config import MPPIConfig
 
 F32 = np.float32
@@ -230,7 +230,7 @@ def sampled_costs(ev: np.ndarray, ew: np.ndarray, nominal: np.ndarray, last_v: f
         F32(length_m), F32(cfg.target_speed), F32(2.0 * cfg.goal_decel),
         F32(1.0 / cfg.target_speed), x, y, cross, angle_err, speed_err)
     sel = slice(first, None, every)
-    cost = path_costs(cross, angle_err, speed_err, x[sel], y[sel], goal_xy, cfg)
+    cost = total_cost(path_terms(cross, angle_err, speed_err, x[sel], y[sel], goal_xy, cfg))
     if cells is not None:
         (cell_hit, cell_near), grid = cells
         occupancy = np.empty_like(cost)
