@@ -59,7 +59,7 @@ def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200,
 
 
 def time_noise(cfg: MPPIConfig, calls: int = 200) -> float:
-    """Median milliseconds of one ``compute``'s noise draw (``MPPIController._noise``)."""
+    """Median milliseconds of one ``compute``'s noise draw (``sampling.draw_noise``)."""
     ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)
     times = []
     for _ in range(calls):

@@ -118,12 +118,6 @@ def _edge_cost(length_m: float, cost: float, beta: float) -> float:
     return edge_cost(length_m, amplified_cost(cost, beta))
 
 
-def _wilson(k: int, n: int) -> tuple[float, float]:
-    from dgt_lib.evaluation.statistics import wilson_interval
-
-    return wilson_interval(k, n)
-
-
 def _slope_locomotion(theta, theta0, theta_min, theta_max, p_u, p_d):
     from dgt_lib.mapping.baselines import SlopeModel
 
@@ -236,17 +230,6 @@ def _edge_cost_cases() -> list[Case]:
     ]
 
 
-def _wilson_cases() -> list[Case]:
-    return [
-        Case((16, 20), "Wilson, not the normal interval p̂ ± z·√(p̂(1−p̂)/n): centre "
-                       "(p̂ + z²/2n)/(1 + z²/n), z = Φ⁻¹(0.975) ≈ 1.96"),
-        Case((5, 10), "half-width z·√(p̂(1−p̂)/n + z²/4n²)/(1 + z²/n)"),
-        Case((0, 10), "k = 0: the interval is not empty; its lower bound is exactly 0"),
-        Case((10, 10), "k = n: the upper bound is exactly 1; keep both bounds in [0, 1]"),
-        Case((1, 3), "small n: return (low, high) as floats"),
-    ]
-
-
 def _slope_cases() -> list[Case]:
     deg = np.radians
     m = (deg(2.0), deg(-20.0), deg(15.0), 2.0, 0.5)  # θ0, θmin, θmax, p_u, p_d
@@ -290,6 +273,69 @@ def _contrast_cases() -> list[Case]:
     ]
 
 
+OUTCOME_REASONS = ("driving", "success", "flipped", "diverged", "immobilized", "timeout")
+"""What :func:`_trial_outcome` answers: ``driving`` while the rule has not decided."""
+
+
+def _trial_outcome(goal_distance_m, immobile_s, done_reason, t_s, time_limit_s) -> str:
+    """The paper's outcome rule by :class:`~dgt_lib.navigation.outcome.OutcomeRule`, on a
+    state at ``goal_distance_m`` [m] from the goal, immobile for ``immobile_s`` [s], with
+    the simulator's ``done_reason`` (None, ``"flipped"``, ``"off_map"``, ``"diverged"``)
+    at ``t_s`` [s]: the reason, or ``"driving"``."""
+    from dgt_lib.navigation.outcome import OutcomeRule
+
+    outcome = OutcomeRule(time_limit_s=time_limit_s).judge(
+        t_s, (goal_distance_m, 0.0), (0.0, 0.0), immobile_s, done_reason)
+    return "driving" if outcome is None else outcome.reason
+
+
+def _reason_index(reason) -> int:
+    """A reason as its index in :data:`OUTCOME_REASONS` (numbers are what the grader
+    compares); anything else is refused."""
+    return OUTCOME_REASONS.index(reason)
+
+
+def _outcome_cases() -> list[Case]:
+    return [
+        Case((3.0, 0.0, None, 20.0, 60.0), "within 5 m of the goal the trial is a success"),
+        Case((5.0, 0.0, None, 20.0, 60.0), "the goal tolerance includes 5 m itself (≤ 5 m)"),
+        Case((20.0, 0.0, None, 20.0, 60.0), "far from the goal, moving, in time: "
+                                             "return \"driving\""),
+        Case((20.0, 10.5, None, 30.0, 60.0), "below 0.25 m/s for more than 10 s: "
+                                              "\"immobilized\""),
+        Case((20.0, 10.0, None, 30.0, 60.0), "immobilised for *more than* 10 s: exactly 10 s "
+                                              "is still driving"),
+        Case((20.0, 12.0, "flipped", 30.0, 60.0), "the simulator's flip ends the trial before "
+                                                   "the immobility clock is read"),
+        Case((4.0, 12.0, "flipped", 30.0, 60.0), "the goal is checked first: within 5 m is a "
+                                                  "success even on the step it flips"),
+        Case((20.0, 0.0, "off_map", 30.0, 60.0), "leaving the map (or a diverged simulation) "
+                                                  "is \"diverged\", not \"flipped\""),
+        Case((20.0, 3.0, None, 60.0, 60.0), "at the time limit an undecided trial is a "
+                                             "\"timeout\""),
+    ]
+
+
+def _mppi_weights(cost, temperature):
+    from dgt_lib.navigation.control.mppi import mppi_weights
+
+    return mppi_weights(np.asarray(cost, np.float64), temperature)
+
+
+def _weight_cases() -> list[Case]:
+    return [
+        Case((np.array([1.0, 2.0, 3.0]), 1.0), "w_b = exp(−(S_b − min S)/λ), normalised: "
+                                               "the cheapest sample weighs most"),
+        Case((np.array([0.5, 0.6, 0.9, 0.5]), 0.3), "divide by λ inside the exponential"),
+        Case((np.array([2.0, 2.0]), 0.3), "η = Σ_b exp(…): the weights sum to 1"),
+        Case((np.array([1000.0, 1000.2, 1003.0]), 0.05),
+             "subtract min S before the exponential: exp(−1000/λ) is 0 in floating point "
+             "and 0/0 is nan"),
+        Case((np.array([0.3, 0.1, 0.2, 0.7, 0.1]), 3.0), "a large λ spreads the weight over "
+                                                         "many samples"),
+    ]
+
+
 EXERCISES: dict[str, Exercise] = {
     # the BEV's fit pulls slopes weakly towards its neighbourhood's: plain least squares
     # lands within 5e-4 of it on these points
@@ -298,12 +344,14 @@ EXERCISES: dict[str, Exercise] = {
     "masked_loss": Exercise("03_multitask_training", _masked_loss, _masked_loss_cases),
     "heading_bin": Exercise("04_directional_inference", _heading_bin, _heading_cases),
     "edge_cost": Exercise("05_hybrid_astar", _edge_cost, _edge_cost_cases),
-    "wilson_interval": Exercise("06_experiment1_hill", _wilson, _wilson_cases, atol=1e-3),
     "slope_locomotion": Exercise("07_experiment2_ridge", _slope_locomotion, _slope_cases,
                                  atol=1e-5),
     "test_errors": Exercise("08_experiment3_multitask", _test_errors, _test_error_cases),
     "contrast_pairs": Exercise("09_costmap_accuracy", _contrast_pairs, _contrast_cases,
                                normalize=_pair_set),
+    "trial_outcome": Exercise("06_experiment1_hill", _trial_outcome, _outcome_cases,
+                              normalize=_reason_index),
+    "mppi_weights": Exercise("11_mppi_control", _mppi_weights, _weight_cases),
 }
 """Every exercise by name; ``notebook`` says where it is asked."""
 

@@ -354,3 +354,135 @@ def test_mppi_settings_are_read_typed_and_checked():
         parse_mppi_settings("lateral_acel_max=2")
     with pytest.raises(ValueError):
         parse_mppi_settings("w_rate_std")
+
+
+# ----------------------------------------------------------------------------- pinned drive
+
+# A one-second drive from rest on the kinematic bicycle, beside an obstacle (every critic
+# on), recorded from the controller as the trials run it: both backends must give these
+# commands to the bit, so a refactoring that changes one operation shows here.
+PINNED_V = [
+    0.027154289186000824, 0.011755448766052723, 0.10895296931266785, 0.22361932694911957,
+    0.34829801321029663, 0.46904319524765015, 0.5947398543357849, 0.7085726261138916,
+    0.8303154706954956, 0.9416298270225525, 1.0346348285675049, 1.1211477518081665,
+    1.2562965154647827, 1.3745429515838623, 1.468470573425293, 1.6072168350219727,
+    1.7029356956481934, 1.7895772457122803, 1.886573314666748, 1.9797662496566772]
+PINNED_W = [
+    0.007600173354148865, 0.0001898016780614853, 0.01630765199661255, 0.0009342869743704796,
+    0.01855960488319397, 0.03726743906736374, 0.08655712008476257, 0.11256609857082367,
+    0.15198029577732086, 0.1989753246307373, 0.24321161210536957, 0.29148709774017334,
+    0.3285641074180603, 0.3671915829181671, 0.399061381816864, 0.4198751449584961,
+    0.43871328234672546, 0.4715968072414398, 0.496488094329834, 0.5284262895584106]
+
+
+@pytest.mark.parametrize("backend", ["numpy", "compiled"])
+def test_a_short_drive_gives_the_recorded_commands_to_the_bit(backend):
+    path = s_curve(amplitude=4.0, wavelength=30.0)
+    grid = GridSpec((-10.0, -20.0), 0.4, (100, 200))
+    X, Y = grid.cell_centers()
+    occ = ((np.abs(X - 12.0) < 1.0) & (np.abs(Y + 5.0) < 1.0)).astype(np.uint8)
+    ctrl = MPPIController(FAST, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0,
+                          backend=backend)
+    plant = KinematicBicycle(WHEELBASE, MAX_STEER, pose=(0.0, 0.5, 0.0), seed=1,
+                             steer_noise_std_rad=0.02)
+    tr = simulate_tracking(ctrl, plant, path, 1.0, occupancy=occ, grid=grid)
+    assert tr["v_cmd"].tolist() == PINNED_V
+    assert tr["w_cmd"].tolist() == PINNED_W
+
+
+# ----------------------------------------------------------------------------- the parts
+
+
+def test_weights_favour_the_cheap_samples_and_lambda_sets_how_much():
+    from dgt_lib.navigation.control.mppi import mppi_weights
+
+    cost = np.array([3.0, 1.0, 2.0, 1.0], np.float32)
+    w = mppi_weights(cost, 0.3)
+    assert w.sum() == pytest.approx(1.0) and w[1] == w[3] == w.max() and w[0] == w.min()
+    cold, hot = mppi_weights(cost, 0.01), mppi_weights(cost, 100.0)
+    np.testing.assert_allclose(cold, [0.0, 0.5, 0.0, 0.5], atol=1e-6)
+    np.testing.assert_allclose(hot, 0.25, atol=0.01)
+    assert np.isfinite(mppi_weights(cost + 1e4, 0.01)).all()  # min S subtracted first
+
+
+def test_kept_rollouts_are_the_critics_terms_of_the_cost_mppi_weighted():
+    grid = GridSpec((-10.0, -20.0), 0.4, (100, 200))
+    X, Y = grid.cell_centers()
+    occ = ((np.abs(X - 12.0) < 1.0) & (np.abs(Y + 1.5) < 1.0)).astype(np.uint8)
+    ref, kept = (MPPIController(FAST, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=2,
+                                backend="numpy") for _ in range(2))
+    kept.keep_rollouts = True
+    for c in (ref, kept):
+        c.set_path(straight(40.0))
+    for _ in range(5):  # keeping the rollouts changes no command
+        assert kept.compute((36.5, 0.3, 0.0), 3.0, occ, grid) == ref.compute(
+            (36.5, 0.3, 0.0), 3.0, occ, grid)
+    r = kept.last_rollouts
+    assert list(r.terms) == ["path", "path_angle", "speed", "goal", "occupancy", "constraint"]
+    np.testing.assert_allclose(sum(r.terms.values()), r.cost, rtol=1e-5)
+    np.testing.assert_array_equal(r.cost, kept.last_costs)
+    assert r.x.shape == (FAST.time_steps, FAST.batch_size)
+    assert abs(r.x[0, 0] - 36.5) < 0.5  # rollouts in the world frame, from the pose
+
+
+def test_a_stuck_vehicle_is_sent_what_the_warm_start_planned():
+    from dgt_lib.navigation.control.mppi import warm_start_trace
+
+    ctrl = MPPIController(FAST, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
+    ctrl.set_path(straight())
+    trace = warm_start_trace(ctrl, (0.0, 0.0, 0.0), 0.0, 12)
+    assert set(trace) == {"warm_v0", "warm_v1", "command", "plan_v1", "plan_mean"}
+    # the shift: each call's warm start begins with the previous call's weighted step 1
+    np.testing.assert_array_equal(trace["warm_v0"][1:], trace["plan_v1"][:-1])
+    assert trace["warm_v0"][0] == 0.0 and (trace["plan_mean"] > trace["command"]).all()
+
+
+def test_no_import_cycle_between_the_control_modules_and_the_drive():
+    import ast
+    from pathlib import Path
+
+    import dgt_lib.navigation as nav
+
+    root = Path(nav.__file__).parent
+    files = [*sorted((root / "control").glob("*.py")), root / "drive.py", root / "outcome.py"]
+    name = {f: f"dgt_lib.navigation.{f.relative_to(root).with_suffix('').as_posix()}"
+            .replace("/", ".") for f in files}
+    graph = {}
+    for f in files:
+        deps = set()
+        for node in ast.walk(ast.parse(f.read_text())):  # every import, TYPE_CHECKING too
+            if isinstance(node, ast.ImportFrom) and node.module:
+                deps |= {node.module, *(f"{node.module}.{a.name}" for a in node.names)}
+            elif isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names}
+        graph[name[f]] = deps & set(name.values()) - {name[f]}
+
+    def reaches(a, b, seen=()):
+        return any(d == b or (d not in seen and reaches(d, b, (*seen, d))) for d in graph[a])
+
+    assert not [m for m in graph if reaches(m, m)]
+
+
+@pytest.mark.slow
+def test_a_trial_stepped_by_hand_is_the_trial_drive_runs():
+    """Notebook 06 steps `drive_steps` itself: the states, commands and outcome are those
+    of `drive` to the bit."""
+    from dgt_lib.navigation.drive import MPPI_DT_S, drive, drive_steps, start_trial
+    from dgt_lib.navigation.outcome import OutcomeRule
+    from dgt_lib.world.simulator import Simulator
+    from dgt_lib.world.worlds import from_heightmap
+
+    world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
+    path = np.column_stack([np.linspace(10, 40, 76), np.full(76, 20.0), np.zeros(76)])
+    seen = []
+    outcome, traj, _ = drive(world, "jeep", path, (40.0, 20.0), time_limit_s=20.0,
+                             mppi_batch_size=64, seed=4,
+                             on_command=lambda s, v, steer: seen.append((s.time_s, v, steer)))
+    sim = Simulator(world, "jeep")
+    policy = start_trial(sim, path, mppi_batch_size=64, seed=4)
+    steps = list(drive_steps(sim, policy, OutcomeRule(time_limit_s=20.0), goal=(40.0, 20.0),
+                             dt_s=MPPI_DT_S))
+    sim.close()
+    assert steps[-1].outcome == outcome and outcome.success
+    assert [(s.state.time_s, s.speed_cmd, s.steer) for s in steps[:-1]] == seen
+    np.testing.assert_array_equal(steps[-1].state.position, traj[-1, 1:])

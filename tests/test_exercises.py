@@ -30,10 +30,6 @@ LEARNER_RIGHT = {
     "masked_loss": lambda p, y, h: ((p[torch.arange(len(h)), h] - y) ** 2).mean(),
     "heading_bin": lambda t, k: np.round(np.mod(t, 2 * np.pi) / (2 * np.pi / k)).astype(int) % k,
     "edge_cost": lambda s, c, b: s * (1 + c + b * c * c),
-    "wilson_interval": lambda k, n: tuple(
-        np.clip((k / n + 1.96**2 / (2 * n) + sign * 1.96 * math.sqrt(
-            k / n * (1 - k / n) / n + 1.96**2 / (4 * n * n))) / (1 + 1.96**2 / n), 0, 1)
-        for sign in (-1, 1)),
     "slope_locomotion": lambda t, t0, lo, hi, pu, pd: np.where(
         (t < lo) | (t > hi), 0.0,
         np.where(t >= t0, 1 - np.clip((t - t0) / (hi - t0), 0, 1) ** pu,
@@ -42,6 +38,10 @@ LEARNER_RIGHT = {
                                  stats.spearmanr(p, t).statistic),
     "contrast_pairs": lambda c, v, th: np.nonzero(
         (np.abs(c[:, 4:] - c[:, :4]) > th) & v[:, 4:] & v[:, :4]),
+    "trial_outcome": lambda d, imm, done, t, limit: (
+        "success" if d <= 5.0 else "flipped" if done == "flipped" else "diverged" if done
+        else "immobilized" if imm > 10.0 else "timeout" if t >= limit else "driving"),
+    "mppi_weights": lambda s, lam: (lambda e: e / e.sum())(np.exp((s.min() - s) / lam)),
 }
 
 # One deliberate mistake per exercise, and the words its hint must contain.
@@ -52,15 +52,16 @@ LEARNER_WRONG = {
     "heading_bin": (lambda t, k: (np.mod(t, 2 * np.pi) // (2 * np.pi / k)).astype(int) % k,
                     "nearest bin"),
     "edge_cost": (lambda s, c, b: s * (1 + c + b * c), "super-linear"),
-    "wilson_interval": (lambda k, n: (k / n - 1.96 * math.sqrt(k / n * (1 - k / n) / n),
-                                      k / n + 1.96 * math.sqrt(k / n * (1 - k / n) / n)),
-                        "not the normal interval"),
     "slope_locomotion": (lambda t, t0, lo, hi, pu, pd: 1 - np.clip(
         np.abs(t - t0) / (hi - t0), 0, 1) ** pu, "downhill"),
     "test_errors": (lambda p, t: (np.mean((p - t) ** 2), np.mean(np.abs(p - t)),
                                   stats.pearsonr(p, t).statistic), "ranks"),
     "contrast_pairs": (lambda c, v, th: np.nonzero(
         np.abs(c[:, 4:] - c[:, :4]) > th), "both samples"),
+    "trial_outcome": (lambda d, imm, done, t, limit: (
+        "success" if d <= 5.0 else "flipped" if done else "immobilized" if imm >= 10.0
+        else "timeout" if t >= limit else "driving"), "exactly 10 s"),
+    "mppi_weights": (lambda s, lam: (lambda e: e / e.sum())(np.exp(-s / lam)), "min S"),
 }
 
 
@@ -70,7 +71,7 @@ def _unanswered(*args):
 
 def test_every_notebook_has_an_exercise():
     notebooks = {ex.notebook[:2] for ex in EXERCISES.values()}
-    assert notebooks == {f"{i:02d}" for i in range(1, 10)}
+    assert notebooks == {f"{i:02d}" for i in range(1, 10)} | {"11"}
     assert set(LEARNER_RIGHT) == set(EXERCISES) == set(LEARNER_WRONG)
 
 

@@ -1,12 +1,14 @@
 """Driving a vehicle in MuJoCo until the drive ends: the one drive loop of the kit
 (paper: Experimental Protocol; closed-loop control with MPPI).
 
-:func:`drive_loop` steps a :class:`~dgt_lib.world.simulator.Simulator` with a policy
+:func:`drive_steps` steps a :class:`~dgt_lib.world.simulator.Simulator` with a policy
 ``state -> (speed command [m/s], steer ∈ [−1, 1])`` until an
-:class:`~dgt_lib.navigation.outcome.OutcomeRule` decides. On it:
+:class:`~dgt_lib.navigation.outcome.OutcomeRule` decides, one :class:`DriveStep` at a time
+(:func:`drive_loop` runs it to the end). On it:
 
-- :func:`drive` — a closed-loop trial: track a planned path with MPPI at 20 Hz
-  (:data:`MPPI_DT_S`), success within 5 m of the goal (the paper's rule);
+- :func:`drive` — a closed-loop trial: :func:`start_trial` puts the vehicle on the plan's
+  first pose with its :class:`MPPIPolicy` (MPPI at 20 Hz, :data:`MPPI_DT_S`), then the
+  loop runs to the outcome, success within 5 m of the goal (the paper's rule);
 - :func:`follow_path` / :func:`drive_straight` — scripted drives (pure pursuit, or a
   fixed command) that record every control step, for the physical premises.
 """
@@ -14,12 +16,12 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.navigation.control.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint
@@ -37,24 +39,99 @@ Policy = Callable[[VehicleState], tuple[float, float]]
 """state → (speed command [m/s], normalised steer ∈ [−1, 1])."""
 
 
-def drive_loop(sim: Simulator, policy: Policy, rule: OutcomeRule, *, goal=None,
-               dt_s: float = CONTROL_DT_S,
-               on_state: Callable[[VehicleState], None] | None = None) -> TrialOutcome:
-    """Step ``sim`` from its current state, ``dt_s`` [s] per command of ``policy``, until
-    ``rule`` decides (judged on every state, the first one included); ``on_state`` sees
-    every state before it is judged. Returns the outcome; the simulator holds the last
-    state."""
+@dataclass(frozen=True)
+class DriveStep:
+    """One control period of a drive: the ``state`` judged, the rule's ``outcome`` (None
+    while the drive goes on) and, when it goes on, the command sent (``speed_cmd`` [m/s],
+    ``steer`` ∈ [−1, 1])."""
+
+    state: VehicleState
+    outcome: TrialOutcome | None
+    speed_cmd: float = math.nan
+    steer: float = math.nan
+
+
+def drive_steps(sim: Simulator, policy: Policy, rule: OutcomeRule, *, goal=None,
+                dt_s: float = CONTROL_DT_S) -> Iterator[DriveStep]:
+    """The drive loop, one :class:`DriveStep` at a time: from the simulator's current
+    state, judge it with ``rule`` (the first state included); once the rule decides,
+    yield the verdict and end; else ask ``policy`` for a command, yield it, and step the
+    simulator ``dt_s`` [s] with it. Stepping it by hand (a notebook) drives the very
+    trial :func:`drive` drives."""
     goal = None if goal is None else np.asarray(goal, float)[:2]
     state = sim.state
     while True:
-        if on_state is not None:
-            on_state(state)
         outcome = rule.judge(state.time_s, state.position, goal, state.immobilized_s,
                              state.done_reason)
         if outcome is not None:
-            return outcome
+            yield DriveStep(state, outcome)
+            return
         speed, steer = policy(state)
+        yield DriveStep(state, None, float(speed), float(steer))
         state = sim.step(speed_cmd_mps=float(speed), steer=float(steer), duration_s=dt_s)
+
+
+def drive_loop(sim: Simulator, policy: Policy, rule: OutcomeRule, *, goal=None,
+               dt_s: float = CONTROL_DT_S,
+               on_state: Callable[[VehicleState], None] | None = None) -> TrialOutcome:
+    """Run :func:`drive_steps` until ``rule`` decides; ``on_state`` sees every state.
+    Returns the outcome; the simulator holds the last state."""
+    for step in drive_steps(sim, policy, rule, goal=goal, dt_s=dt_s):
+        if on_state is not None:
+            on_state(step.state)
+        if step.outcome is not None:
+            return step.outcome
+    raise AssertionError("drive_steps ends with an outcome")
+
+
+class MPPIPolicy:
+    """The trials' policy: MPPI on the rear-axle pose (the planner's path moved there),
+    its twist (v_x, ω_z) turned into a steering command by the bicycle relation
+    δ = atan(ℓ ω_z / v_x), normalised by δ_max (paper: Controller Integration).
+    ``controller`` is the :class:`MPPIController` (its ``optimal_trajectory`` the plan
+    of the last call); ``on_command(state, v_x, steer)`` sees every command."""
+
+    def __init__(self, spec: VehicleSpec, path: np.ndarray, cfg: MPPIConfig, *, seed: int = 0,
+                 occupancy=None, grid=None,
+                 on_command: Callable[[VehicleState, float, float], None] | None = None):
+        self.spec, self.occupancy, self.grid, self.on_command = spec, occupancy, grid, on_command
+        self.controller = MPPIController.from_vehicle(spec, cfg, seed=seed)
+        # the controller works on the rear-axle centre, the planner on the body centre
+        self.controller.set_path(rear_axle_pose(path[:, :2], path[:, 2], spec.wheelbase_m))
+
+    def __call__(self, state: VehicleState) -> tuple[float, float]:
+        spec = self.spec
+        pose = rear_axle_pose(state.position, state.yaw, spec.wheelbase_m)
+        v_x, w_z = self.controller.compute(pose, state.speed_mps, self.occupancy, self.grid)
+        steer = steering_from_twist(v_x, w_z, spec.wheelbase_m, spec.max_steer_rad)
+        if self.on_command is not None:
+            self.on_command(state, v_x, steer)
+        return v_x, steer
+
+
+def trial_mppi_config(spec: VehicleSpec, mppi_batch_size: int = 1000,
+                      mppi_settings: Mapping[str, object] | None = None) -> MPPIConfig:
+    """The trials' MPPI settings: ``mppi_batch_size`` samples, the vehicle's footprint
+    (:func:`vehicle_footprint`) and any ``mppi_settings`` fields changed."""
+    return replace(MPPIConfig(batch_size=mppi_batch_size), **vehicle_footprint(spec),
+                   **(mppi_settings or {}))
+
+
+def start_trial(sim: Simulator, path: np.ndarray, *, occupancy=None, grid=None,
+                mppi_batch_size: int = 1000, seed: int = 0,
+                on_command: Callable[[VehicleState, float, float], None] | None = None,
+                mppi_settings: Mapping[str, object] | None = None) -> Policy:
+    """Put the simulated vehicle on ``path``'s first pose and return the trial's policy:
+    :class:`MPPIPolicy` tracking the path, or holding still when the path is one pose
+    (nothing to track)."""
+    path = np.asarray(path, float)
+    x, y, yaw = (float(v) for v in path[0])
+    sim.reset(x, y, yaw)
+    if not _has_length(path):
+        return lambda state: (0.0, 0.0)  # hold still: nothing to track
+    cfg = trial_mppi_config(sim.vehicle, mppi_batch_size, mppi_settings)
+    return MPPIPolicy(sim.vehicle, path, cfg, seed=seed, occupancy=occupancy, grid=grid,
+                      on_command=on_command)
 
 
 def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None, grid=None,
@@ -73,43 +150,23 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     command MPPI gives, with the state it answered (``benchmarks/replay_trial.py`` prints
     them). ``mppi_settings``: :class:`MPPIConfig` fields to change for this drive, e.g.
     ``{"lateral_accel_max": 2.0}`` (``benchmarks/controller_variants.py``); the experiments
-    use the defaults.
+    use the defaults. The same as :func:`start_trial` then :func:`drive_steps` to the end.
     """
-    spec = get_vehicle(vehicle)
-    sim = Simulator(world, spec)
-    path = np.asarray(path, float)
+    sim = Simulator(world, get_vehicle(vehicle))
     try:
-        x, y, yaw = (float(v) for v in path[0])
-        sim.reset(x, y, yaw)
-        if _has_length(path):
-            cfg = replace(MPPIConfig(batch_size=mppi_batch_size), **vehicle_footprint(spec),
-                          **(mppi_settings or {}))
-            ctrl = MPPIController.from_vehicle(spec, cfg, seed=seed)
-            # the controller works on the rear-axle centre, the planner on the body centre
-            ctrl.set_path(rear_axle_pose(path[:, :2], path[:, 2], spec.wheelbase_m))
-
-            def policy(state: VehicleState) -> tuple[float, float]:
-                pose = rear_axle_pose(state.position, state.yaw, spec.wheelbase_m)
-                v_x, w_z = ctrl.compute(pose, state.speed_mps, occupancy, grid)
-                steer = steering_from_twist(v_x, w_z, spec.wheelbase_m, spec.max_steer_rad)
-                if on_command is not None:
-                    on_command(state, v_x, steer)
-                return v_x, steer
-        else:
-            def policy(state: VehicleState) -> tuple[float, float]:
-                return 0.0, 0.0  # hold still: nothing to track
-
+        policy = start_trial(sim, path, occupancy=occupancy, grid=grid,
+                             mppi_batch_size=mppi_batch_size, seed=seed,
+                             on_command=on_command, mppi_settings=mppi_settings)
         rows, speeds = [], []
-        next_log = [0.0]
-
-        def log(state: VehicleState) -> None:
-            if state.time_s >= next_log[0]:
+        next_log = 0.0
+        for step in drive_steps(sim, policy, OutcomeRule(time_limit_s=time_limit_s),
+                                goal=goal, dt_s=MPPI_DT_S):
+            state = step.state
+            if state.time_s >= next_log:
                 rows.append((state.time_s, *state.position))
                 speeds.append(state.speed_mps)
-                next_log[0] += LOG_DT_S
-
-        outcome = drive_loop(sim, policy, OutcomeRule(time_limit_s=time_limit_s), goal=goal,
-                             dt_s=MPPI_DT_S, on_state=log)
+                next_log += LOG_DT_S
+            outcome = step.outcome
         state = sim.state
         rows.append((state.time_s, *state.position))
         speeds.append(state.speed_mps)

@@ -1,9 +1,18 @@
 """Controller Integration (paper): tracking a planned path with MPPI.
 
-``mppi_config`` (the controller's settings and the vehicle footprint it checks),
-``bicycle`` (the kinematic bicycle: MPPI's twist → a steering angle, path resampling),
-``mppi`` (the sampling controller, plain numpy), ``mppi_compiled`` (its per-sample loops in
-numba, the same commands to the bit) and ``pure_pursuit`` (the ground-truth drives'
-tracker). The speed loop that turns a commanded speed into wheel torque is part of the
-simulated vehicle (``dgt_lib.world.speed_control``).
+In the order of one MPPI iteration (:mod:`~dgt_lib.navigation.control.mppi`):
+
+- ``mppi_config`` — the controller's settings (Nav2's, scaled to 5 m/s) and the vehicle
+  footprint it checks;
+- ``reference_path`` — the planner's path resampled, the progress along it;
+- ``sampling`` — noisy control sequences around the warm start, the speed loop's lag;
+- ``bicycle`` — the rollout kinematics, the bicycle relation twist → steering, the rear-axle
+  pose, a kinematic plant to try a tracker without physics;
+- ``critics`` — the cost terms, one named function each;
+- ``mppi`` — the exponential weighting with temperature λ, the warm start, the controller;
+- ``mppi_compiled`` — sampling, rollout and critics in numba, the same commands to the bit;
+- ``pure_pursuit`` — the ground-truth drives' tracker.
+
+The speed loop that turns a commanded speed into wheel torque is part of the simulated
+vehicle (``dgt_lib.world.speed_control``); the closed loop is ``dgt_lib.navigation.drive``.
 """

@@ -4,14 +4,24 @@ a kinematic simulation for testing the tracker without physics (paper: Controlle
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from dgt_lib.core.geometry import GridSpec
 
-if TYPE_CHECKING:  # the tracker under test (an annotation only: mppi imports this module)
-    from dgt_lib.navigation.control.mppi import MPPIController
+
+class Tracker(Protocol):
+    """What :func:`simulate_tracking` drives: a path tracker called once per
+    ``cfg.model_dt`` [s] with the rear-axle pose and speed, answering a twist (v_x [m/s],
+    ω_z [rad/s]) — e.g. :class:`dgt_lib.navigation.control.mppi.MPPIController`."""
+
+    cfg: object
+
+    def set_path(self, path: np.ndarray) -> None: ...
+
+    def compute(self, pose, speed: float, occupancy=None, grid=None
+                ) -> tuple[float, float]: ...
 
 
 def steering_from_twist(v_x, w_z, wheelbase_m: float, max_steer_rad: float, v_eps: float = 0.05):
@@ -99,7 +109,7 @@ class KinematicBicycle:
 
 
 def simulate_tracking(
-    controller: MPPIController,
+    controller: Tracker,
     plant: KinematicBicycle,
     path: np.ndarray,
     duration_s: float,

@@ -1,31 +1,37 @@
-"""MPPI's per-sample loops compiled with numba (``MPPIController(backend="compiled")``,
-the default).
+"""MPPI's sampling, rollout and critics compiled with numba (``MPPIController(backend=
+"compiled")``, the default).
 
-Each kernel is a transcription of the numpy code of :class:`~dgt_lib.navigation.control.mppi.
-MPPIController` (``backend="numpy"``, the reference), with the same float32 operations
-in the same order, so that both backends compute the same costs to the bit and return
-the same commands (``tests/test_mppi_compiled.py`` checks it call by call):
+Each kernel is a transcription of the numpy reference (``backend="numpy"``), with the same
+float32 operations in the same order, so that both backends compute the same costs to the
+bit and return the same commands (``tests/test_mppi_compiled.py`` checks it call by call):
 
-- :func:`sample_rollouts` — ``_sample`` (clipped, integrated noise around the warm
-  start), ``_vehicle_response`` (``scipy.signal.lfilter``'s first-order lag, in its
-  order of operations) and the yaw part of
+- :func:`sample_rollouts` — :func:`~dgt_lib.navigation.control.sampling.sample_controls`
+  (clipped, integrated noise around the warm start),
+  :func:`~dgt_lib.navigation.control.sampling.vehicle_response` (``scipy.signal.lfilter``'s
+  first-order lag, in its order of operations) and the yaw part of
   :func:`~dgt_lib.navigation.control.bicycle.rollout_unicycle`;
-- :func:`project_on_path` — the positions' cumulative sums and ``_path_costs``'
-  nearest-point projection (the reference's ``einsum`` score |w|² − 2 p·w, then its
-  first minimum);
-- :func:`occupancy_cost` — ``_occupancy_cost`` with numpy's reductions along time:
-  sums in order over the steps, the collision fraction in float64.
+- :func:`project_on_path` — the positions' cumulative sums and
+  :func:`~dgt_lib.navigation.control.critics.path_errors`' nearest-point projection (the
+  reference's ``einsum`` score |w|² − 2 p·w, then its first minimum);
+- :func:`occupancy_cost` — :func:`~dgt_lib.navigation.control.critics.occupancy_critic`
+  with numpy's reductions along time: sums in order over the steps, the collision
+  fraction in float64.
 
-What stays in numpy is what numpy does in SIMD and a scalar loop would do differently
-in the last bit: the cosines and sines (numpy's float32 ``cos``/``sin`` are not the C
-library's) and the softmax. Every kernel loops over time outside and samples inside,
-along the arrays' rows, without temporaries: one pass where numpy makes dozens.
+:func:`sampled_costs` strings them together as the reference's steps 1–3. What stays in
+numpy is what numpy does in SIMD and a scalar loop would do differently in the last bit:
+the cosines and sines (numpy's float32 ``cos``/``sin`` are not the C library's), the
+path critics' means and the weighting. Every kernel loops over time outside and samples
+inside, along the arrays' rows, without temporaries: one pass where numpy makes dozens.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.navigation.control.critics import constraint_critic, path_terms, total_cost
+from dgt_lib.navigation.control.mppi_config import MPPIConfig
 
 F32 = np.float32
 
@@ -145,8 +151,9 @@ def project_on_path(v_act, cos_mid, sin_mid, yaw, dt, first, every, wx, wy, tx, 
 def occupancy_cost(x, y, cos_yaw, sin_yaw, offsets, cell_hit, cell_near, ox, oy, inv_res,
                    w_collide, w_inflate, out):
     """Collision and inflation critics ``(B,)`` into ``out``, as the reference's
-    ``_occupancy_cost``. Per footprint circle (``offsets`` [m] ahead of the pose) and
-    step, the terms of the circle's cell (with the grid's occupied border ring):
+    :func:`~dgt_lib.navigation.control.critics.occupancy_critic`. Per footprint circle
+    (``offsets`` [m] ahead of the pose) and step, the terms of the circle's cell (with the
+    grid's occupied border ring):
     ``cell_hit`` (float64 1 where the clearance d < r_c, else 0) and ``cell_near``
     (float32 clip((r_i − d)/(r_i − r_c), 0, 1)). Collision = fraction of steps hit
     (summed in float64, as numpy's mean of booleans) + whether any step is; inflation
@@ -182,3 +189,56 @@ def occupancy_cost(x, y, cos_yaw, sin_yaw, offsets, cell_hit, cell_near, ox, oy,
             inflate[b] += closeness[b] / F32(T)
     for b in range(B):
         out[b] = w_collide * collide[b] + w_inflate * inflate[b]
+
+
+def cell_terms(clearance: np.ndarray, cfg: MPPIConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The occupancy critic's per-cell terms for :func:`occupancy_cost`, from the
+    clearance field d [m]: float64 [d < r_c] and float32 clip((r_i − d)/(r_i − r_c), 0, 1)."""
+    r_c, r_i = F32(cfg.collision_radius_m), F32(cfg.inflation_radius_m)
+    return ((clearance < r_c).astype(np.float64),
+            np.clip((r_i - clearance) / (r_i - r_c), 0.0, 1.0))
+
+
+def sampled_costs(ev: np.ndarray, ew: np.ndarray, nominal: np.ndarray, last_v: float,
+                  speed: float, pose: tuple[float, float, float],
+                  window: tuple[np.ndarray, ...], length_m: float,
+                  goal_xy: tuple[float, float] | None, cfg: MPPIConfig,
+                  min_turn_radius_m: float, alpha: float,
+                  cells: tuple[tuple[np.ndarray, np.ndarray], GridSpec] | None,
+                  v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """MPPI's steps 1–3 with the kernels: the sampled commands ``v``, ``w`` ``(T, B)``
+    (written in place) and their costs S ``(B,)``, as ``MPPIController._sampled_costs``.
+    ``ev``, ``ew``: the noise; ``nominal`` ``(T, 2)`` the warm start; ``pose`` (x0, y0,
+    yaw0); ``window`` and ``length_m`` the path near the robot; ``goal_xy`` the goal
+    relative to the robot when the goal critic is on; ``cells`` (:func:`cell_terms`, grid)
+    when the occupancy critic is."""
+    x0, y0, yaw0 = pose
+    v_act, w_act, yaw, mid = (np.empty_like(v) for _ in range(4))
+    a = alpha
+    sample_rollouts(
+        ev, ew, nominal[:, 0], nominal[:, 1], F32(last_v), F32(cfg.model_dt),
+        F32(cfg.accel_std), F32(cfg.decel_max), F32(cfg.accel_max), F32(cfg.v_min),
+        F32(cfg.v_max), F32(cfg.w_rate_std * cfg.model_dt), F32(1.0 / min_turn_radius_m),
+        F32(cfg.w_max), F32(a), F32(a - 1.0), F32((1.0 - a) * speed), F32(yaw0), v, w, v_act,
+        w_act, yaw, mid)
+    x, y = np.empty_like(v), np.empty_like(v)
+    first, every = cfg.path_point_step - 1, cfg.path_point_step
+    scored = (cfg.time_steps - first + every - 1) // every
+    cross, angle_err, speed_err = (np.empty((scored, cfg.batch_size), F32) for _ in range(3))
+    project_on_path(
+        v_act, np.cos(mid), np.sin(mid), yaw, F32(cfg.model_dt), first, every, *window,
+        F32(length_m), F32(cfg.target_speed), F32(2.0 * cfg.goal_decel),
+        F32(1.0 / cfg.target_speed), x, y, cross, angle_err, speed_err)
+    sel = slice(first, None, every)
+    cost = total_cost(path_terms(cross, angle_err, speed_err, x[sel], y[sel], goal_xy, cfg))
+    if cells is not None:
+        (cell_hit, cell_near), grid = cells
+        occupancy = np.empty_like(cost)
+        occupancy_cost(
+            x, y, np.cos(yaw), np.sin(yaw), np.array(cfg.footprint_offsets_m, F32), cell_hit,
+            cell_near, F32(x0 - grid.origin_xy[0]), F32(y0 - grid.origin_xy[1]),
+            F32(1.0 / grid.resolution), F32(cfg.collision_weight), F32(cfg.inflation_weight),
+            occupancy)
+        cost += occupancy
+    cost += constraint_critic(v_act, w_act, cfg)
+    return v, w, cost
