@@ -124,11 +124,27 @@ def _slope_locomotion(theta, theta0, theta_min, theta_max, p_u, p_d):
     return SlopeModel(theta0, theta_min, theta_max, p_u, p_d).locomotion(theta)
 
 
-def _test_errors(pred, true) -> tuple[float, float, float]:
-    from dgt_lib.learning.training import regression_metrics
+def _hazard_length(mask, origin_xy, resolution_m, start, goal) -> float:
+    from dgt_lib.evaluation.hazards import segment_hazard_m
 
-    m = regression_metrics(pred, true)
-    return m["mse"], m["mae"], m["spearman"]
+    return segment_hazard_m(mask, origin_xy, resolution_m, start, goal)
+
+
+def _changed_mask(old_channels, old_observed, new_channels, new_observed) -> np.ndarray:
+    """The cells an incremental costmap update starts from
+    (:func:`dgt_lib.beyond.incremental.changed_mask` on two BEV maps of one grid); all
+    False when nothing changed (where the library returns None)."""
+    from dgt_lib.beyond.incremental import changed_mask
+    from dgt_lib.core.geometry import GridSpec
+    from dgt_lib.perception.bev import BEVMap
+
+    grid = GridSpec((0.0, 0.0), BEV_RESOLUTION_M, np.shape(new_observed))
+    counts = np.zeros(grid.shape, np.int64)
+    old = (None if old_channels is None
+           else BEVMap(grid, np.asarray(old_channels), np.asarray(old_observed), counts))
+    mask = changed_mask(old, BEVMap(grid, np.asarray(new_channels), np.asarray(new_observed),
+                                    counts))
+    return np.zeros(grid.shape, bool) if mask is None else mask
 
 
 def _contrast_pairs(true_cost, valid, threshold):
@@ -244,16 +260,60 @@ def _slope_cases() -> list[Case]:
     ]
 
 
-def _test_error_cases() -> list[Case]:
-    true = np.array([0.1, 0.4, 0.35, 0.8, 0.9, 0.2])
+def _hazard_cases() -> list[Case]:
+    cross = np.zeros((10, 10), bool)
+    cross[:, 4:6] = cross[4:6, :] = True  # x or y ∈ [4, 6) on a 1 m grid: symmetric
+    band = np.zeros((6, 10), bool)
+    band[1, :5] = True  # y ∈ [1, 2), x < 5 only: not symmetric in x and y
+    edge = np.zeros((6, 10), bool)
+    edge[2, 9] = True  # the last column: where a negative column index wraps to
     return [
-        Case((true + 0.1, true), "mse = mean((pred − true)²), mae = mean(|pred − true|)"),
-        Case((2.0 * true - 0.5, true),
-             "mae averages absolute errors: negative errors must not cancel positive ones"),
-        Case((true**3, true), "Spearman's ρ correlates ranks, not values: a monotone "
-                              "relation gives ρ = 1 (scipy.stats.spearmanr)"),
-        Case((np.array([0.2, 0.2, 0.5, 0.1, 0.9, 0.7]), true),
-             "ties share the mean of their ranks (scipy.stats.rankdata does this)"),
+        Case((cross, (0.0, 0.0), 1.0, (0.5, 2.5), (9.5, 2.5)),
+             "metres = d × the share of the n = ⌈d/(Δ/2)⌉ + 1 evenly spaced samples (both "
+             "ends included) that fall on hazard cells, d the segment's length"),
+        Case((band, (0.0, 0.0), 1.0, (3.5, 0.5, 1.2), (3.5, 5.5)),
+             "mask[row, col]: rows run along y, columns along x; and start is the query's "
+             "pose (x, y, yaw): use its x, y only"),
+        Case((cross, (-2.0, 10.0), 1.0, (-1.5, 12.5, 0.0), (7.5, 11.0)),
+             "cell (r, c) covers x ∈ [x0 + cΔ, x0 + (c+1)Δ): subtract the grid origin (the "
+             "corner of cell (0, 0)) before dividing by Δ, then floor"),
+        Case((band, (0.0, 0.0), 0.4, (0.2, 0.1, 0.0), (1.0, 2.3)),
+             "use the grid's Δ: cells Δ wide and samples every Δ/2 at most"),
+        Case((edge, (0.0, 0.0), 1.0, (3.5, 2.5, 3.1), (-3.5, 2.5)),
+             "samples off the map count as no hazard (a negative index would wrap round to "
+             "the far edge of the map)"),
+    ]
+
+
+def _changed_cases() -> list[Case]:
+    rng = np.random.default_rng(0)
+    old = rng.uniform(0.1, 1.0, (6, 4, 5)).astype(np.float32)
+    seen = np.ones((4, 5), bool)
+    seen[0, :] = False
+    old[:, ~seen] = 0.0
+    new_cell, new_seen = old.copy(), seen.copy()
+    new_cell[:, 0, 2], new_seen[0, 2] = (0.3, 0.5, 0.2, 1.4, 0.01, 0.1), True
+    moved = old.copy()
+    moved[3, 2, 1] += np.float32(1e-3)  # H̄ of a re-observed cell moves by 1 mm
+    grad = old.copy()
+    grad[5, 3, 4] += np.float32(0.05)  # only ‖∇H̄‖ changes: a neighbour's height moved
+    dark = seen.copy()
+    dark[0, 0] = True  # seen for the first time, every channel 0 (black, level, at 0 m)
+    return [
+        Case((old, seen, new_cell, new_seen),
+             "a cell seen for the first time has changed: its observed flag flips"),
+        Case((old, seen, moved, seen),
+             "a re-observed cell whose H̄ moved, even by a millimetre, has changed: compare "
+             "the values exactly (no tolerance), not only the observed flags"),
+        Case((old, seen, grad, seen),
+             "compare all six channels (R, G, B, H̄, σ_H, ‖∇H̄‖), not only the height"),
+        Case((old, seen, old, dark),
+             "compare the observed flags too: a new cell's channels may all be 0"),
+        Case((None, None, old, seen),
+             "the first frame (old is None): every observed cell of the new map has "
+             "changed, the unobserved ones have not"),
+        Case((old, seen, old.copy(), seen.copy()),
+             "nothing changed: return an all-False (H, W) mask"),
     ]
 
 
@@ -346,7 +406,8 @@ EXERCISES: dict[str, Exercise] = {
     "edge_cost": Exercise("05_hybrid_astar", _edge_cost, _edge_cost_cases),
     "slope_locomotion": Exercise("07_experiment2_ridge", _slope_locomotion, _slope_cases,
                                  atol=1e-5),
-    "test_errors": Exercise("08_experiment3_multitask", _test_errors, _test_error_cases),
+    "hazard_length": Exercise("08_experiment3_multitask", _hazard_length, _hazard_cases),
+    "changed_mask": Exercise("10_incremental_mapping", _changed_mask, _changed_cases),
     "contrast_pairs": Exercise("09_costmap_accuracy", _contrast_pairs, _contrast_cases,
                                normalize=_pair_set),
     "trial_outcome": Exercise("06_experiment1_hill", _trial_outcome, _outcome_cases,

@@ -22,7 +22,7 @@ loop's noise.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -71,15 +71,21 @@ def contrast_pairs(true_cost: np.ndarray, valid: np.ndarray,
     return np.nonzero(ok)
 
 
+PairSelection = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+"""(C* (N, K), valid (N, K), threshold) → (cell indices, k) of the contrast pairs."""
+
+
 def costmap_accuracy(true_cost: np.ndarray, cost: np.ndarray, valid: np.ndarray,
-                     threshold: float = CONTRAST_THRESHOLD) -> dict[str, float | int]:
+                     threshold: float = CONTRAST_THRESHOLD, *,
+                     select_pairs: PairSelection = contrast_pairs) -> dict[str, float | int]:
     """Accuracy of a costmap's (N, K) ``cost`` against (N, K) ``true_cost`` C* on the
     ``valid`` samples (see the module docstring).
 
     Returns ``n``, ``mae``, ``spearman`` (NaN when either side is constant or n < 3),
     ``pairs`` (the contrast pairs), ``contrast_true`` and ``contrast`` (mean |ΔC| over
     them) and ``sign_agreement`` (fraction of pairs where the method's ΔC has the
-    truth's sign; NaN without pairs)."""
+    truth's sign; NaN without pairs). ``select_pairs(true_cost, valid, threshold)`` picks
+    the pairs (:func:`contrast_pairs`; notebook 09's exercise plugs the learner's in)."""
     valid = np.asarray(valid, bool) & np.isfinite(true_cost) & np.isfinite(cost)
     t, c = true_cost[valid], cost[valid]
     out: dict[str, float | int] = {"n": int(valid.sum()), "mae": math.nan,
@@ -91,7 +97,7 @@ def costmap_accuracy(true_cost: np.ndarray, cost: np.ndarray, valid: np.ndarray,
         from scipy import stats  # ~0.3 s to import: kept off `dgt plan`'s path (via viz)
 
         out["spearman"] = float(stats.spearmanr(c, t).statistic)
-    i, k = contrast_pairs(true_cost, valid, threshold)
+    i, k = select_pairs(true_cost, valid, threshold)
     if len(i):
         half = true_cost.shape[1] // 2
         d_true = true_cost[i, k] - true_cost[i, k + half]

@@ -21,8 +21,8 @@ ignores terrain cost (Binary) is then led across terrain some vehicle cannot cro
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -62,26 +62,41 @@ def vehicle_hazards(world: World, vehicle: str) -> np.ndarray:
     return too_steep | crest
 
 
+def segment_hazard_m(mask: np.ndarray, origin_xy, resolution_m: float, start_xy,
+                     goal_xy) -> float:
+    """Metres of the straight segment start → goal (x, y [m]; a pose's yaw is ignored)
+    on the True cells of ``mask`` (H, W), cell (r, c) covering [x0 + cΔ, x0 + (c+1)Δ) ×
+    [y0 + rΔ, y0 + (r+1)Δ): the segment's length d times the share of its
+    n = ⌈d / (Δ/2)⌉ + 1 evenly spaced samples (ends included, at least 2) on such cells;
+    samples off the map count as no hazard."""
+    grid = GridSpec(origin_xy, resolution_m, np.shape(mask))
+    (sx, sy), (gx, gy) = start_xy[:2], goal_xy[:2]
+    dist = float(np.hypot(gx - sx, gy - sy))
+    n = max(2, int(np.ceil(dist / (0.5 * grid.resolution))) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    r, c = grid.xy_to_cell(sx + t * (gx - sx), sy + t * (gy - sy))
+    rows, cols = grid.shape
+    on = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
+    hit = np.zeros(n, bool)
+    hit[on] = mask[r[on], c[on]]
+    return dist * float(hit.mean())
+
+
 @dataclass(frozen=True)
 class HazardMap:
-    """Cells some vehicle cannot cross, ``mask`` (H, W) bool on ``grid``."""
+    """Cells some vehicle cannot cross, ``mask`` (H, W) bool on ``grid``; ``measure`` is
+    the rule :meth:`length_m` applies (:func:`segment_hazard_m`; notebook 08's exercise
+    plugs the learner's in)."""
 
     grid: GridSpec
     mask: np.ndarray
+    measure: Callable[..., float] = field(default=segment_hazard_m, compare=False, repr=False)
 
     def length_m(self, start_xy, goal_xy) -> float:
         """Metres of the straight segment start → goal [m] that lie on hazard cells
         (sampled every half cell; points off the map count as no hazard)."""
-        (sx, sy), (gx, gy) = start_xy[:2], goal_xy[:2]
-        dist = float(np.hypot(gx - sx, gy - sy))
-        n = max(2, int(np.ceil(dist / (0.5 * self.grid.resolution))) + 1)
-        t = np.linspace(0.0, 1.0, n)
-        r, c = self.grid.xy_to_cell(sx + t * (gx - sx), sy + t * (gy - sy))
-        rows, cols = self.mask.shape
-        on = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
-        hit = np.zeros(n, bool)
-        hit[on] = self.mask[r[on], c[on]]
-        return dist * float(hit.mean())
+        return self.measure(self.mask, self.grid.origin_xy, self.grid.resolution, start_xy,
+                            goal_xy)
 
     @property
     def fraction(self) -> float:

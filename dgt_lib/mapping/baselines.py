@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -137,21 +138,31 @@ class SlopePredictor:
     per vehicle.
 
     ``models`` holds one :class:`SlopeModel` per vehicle, in output-column order.
+    ``locomotion(θ, θ0, θmin, θmax, p_u, p_d)``, when given, replaces
+    :meth:`SlopeModel.locomotion` (e.g. a learner's own L_sb from notebook 07's exercise).
     """
 
-    def __init__(self, models: list[SlopeModel]):
+    def __init__(self, models: list[SlopeModel],
+                 locomotion: Callable[..., np.ndarray] | None = None):
         if not models:
             raise ValueError("SlopePredictor needs at least one SlopeModel")
         self.models = list(models)
+        self.locomotion = locomotion
 
     def __call__(self, patches: np.ndarray) -> np.ndarray:
         theta = forward_slope(patches)
-        return np.stack([m.locomotion(theta) for m in self.models], axis=1)
+        if self.locomotion is None:
+            return np.stack([m.locomotion(theta) for m in self.models], axis=1)
+        return np.stack([np.asarray(self.locomotion(theta, m.theta0, m.theta_min, m.theta_max,
+                                                    m.p_u, m.p_d), np.float32)
+                         for m in self.models], axis=1)
 
 
-def slope_costmap(bev: BEVMap, models: list[SlopeModel], n_headings: int = 8,
+def slope_costmap(bev: BEVMap, models: list[SlopeModel], n_headings: int = 8, *,
+                  locomotion: Callable[..., np.ndarray] | None = None,
                   **kwargs) -> np.ndarray:
-    """The slope-based directional costmap (V, K, H, W), same procedure as DGT-Map's."""
+    """The slope-based directional costmap (V, K, H, W), same procedure as DGT-Map's
+    (``locomotion``: see :class:`SlopePredictor`)."""
     from dgt_lib.mapping.costmap import directional_costmap
 
-    return directional_costmap(bev, SlopePredictor(models), n_headings, **kwargs)
+    return directional_costmap(bev, SlopePredictor(models, locomotion), n_headings, **kwargs)

@@ -20,6 +20,8 @@ Choices made here (the paper leaves them open):
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 TARGET_SPEED_MPS = 5.0
@@ -55,7 +57,9 @@ def locomotion(displacement_m, dt_s, u: float = TARGET_SPEED_MPS, sigma: float =
 
 def locomotion_signal(times_s: np.ndarray, positions: np.ndarray, window_s: float = WINDOW_S,
                       u: float = TARGET_SPEED_MPS, sigma: float = SIGMA,
-                      at_s: np.ndarray | None = None) -> np.ndarray:
+                      at_s: np.ndarray | None = None,
+                      label: Callable[[np.ndarray, float], np.ndarray] | None = None
+                      ) -> np.ndarray:
     """L_v(t) of one run from a centred sliding window, at every sample (or at ``at_s``).
 
     times_s: (T,) strictly increasing [s]; positions: (T, 2) or (T, 3) [m]
@@ -64,6 +68,8 @@ def locomotion_signal(times_s: np.ndarray, positions: np.ndarray, window_s: floa
     [t − w/2, t + w/2], shifted to lie inside [t_0, t_{T−1}] (the whole run if it
     is shorter than w); positions at the window ends are linearly interpolated,
     so Δt is exactly the window length. Returns (T,) or (M,) float64 L ∈ [0, 1].
+    label: the locomotion of (‖Δx‖ [m], Δt [s]) applied to each window, e.g. a learner's
+    own from notebook 02's exercise; None is :func:`locomotion` with ``u`` and ``sigma``.
     """
     t = np.asarray(times_s, dtype=np.float64)
     p = np.asarray(positions, dtype=np.float64)
@@ -81,4 +87,6 @@ def locomotion_signal(times_s: np.ndarray, positions: np.ndarray, window_s: floa
     end = start + span
     dx = np.interp(end, t, p[:, 0]) - np.interp(start, t, p[:, 0])
     dy = np.interp(end, t, p[:, 1]) - np.interp(start, t, p[:, 1])
+    if label is not None:
+        return label(np.hypot(dx, dy), span)
     return locomotion(np.hypot(dx, dy), span, u=u, sigma=sigma)
