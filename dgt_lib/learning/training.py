@@ -175,10 +175,6 @@ def _predict_index(model: DGTNet, patches: np.ndarray, index: np.ndarray, batch_
     return out
 
 
-def _model_device(model: torch.nn.Module) -> torch.device:
-    return next(model.parameters()).device
-
-
 def predict(model: DGTNet, patches: np.ndarray, batch_size: int = 1024) -> np.ndarray:
     """Locomotion of every head for raw patches (N, 6, 22, 7) → (N, n_heads) float32 in [0, 1].
 
@@ -189,7 +185,7 @@ def predict(model: DGTNet, patches: np.ndarray, batch_size: int = 1024) -> np.nd
     if patches.ndim != 4 or patches.shape[1] != N_CHANNELS:
         raise ValueError(f"expected patches (N, {N_CHANNELS}, 22, 7), got {patches.shape}")
     return _predict_index(model, patches, np.arange(len(patches)), batch_size,
-                          _model_device(model))
+                          next(model.parameters()).device)
 
 
 def _head_columns(heads: Sequence[str], vehicle: np.ndarray) -> np.ndarray:
@@ -252,7 +248,8 @@ def evaluate(model: DGTNet, part: PatchDataset,
         index = np.flatnonzero(part.vehicle == VEHICLES.index(name))
         if len(index) == 0:
             continue
-        pred = _predict_index(model, part.patches, index, batch_size, _model_device(model))
+        device = next(model.parameters()).device
+        pred = _predict_index(model, part.patches, index, batch_size, device)
         out[name] = regression_metrics(pred[:, model.head_index(name)], part.labels[index])
     return out
 
@@ -353,8 +350,7 @@ class TrainingSet:
         return labels, torch.from_numpy(self.heads[idx]).to(device), weight
 
     def batches(self, order: np.ndarray, batch_size: int) -> list[np.ndarray]:
-        """``order`` cut into minibatches; a last batch of one sample is dropped (BatchNorm
-        needs ≥ 2)."""
+        """``order`` in minibatches; a last batch of one is dropped (BatchNorm needs ≥ 2)."""
         return [b for b in _index_batches(order, batch_size) if len(b) >= 2]
 
     def validation_loss(self, model: MultiHeadNet, device: torch.device) -> float:
@@ -371,14 +367,14 @@ class TrainingSet:
 def train_epoch(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: TrainingSet,
                 cfg: TrainConfig, rng: np.random.Generator, device: torch.device, *,
                 step: int = 0, total_steps: int = 1,
-                on_step: Callable[[int, float, float], None] | None = None) -> float:
+                on_step: Callable[[int, float, float], None] | None = None,
+                loss_fn: Callable[..., torch.Tensor] = masked_loss) -> float:
     """One epoch: the training samples in a random order, in minibatches; per batch the
-    masked loss (:func:`masked_loss`), its gradient, and one Adam step at the rate
-    :func:`learning_rate_at` gives optimiser step ``step`` of ``total_steps``.
-
-    With ``cfg.mirror_augment`` each patch is mirrored left ↔ right with probability ½
-    (a vehicle's locomotion does not care). ``on_step(i, loss, mean_so_far)`` after each
-    batch i. Returns the epoch's mean training loss.
+    masked loss ``loss_fn(pred, labels, head[, weight])`` (:func:`masked_loss`), its
+    gradient, and one Adam step at the rate :func:`learning_rate_at` gives optimiser step
+    ``step`` of ``total_steps``. With ``cfg.mirror_augment`` each patch is mirrored
+    left ↔ right with probability ½ (a vehicle's locomotion does not care).
+    ``on_step(i, loss, mean_so_far)`` after each batch i. Returns the epoch's mean loss.
     """
     model.train()
     order = rng.permutation(data.train_index)
@@ -388,7 +384,8 @@ def train_epoch(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: Tra
         if cfg.mirror_augment:
             flip = torch.from_numpy(rng.random(len(idx)) < 0.5).to(device)
             x = torch.where(flip[:, None, None, None], x.flip(-1), x)
-        loss = masked_loss(model(x), *data.targets(idx, device))
+        pred, (labels, heads, weight) = model(x), data.targets(idx, device)
+        loss = loss_fn(pred, labels, heads, *(() if weight is None else (weight,)))
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         for group in optimizer.param_groups:
