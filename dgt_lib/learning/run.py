@@ -16,6 +16,7 @@ import copy
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -81,35 +82,46 @@ class Snapshots:
                        f"the next run resumes after epoch {n}")
 
 
+@dataclass
 class RunHooks(FitHooks):
     """Progress bars, the caller's ``on_batch_end``, the best model's checkpoint and the
     snapshots, after each batch and epoch of :func:`fit`."""
 
-    def __init__(self, run: dict[str, Any], first_epoch: int, total: int) -> None:
-        self.run = run
-        self.epochs_bar = tqdm(desc=f"train {run['name']}", unit="epoch", initial=first_epoch,
-                               total=total, disable=not run["progress"])
-        self.batch_bar: Any = None
+    name: str
+    cfg: TrainConfig
+    seed: int
+    model: torch.nn.Module
+    optimizer: torch.optim.Optimizer
+    rng: np.random.Generator
+    progress: bool = True
+    on_batch_end: Callable[[int, int, float], None] | None = None
+    checkpoint_path: str | Path | None = None
+    snapshots: Snapshots | None = None
+    first_epoch: int = 0
+    batch_bar: Any = None
+
+    def __post_init__(self) -> None:
+        self.epochs_bar = tqdm(desc=f"train {self.name}", unit="epoch", initial=self.first_epoch,
+                               total=self.cfg.epochs, disable=not self.progress)
 
     def epoch_start(self, epoch: int, n_batches: int) -> None:
         self.batch_bar = tqdm(total=n_batches, desc=f"epoch {epoch}", unit="batch",
-                              leave=False, disable=not self.run["progress"])
+                              leave=False, disable=not self.progress)
 
     def step(self, epoch: int, i: int, loss: float, mean: float) -> None:
         self.batch_bar.update(1)
         self.batch_bar.set_postfix(loss=f"{mean:.4f}")
-        if self.run["on_batch_end"] is not None:
-            self.run["on_batch_end"](epoch, i, loss)
+        if self.on_batch_end is not None:
+            self.on_batch_end(epoch, i, loss)
 
     def epoch_end(self, state: FitState, improved: bool) -> None:
-        r = self.run
         self.batch_bar.close()
-        if improved and r["checkpoint_path"] is not None:  # the model holds the best weights
-            save_checkpoint(r["checkpoint_path"], TrainResult(
-                r["model"], copy.deepcopy(state.history), state.best_epoch, {}, False,
-                r["cfg"], r["seed"]))
-        if r["snapshots"] is not None:
-            r["snapshots"].maybe_save(state, r["model"], r["optimizer"], r["rng"])
+        if improved and self.checkpoint_path is not None:  # the model holds the best weights
+            save_checkpoint(self.checkpoint_path, TrainResult(
+                self.model, copy.deepcopy(state.history), state.best_epoch, {}, False, self.cfg,
+                self.seed))
+        if self.snapshots is not None:
+            self.snapshots.maybe_save(state, self.model, self.optimizer, self.rng)
         last = state.history[-1]
         self.epochs_bar.update(1)
         self.epochs_bar.set_postfix(train=f"{last['train_loss']:.4f}",
@@ -180,10 +192,9 @@ def train_network(
                                      data.train_index, data.val_index, snapshot_key)
         snapshots = Snapshots(snapshot_path, identity, snapshot_every_s, name)
         state = snapshots.resume(model, optimizer, rng)
-    run = {"name": name, "progress": progress, "on_batch_end": on_batch_end, "model": model,
-           "checkpoint_path": checkpoint_path, "cfg": cfg, "seed": seed, "rng": rng,
-           "optimizer": optimizer, "snapshots": snapshots}
-    hooks, interrupted = RunHooks(run, state.epoch, cfg.epochs), False
+    hooks = RunHooks(name, cfg, seed, model, optimizer, rng, progress, on_batch_end,
+                     checkpoint_path, snapshots, first_epoch=state.epoch)
+    interrupted = False
     try:
         fit(model, optimizer, data, cfg, rng, device, state, hooks)
     except KeyboardInterrupt:
