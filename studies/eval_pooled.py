@@ -2,7 +2,7 @@
 
 For each run seed: train :class:`~dgt_lib.beyond.pooled.PooledNet` with the profile's own
 training recipe (``profile.train``: epochs, batch size, learning rate, schedule, selection,
-mirror augmentation) through :func:`~dgt_lib.learning.training.train_model`, on the seed's
+mirror augmentation) through :func:`~dgt_lib.beyond.pooled.train_pooled`, on the seed's
 dataset with each patch re-cut with its context margin from the training world's BEV (same
 poses, labels and train/val/test split); then report
 
@@ -42,7 +42,7 @@ from dgt_lib.beyond.dense import directional_costmap_dense  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
-from dgt_lib.learning.training import evaluate, train_model  # noqa: E402
+from dgt_lib.learning.training import evaluate  # noqa: E402
 from dgt_lib.perception.dataset import TEST, TRAIN  # noqa: E402
 from dgt_lib.stages.collect import ensure_bev  # noqa: E402
 from dgt_lib.stages.dataset import ensure_dataset  # noqa: E402
@@ -69,7 +69,7 @@ def run_seed(prof, args) -> dict:
     else:
         model.set_normalization(crops.patches, np.flatnonzero(crops.split == TRAIN))
         t0 = time.perf_counter()
-        result = train_model(crops, prof.train, seed=prof.seed, model=model, progress=False)
+        result = pooled.train_pooled(model, crops, prof.train, seed=prof.seed, progress=False)
         train_s, history, metrics = time.perf_counter() - t0, result.history, result.metrics
         torch.save(model.state_dict(), model_path)
     model.eval()

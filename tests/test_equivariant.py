@@ -7,6 +7,7 @@ import torch
 from scipy import ndimage
 
 from dgt_lib.beyond import equivariant as eq
+from dgt_lib.beyond import group_conv as gc
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.mapping.costmap import directional_costmap_reference
 from dgt_lib.perception.dataset import PatchDataset
@@ -38,9 +39,9 @@ def small_net(seed=0, **kwargs):
 
 def test_filter_bank_is_closed_under_90_degrees():
     w = torch.randn(3, 2, 5, 5)
-    bank = eq.rotated_filter_bank(w, eq.rotation_matrix_45(5))
+    bank = gc.rotated_filter_bank(w, gc.rotation_matrix_45(5))
     for r in range(8):
-        assert torch.equal(bank[(r + 2) % 8], eq.rot90_world(bank[r])) or r >= 6
+        assert torch.equal(bank[(r + 2) % 8], gc.rot90_world(bank[r])) or r >= 6
 
 
 def test_rotating_the_map_by_90_degrees_shifts_the_headings_by_2_exactly():

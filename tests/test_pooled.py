@@ -9,7 +9,8 @@ from dgt_lib.beyond import pooled
 from dgt_lib.beyond.dense import directional_costmap_dense
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.learning.training import train_model
+from dgt_lib.learning.run import train_network
+from dgt_lib.learning.training import TrainingSet
 from dgt_lib.perception.dataset import TRAIN, PatchDataset
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS, extract_patches, rotate_map
 from tests.test_costmap import synthetic_bev
@@ -40,7 +41,7 @@ def test_dense_costmap_equals_running_every_window_on_its_own():
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
 def test_a_network_on_a_gpu_gives_the_costmap_it_gives_on_the_cpu():
-    """train_model leaves a PooledNet where it trained it: the map-level methods take numpy
+    """train_pooled leaves a PooledNet where it trained it: the map-level methods take numpy
     on the CPU and must run it there (up to TF32 rounding of the convolutions)."""
     bev, model = hilly_bev((41, 37)), small_net(seed=2)
     on_cpu = directional_costmap_dense(bev, model, 8, progress=False)
@@ -106,7 +107,7 @@ def test_altitude_does_not_matter_and_slopes_point_forward():
 
 def test_trained_like_dgtnet_it_learns_that_uphill_costs_more():
     """Labels from the forward grade only (uphill hard, downhill easy) on a wavy hill:
-    train_model with the PooledNet, then the dense costmap's uphill layer costs more."""
+    train_pooled (DGTNet's loop and recipe), then the dense costmap's uphill layer costs more."""
     grid = GridSpec((0.0, 0.0), 0.4, (60, 60))
     x, y = grid.cell_centers()
     bev = synthetic_bev((0.25 * x + 0.6 * np.sin(y / 3.0)).astype(np.float32))
@@ -123,7 +124,7 @@ def test_trained_like_dgtnet_it_learns_that_uphill_costs_more():
     model.set_normalization(ds.patches, np.flatnonzero(ds.split == TRAIN))
     cfg = TrainConfig(epochs=25, batch_size=32, learning_rate=3e-3, lr_schedule="cosine",
                       selection="last")
-    result = train_model(ds, cfg, vehicles=("jeep", "vw_van"), model=model, progress=False)
+    result = pooled.train_pooled(model, ds, cfg, progress=False)
     assert result.metrics["jeep"]["spearman"] > 0.9
     cost = directional_costmap_dense(bev, model, 8, progress=False)[0]
     centre = cost[:, 20:40, 20:40].mean(axis=(1, 2))
@@ -132,19 +133,16 @@ def test_trained_like_dgtnet_it_learns_that_uphill_costs_more():
     assert centre[0] - centre[4] > 0.5  # labels: 0.82 against 0.08
 
 
-def test_train_model_refuses_a_model_it_cannot_train_or_save(tmp_path):
+def test_train_network_refuses_a_model_whose_heads_are_not_the_vehicles():
     model = small_net()
     ds = PatchDataset(patches=np.zeros((6, 7, 22 + 2 * model.margin, 7 + 2 * model.margin),
                                        np.float32), observed=np.ones((6, 1), bool),
                       labels=np.full(6, 0.5, np.float32), vehicle=np.zeros(6, np.int8),
                       trajectory=np.arange(6, dtype=np.int32), pose=np.zeros((6, 3), np.float32),
                       split=np.int8([0, 0, 0, 1, 1, 2]))
+    cfg = TrainConfig(epochs=1, batch_size=2)
     with pytest.raises(ValueError, match="heads"):
-        train_model(ds, TrainConfig(epochs=1, batch_size=2), vehicles=("jeep",), model=model,
-                    progress=False)
-    with pytest.raises(ValueError, match="checkpoint_path"):
-        train_model(ds, TrainConfig(epochs=1, batch_size=2), vehicles=("jeep", "vw_van"),
-                    model=model, progress=False, checkpoint_path=tmp_path / "m.pt")
+        train_network(model, TrainingSet.select(ds, ("jeep",), cfg), cfg, progress=False)
     with pytest.raises(ValueError, match="crops"):
         model(torch.zeros(2, 6, 22, 7))
 

@@ -503,3 +503,42 @@ def test_recipe_fields_at_their_old_behaviour_keep_the_cached_models_valid():
     assert cosine["lr_schedule"] == "cosine"
     assert train_stage.train_key(replace(TINY, conv_taps="live"))["conv_taps"] == "live"
     assert artifacts.config_hash(cosine) != artifacts.config_hash(train_stage.train_key(TINY))
+
+
+@pytest.mark.parametrize(("stem", "name", "function"), [
+    ("03_multitask_training", "masked_loss", "my_masked_loss"),
+    ("04_directional_inference", "heading_bin", "heading_bin")])
+def test_the_notebooks_reference_solutions_are_right(stem, name, function):
+    import importlib.util
+    from pathlib import Path
+
+    from dgt_lib.exercises import RIGHT, grade
+
+    path = Path(__file__).parents[1] / "notebooks" / "solutions" / f"{stem}.py"
+    spec = importlib.util.spec_from_file_location(f"solution_{stem[:2]}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert grade(name, getattr(module, function)).status == RIGHT
+
+
+def test_train_epoch_trains_with_the_loss_it_is_given(dataset):
+    """train_epoch's loss_fn is what the gradient comes from: the library's masked loss and
+    an equal function give the same weights; a sum instead of the mean gives others."""
+    from dgt_lib.learning.training import TrainingSet, masked_loss, train_epoch
+
+    cfg = replace(TINY, epochs=1)
+    data = TrainingSet.select(dataset, None, cfg)
+
+    def one_epoch(loss_fn):
+        torch.manual_seed(0)
+        model = DGTNet(width=cfg.width, fc_hidden=cfg.fc_hidden)
+        adam = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate)
+        mean = train_epoch(model, adam, data, cfg, np.random.default_rng(0), CPU,
+                           loss_fn=loss_fn)
+        return mean, torch.cat([p.detach().flatten() for p in model.parameters()])
+
+    lib, same, summed = (one_epoch(f) for f in (
+        masked_loss, lambda p, y, h: ((p.gather(1, h[:, None])[:, 0] - y) ** 2).mean(),
+        lambda p, y, h: ((p.gather(1, h[:, None])[:, 0] - y) ** 2).sum()))
+    assert lib[0] == same[0] and torch.equal(lib[1], same[1])
+    assert not torch.equal(lib[1], summed[1])

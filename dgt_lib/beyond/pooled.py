@@ -1,4 +1,4 @@
-"""A window network built to be evaluated densely, exactly (issue 20, item 1).
+"""A window network built to be evaluated densely, exactly.
 
 The literal costmap runs the network once per 22 × 7 window, every window position, every
 heading. :mod:`dgt_lib.beyond.dense` shows that :class:`~dgt_lib.learning.model.DGTNet`
@@ -30,9 +30,10 @@ altitude-free and local. The other inputs are R, G, B, σ_H, ‖∇H̄‖ (norma
 observed mask itself, all 0 where unobserved, so off-map padding and unobserved cells are
 the same input.
 
-Training uses :func:`~dgt_lib.learning.training.train_model` unchanged (the same
-masked loss, recipe and mirror augmentation as DGTNet) on a dataset whose patches are the
-margin crops with the observed mask as a 7th channel (:func:`context_dataset`).
+Training (:func:`train_pooled`) runs the library's own loop,
+:func:`~dgt_lib.learning.run.train_network` around :func:`~dgt_lib.learning.training.fit`
+(the same masked loss, recipe and mirror augmentation as DGTNet), on a dataset whose patches
+are the margin crops with the observed mask as a 7th channel (:func:`context_dataset`).
 Measured against DGTNet by ``benchmarks/eval_pooled.py``; :func:`bfloat16_copy` trades
 exactness (mean |ΔC| < 10⁻³) for a ~5× faster trunk on CPUs with AMX
 (``benchmarks/bench_costmap.py --bf16``).
@@ -48,8 +49,11 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from dgt_lib.core.config import VEHICLES
+from dgt_lib.core.config import VEHICLES, TrainConfig
+from dgt_lib.learning.checkpoints import TrainResult
 from dgt_lib.learning.model import HEAD_PRIOR_CLIP, head_column
+from dgt_lib.learning.run import train_network
+from dgt_lib.learning.training import TrainingSet
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_RES, PATCH_ROWS, extract_patches
@@ -326,8 +330,20 @@ def context_crops(bev: BEVMap, poses: np.ndarray, margin: int) -> np.ndarray:
 def context_dataset(dataset: PatchDataset, bev: BEVMap, margin: int) -> PatchDataset:
     """The dataset with its patches replaced by :func:`context_crops` of its poses on the
     training world's ``bev`` (the map its patches were cut from): what
-    :func:`~dgt_lib.learning.training.train_model` trains a :class:`PooledNet` on."""
+    :func:`train_pooled` trains a :class:`PooledNet` on."""
     crops = context_crops(bev, dataset.pose.astype(np.float64), margin)
     arrays = dataset.to_arrays()
     arrays["patches"] = crops
     return PatchDataset.from_arrays(arrays)
+
+
+def train_pooled(model: PooledNet, crops: PatchDataset, cfg: TrainConfig, *, seed: int = 0,
+                 device: str | torch.device | None = None, progress: bool = True) -> TrainResult:
+    """Train ``model`` (its normalisation set, :meth:`PooledNet.set_normalization`) on the
+    context crops of its vehicles (:func:`context_dataset`) with DGTNet's recipe ``cfg``
+    (``profile.train``; ``width``, ``fc_hidden`` and ``conv_taps`` are DGTNet's and not
+    used): the masked loss and Adam of :func:`~dgt_lib.learning.training.fit`, the epoch
+    ``cfg.selection`` picks, test metrics in the result. ``seed``: batch order and mirror draws."""
+    data = TrainingSet.select(crops, model.vehicles, cfg)
+    torch.manual_seed(seed)
+    return train_network(model, data, cfg, seed=seed, device=device, progress=progress)

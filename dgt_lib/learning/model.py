@@ -101,10 +101,8 @@ class PatchConv2d(nn.Conv2d):
     On a 22 × 7 patch ResNet-18's maps shrink to 6×2, 3×1, 2×1 and 1×1, where most taps
     of a 3×3 kernel only ever meet the zero padding (on 1×1 maps all but the centre).
     With ``live_taps`` True the kernel is cropped to the taps that meet the input and the
-    padding shifted to match: the same function, computed with fewer multiplications
-    (a width-64 training step ~1.35× faster on two CPU cores,
-    ``benchmarks/bench_live_taps.py``), summed in another order, so the results differ
-    from the full kernel's in the last bits. Off by default.
+    padding shifted to match: the same function with fewer multiplications, summed in
+    another order (not bit-identical). Off by default; docs/training.md.
     """
 
     live_taps: bool = False
@@ -308,30 +306,10 @@ class DGTNet(nn.Module):
     def init_heads(self, mean_labels: Sequence[float], weight_scale: float = 0.1) -> None:
         """Start every head at its vehicle's prior: L̂_v = mean training label, flat in z.
 
-        For head v (a linear layer ``w_v · z + b_v`` before the sigmoid), with m_v its
-        vehicle's mean training label::
-
-            b_v ← logit(clip(m_v)) = log(m / (1 − m)),  m = clip(m_v, 0.01, 0.99)
-            w_v ← weight_scale · w_v                     (0.1: PyTorch's init shrunk ten-fold)
-
-        so at the first step L̂_v ≈ σ(b_v) = m_v for every patch (``HEAD_PRIOR_CLIP``).
-
-        Why: with PyTorch's default init every head starts at L̂ ≈ σ(0) = 0.5. On labels
-        that are almost all ≈ 1 (the jeep: 97 %) every sample's gradient then pushes the
-        logit up, coherently, and Adam moves *every* parameter by about the learning
-        rate per step whatever the gradient's size, so the logit rises by about
-        lr × Σ|∂logit/∂θ| per step, which grows with the network (measured at lr 1e-3:
-        ≈ 0.2 per step at width 8 / fc_hidden 64, which creeps up without collapsing;
-        ≈ 1 at width 16 / 256 and ≈ 1.8 at width 32 / 256, which collapse;
-        ``tests/test_head_collapse.py``). It overshoots logit(mean) within a few steps
-        and lands where the sigmoid's slope σ(1 − σ) ≈ e^−logit is tiny (logit 10 →
-        4.5e-5): the gradients shrink by orders of magnitude while Adam's second-moment
-        estimate still remembers the large early ones, so the steps vanish and the head
-        predicts a constant L̂ ≈ 1 (saturated).
-        Started at its prior, a head already predicts the mean, the label-mean part of
-        the gradient is ≈ 0, the slope σ(1 − σ) = m(1 − m) is not tiny (≥ 0.0099 after
-        the clip), and what is left to learn is the terrain-dependent part; the small
-        weights keep the first steps from moving L̂ far from the prior.
+        Head v (``w_v · z + b_v`` before the sigmoid) gets b_v ← logit(clip(m_v, 0.01, 0.99))
+        and w_v ← weight_scale · w_v, so at the first step L̂_v ≈ m_v for every patch: a
+        head on skewed labels (the jeep's: 97 % ≈ 1) then does not saturate early. Why and
+        what was measured: docs/training.md.
 
         Args:
             mean_labels: one mean locomotion label per head, in head order

@@ -1,10 +1,7 @@
 """Resuming an interrupted training: the state of
-:func:`~dgt_lib.learning.training.train_model` after a finished epoch.
-
-A `paper` multi-task model trains for ~15 minutes on two CPU cores (epochs of ~70 s).
-With a snapshot file (written after an epoch, at most once a minute by default), Ctrl-C or a
-crash costs at most the time since the last snapshot: the next call continues after the
-epoch it holds instead of starting over.
+:func:`~dgt_lib.learning.training.fit` after a finished epoch, saved and resumed by
+:func:`~dgt_lib.learning.run.train_network`. With a snapshot, Ctrl-C or a crash costs at
+most the time since it (docs/training.md).
 
 A snapshot holds everything the following epochs depend on — the weights and BatchNorm
 statistics, Adam's moments, the batch order's random generator (numpy) and torch's, the

@@ -1,14 +1,15 @@
-"""Multi-task training of :class:`~dgt_lib.learning.model.DGTNet`, its single-task
-variant, and metrics.
+"""Multi-task training of :class:`~dgt_lib.learning.model.DGTNet`: the masked loss, one
+epoch of Adam (:func:`train_epoch`), the epochs with model selection (:func:`fit`),
+prediction and metrics.
 
-Paper: Multi-Task Learning and Baselines (DGT-Map(ST)). The multi-task
-model is trained on every vehicle's patches at once with the masked loss
-(:func:`masked_loss`): a patch of vehicle v trains the shared backbone and head v
-only. The single-task variant is the same architecture with one head, trained on
-one vehicle's data. Plain shuffled minibatches over all training samples (the
-dataset's vehicle imbalance is kept, as in the paper). Ours, beyond the paper: each head
-starts at its vehicle's prior (``TrainConfig.head_init``), and the loss can weight rare
-labels up (``TrainConfig.label_weighting``, off by default).
+Paper: Multi-Task Learning and Baselines (DGT-Map(ST)). The multi-task model is trained on
+every vehicle's patches at once with the masked loss (:func:`masked_loss`): a patch of
+vehicle v trains the shared backbone and head v only. The single-task variant is the same
+architecture with one head, trained on one vehicle's data. Plain shuffled minibatches over
+all training samples (the dataset's vehicle imbalance is kept, as in the paper). Ours,
+beyond the paper: heads start at their vehicle's prior (``TrainConfig.head_init``), rare
+labels can weigh more (``TrainConfig.label_weighting``), a cosine learning rate and
+last-epoch selection (``lr_schedule``, ``selection``); why: docs/training.md.
 
 Typical use::
 
@@ -17,36 +18,29 @@ Typical use::
     # cached per profile and seed: dgt_lib.stages.train.ensure_model(profile, dataset, kind)
     L_hat = predict(result.model, patches)                            # (N, n_heads)
 
-Training keeps the weights of the epoch with the lowest validation loss
-(``TrainConfig.selection="best_val"``) or of the last epoch (``"last"``, with the cosine
-learning-rate schedule ``TrainConfig.lr_schedule="cosine"``); Ctrl-C
-(KeyboardInterrupt) stops it cleanly and returns (and, with ``checkpoint_path``,
-has saved) that model — or, with ``keep_best_on_interrupt=False`` (the cached
-pipeline), lets the interrupt through so that nothing half-trained is kept. With
-``snapshot_path`` the training is saved after an epoch (:mod:`dgt_lib.learning.resume`) and
-the next call resumes after it: an interrupt or a crash costs at most ~1 min and an epoch.
+The run around :func:`fit` (progress, checkpoints, snapshots and resume, Ctrl-C, test
+metrics) is :mod:`dgt_lib.learning.run`.
 """
 
 from __future__ import annotations
 
-import copy
 import math
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from dgt_lib.core.config import VEHICLES, TrainConfig
-from dgt_lib.learning.checkpoints import TrainResult, save_checkpoint
 from dgt_lib.learning.model import N_CHANNELS, DGTNet, centre_heights
-from dgt_lib.learning.resume import TrainingState, load_training_state, training_identity
-from dgt_lib.perception.dataset import TEST, TRAIN, VAL, PatchDataset
+from dgt_lib.perception.dataset import TRAIN, VAL, PatchDataset
 
+if TYPE_CHECKING:
+    from dgt_lib.learning.checkpoints import TrainResult
 
 def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor,
                 weight: torch.Tensor | None = None) -> torch.Tensor:
@@ -78,9 +72,8 @@ def label_weights(labels: np.ndarray, vehicle: np.ndarray, train_index: np.ndarr
                                                        training samples,
 
     with n_v the vehicle's training samples, n_{v,b} those in bin b and B_v its
-    non-empty bins: every occupied bin weighs about the same in the loss. A jeep whose
-    labels are 97 % ≈ 1 then learns from its few stalls instead of averaging them
-    away. Samples of bins with no training sample (validation, test) get the cap.
+    non-empty bins: every occupied bin weighs about the same in the loss
+    (docs/training.md). Samples of bins with no training sample get the cap.
     """
     labels = np.asarray(labels, np.float64)
     bins = np.clip((labels * n_bins).astype(np.int64), 0, n_bins - 1)
@@ -126,8 +119,7 @@ def learning_rate_at(cfg: TrainConfig, step: int, total_steps: int) -> float:
         η_t = η₀ · ½ (1 + cos(π t / T))
 
     from η₀ at the first step to ~0 at the last: late epochs take small steps, so the
-    weights settle instead of jumping between minibatch noise (at a constant 1e-3 the demo
-    validation loss moved by up to 10× from one epoch to the next)."""
+    weights settle instead of jumping between minibatch noise (docs/training.md)."""
     if cfg.lr_schedule == "constant":
         return cfg.learning_rate
     return cfg.learning_rate * 0.5 * (1.0 + math.cos(math.pi * step / max(total_steps, 1)))
@@ -183,10 +175,6 @@ def _predict_index(model: DGTNet, patches: np.ndarray, index: np.ndarray, batch_
     return out
 
 
-def _model_device(model: torch.nn.Module) -> torch.device:
-    return next(model.parameters()).device
-
-
 def predict(model: DGTNet, patches: np.ndarray, batch_size: int = 1024) -> np.ndarray:
     """Locomotion of every head for raw patches (N, 6, 22, 7) → (N, n_heads) float32 in [0, 1].
 
@@ -197,13 +185,13 @@ def predict(model: DGTNet, patches: np.ndarray, batch_size: int = 1024) -> np.nd
     if patches.ndim != 4 or patches.shape[1] != N_CHANNELS:
         raise ValueError(f"expected patches (N, {N_CHANNELS}, 22, 7), got {patches.shape}")
     return _predict_index(model, patches, np.arange(len(patches)), batch_size,
-                          _model_device(model))
+                          next(model.parameters()).device)
 
 
-def _head_columns(model: DGTNet, vehicle: np.ndarray) -> np.ndarray:
-    """Model output column of each sample's vehicle (-1 where the model has no head)."""
+def _head_columns(heads: Sequence[str], vehicle: np.ndarray) -> np.ndarray:
+    """Output column of each sample's vehicle among ``heads`` (-1 where there is none)."""
     lookup = np.full(len(VEHICLES), -1, dtype=np.int64)
-    for j, name in enumerate(model.vehicles):
+    for j, name in enumerate(heads):
         lookup[VEHICLES.index(name)] = j
     return lookup[vehicle.astype(np.int64)]
 
@@ -239,8 +227,7 @@ def collapsed_heads(metrics: dict[str, dict[str, float]]) -> list[str]:
     """The vehicles whose head predicts (nearly) the same L̂ for every test patch:
     std(L̂) < :data:`COLLAPSE_RATIO` × std(L).
 
-    That happens when a sigmoid head saturates early in training (e.g. on labels that
-    are almost all ≈ 1): the model then carries next to no terrain information.
+    That happens when a sigmoid head saturates early in training (docs/training.md).
     ``metrics`` as in :attr:`TrainResult.metrics`; checkpoints without ``pred_std``
     (made before it was recorded) never count.
     """
@@ -261,21 +248,10 @@ def evaluate(model: DGTNet, part: PatchDataset,
         index = np.flatnonzero(part.vehicle == VEHICLES.index(name))
         if len(index) == 0:
             continue
-        pred = _predict_index(model, part.patches, index, batch_size, _model_device(model))
+        device = next(model.parameters()).device
+        pred = _predict_index(model, part.patches, index, batch_size, device)
         out[name] = regression_metrics(pred[:, model.head_index(name)], part.labels[index])
     return out
-
-
-def _validation_loss(model: DGTNet, dataset: PatchDataset, index: np.ndarray,
-                     columns: np.ndarray, batch_size: int, device: torch.device,
-                     weights: np.ndarray | None = None) -> float:
-    """Mean :func:`masked_loss` over the samples ``index`` (eval mode, no gradient),
-    weighted like training when ``weights`` (N,) are given."""
-    pred = _predict_index(model, dataset.patches, index, batch_size, device)
-    w = None if weights is None else torch.from_numpy(weights[index]).double()
-    return masked_loss(torch.from_numpy(pred).double(),
-                       torch.from_numpy(dataset.labels[index]).double(),
-                       torch.from_numpy(columns[index]), w).item()
 
 
 def head_prior(dataset: PatchDataset, index: np.ndarray,
@@ -293,7 +269,9 @@ def head_prior(dataset: PatchDataset, index: np.ndarray,
             if np.any(vehicle == VEHICLES.index(v)) else overall for v in vehicles]
 
 
-def _stopped_early(cfg: TrainConfig, epoch: int, best_epoch: int) -> bool:
+
+
+def stopped_early(cfg: TrainConfig, epoch: int, best_epoch: int) -> bool:
     """Whether early stopping ends training after ``epoch``: ``cfg.patience`` epochs
     without a better validation loss than ``best_epoch``'s (``selection="best_val"``)."""
     return (cfg.selection == "best_val" and cfg.patience is not None
@@ -310,6 +288,181 @@ def _vehicle_tuple(vehicles: tuple[str, ...] | list[str] | str | None) -> tuple[
     return vehicles
 
 
+class MultiHeadNet(Protocol):
+    """What :func:`train_epoch`, :func:`fit` and :func:`~dgt_lib.learning.run.train_network`
+    train: a ``torch.nn.Module`` mapping a batch of patches (B, C, H, W) float32 to
+    L̂ (B, V) in [0, 1], column j for vehicle ``vehicles[j]``, with its input normalisation
+    set; ``init_heads`` starts each head at a mean label (``TrainConfig.head_init="prior"``).
+    :class:`DGTNet` is one."""
+
+    vehicles: tuple[str, ...]
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor: ...
+
+    def init_heads(self, mean_labels: Sequence[float], weight_scale: float = 0.1) -> None: ...
+
+
+@dataclass
+class TrainingSet:
+    """The samples one training reads: ``dataset`` with the training and validation
+    indices of ``vehicles``' samples, each sample's output column (``heads``, -1 for other
+    vehicles) and, with ``TrainConfig.label_weighting``, its loss weight w_P."""
+
+    dataset: PatchDataset
+    vehicles: tuple[str, ...]
+    chosen: np.ndarray  # (N,) bool: a sample of one of ``vehicles``
+    train_index: np.ndarray
+    val_index: np.ndarray
+    heads: np.ndarray  # (N,) int64
+    weights: np.ndarray | None = None
+
+    @classmethod
+    def select(cls, dataset: PatchDataset, vehicles: tuple[str, ...] | list[str] | str | None,
+               cfg: TrainConfig) -> TrainingSet:
+        """``vehicles``' samples of ``dataset`` (None: all four), checked: ≥ 2 training and
+        ≥ 1 validation samples, labels in [0, 1], ``cfg.epochs`` ≥ 1, ``cfg.batch_size`` ≥ 2."""
+        vehicles = _vehicle_tuple(vehicles)
+        if cfg.epochs < 1 or cfg.batch_size < 2:
+            raise ValueError(f"need epochs ≥ 1 and batch_size ≥ 2, got {cfg.epochs}, "
+                             f"{cfg.batch_size}")
+        chosen = np.isin(dataset.vehicle, [VEHICLES.index(v) for v in vehicles])
+        train_idx = np.flatnonzero(chosen & (dataset.split == TRAIN))
+        val_idx = np.flatnonzero(chosen & (dataset.split == VAL))
+        if len(train_idx) < 2 or len(val_idx) == 0:
+            raise ValueError(f"{vehicles}: need ≥ 2 training and ≥ 1 validation samples, "
+                             f"got {len(train_idx)} and {len(val_idx)}")
+        used = dataset.labels[np.concatenate([train_idx, val_idx])]
+        if not np.all((used >= 0) & (used <= 1)):  # also catches NaN
+            raise ValueError("labels must be locomotion values in [0, 1]; found "
+                             f"{np.sum(~((used >= 0) & (used <= 1)))} outside (or NaN)")
+        weights = None
+        if cfg.label_weighting == "inverse_frequency":
+            weights = label_weights(dataset.labels, dataset.vehicle, train_idx, cfg.label_bins,
+                                    cfg.max_label_weight)
+        return cls(dataset, vehicles, chosen, train_idx, val_idx,
+                   _head_columns(vehicles, dataset.vehicle), weights)
+
+    def targets(self, idx: np.ndarray, device: torch.device
+                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+        """Labels (B,) float32, output columns (B,) and weights (B,) or None of samples ``idx``."""
+        labels = torch.from_numpy(self.dataset.labels[idx].astype(np.float32)).to(device)
+        weight = None if self.weights is None else torch.from_numpy(self.weights[idx]).to(device)
+        return labels, torch.from_numpy(self.heads[idx]).to(device), weight
+
+    def batches(self, order: np.ndarray, batch_size: int) -> list[np.ndarray]:
+        """``order`` in minibatches; a last batch of one is dropped (BatchNorm needs ≥ 2)."""
+        return [b for b in _index_batches(order, batch_size) if len(b) >= 2]
+
+    def validation_loss(self, model: MultiHeadNet, device: torch.device) -> float:
+        """Mean :func:`masked_loss` over the validation samples (eval mode, no gradient),
+        weighted like training."""
+        index = self.val_index
+        pred = _predict_index(model, self.dataset.patches, index, 1024, device)
+        w = None if self.weights is None else torch.from_numpy(self.weights[index]).double()
+        return masked_loss(torch.from_numpy(pred).double(),
+                           torch.from_numpy(self.dataset.labels[index]).double(),
+                           torch.from_numpy(self.heads[index]), w).item()
+
+
+def train_epoch(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: TrainingSet,
+                cfg: TrainConfig, rng: np.random.Generator, device: torch.device, *,
+                step: int = 0, total_steps: int = 1,
+                on_step: Callable[[int, float, float], None] | None = None,
+                loss_fn: Callable[..., torch.Tensor] = masked_loss) -> float:
+    """One epoch: the training samples in a random order, in minibatches; per batch the
+    masked loss ``loss_fn(pred, labels, head[, weight])`` (:func:`masked_loss`), its
+    gradient, and one Adam step at the rate :func:`learning_rate_at` gives optimiser step
+    ``step`` of ``total_steps``. With ``cfg.mirror_augment`` each patch is mirrored
+    left ↔ right with probability ½ (a vehicle's locomotion does not care).
+    ``on_step(i, loss, mean_so_far)`` after each batch i. Returns the epoch's mean loss.
+    """
+    model.train()
+    order = rng.permutation(data.train_index)
+    total, seen = 0.0, 0
+    for i, idx in enumerate(data.batches(order, cfg.batch_size)):
+        x = batch_to_tensor(data.dataset.patches[idx], device)  # (B, C, H, W) float32
+        if cfg.mirror_augment:
+            flip = torch.from_numpy(rng.random(len(idx)) < 0.5).to(device)
+            x = torch.where(flip[:, None, None, None], x.flip(-1), x)
+        pred, (labels, heads, weight) = model(x), data.targets(idx, device)
+        loss = loss_fn(pred, labels, heads, *(() if weight is None else (weight,)))
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        for group in optimizer.param_groups:
+            group["lr"] = learning_rate_at(cfg, step, total_steps)
+        optimizer.step()
+        step += 1
+        value = loss.item()
+        total += value * len(idx)
+        seen += len(idx)
+        if on_step is not None:
+            on_step(i, value, total / seen)
+    return total / seen
+
+
+@dataclass
+class FitState:
+    """A training after its epoch ``epoch`` (0: none yet): the history, the best epoch so
+    far with its validation loss and weights (CPU), and the optimiser steps taken."""
+
+    epoch: int = 0
+    step_count: int = 0
+    history: list[dict[str, float]] = field(default_factory=list)
+    best_epoch: int = 0
+    best_val: float = math.inf
+    best_state: dict[str, torch.Tensor] | None = None
+
+
+class FitHooks:
+    """What :func:`fit` tells the run around it (:mod:`dgt_lib.learning.run`): progress,
+    checkpoints, snapshots. These do nothing."""
+
+    def epoch_start(self, epoch: int, n_batches: int) -> None:
+        """Epoch ``epoch`` (1-based) starts, with ``n_batches`` minibatches."""
+
+    def step(self, epoch: int, i: int, loss: float, mean: float) -> None:
+        """Batch ``i`` of ``epoch`` is done: its loss, the epoch's mean so far."""
+
+    def epoch_end(self, state: FitState, improved: bool) -> None:
+        """Epoch ``state.epoch`` is done; ``improved``: its weights are the best so far."""
+
+
+def fit(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: TrainingSet,
+        cfg: TrainConfig, rng: np.random.Generator, device: torch.device,
+        state: FitState | None = None, hooks: FitHooks | None = None) -> FitState:
+    """Train for ``cfg.epochs`` epochs (from after ``state.epoch``) with :func:`train_epoch`;
+    after each, the validation loss picks the weights to keep (``cfg.selection``:
+    ``"best_val"`` the lowest, ``"last"`` the last) and early stopping may end it
+    (``cfg.patience``). Returns ``state`` (updated in place: an interrupt leaves it at the
+    last finished epoch)."""
+    state = FitState() if state is None else state
+    hooks = FitHooks() if hooks is None else hooks
+    n_batches = len(data.batches(data.train_index, cfg.batch_size))
+    if state.epoch and stopped_early(cfg, state.epoch, state.best_epoch):
+        return state
+    for epoch in range(state.epoch + 1, cfg.epochs + 1):
+        t0 = time.perf_counter()
+        hooks.epoch_start(epoch, n_batches)
+        train_loss = train_epoch(model, optimizer, data, cfg, rng, device,
+                                 step=state.step_count, total_steps=cfg.epochs * n_batches,
+                                 on_step=lambda i, loss, mean, e=epoch: hooks.step(e, i, loss,
+                                                                                   mean))
+        val = data.validation_loss(model, device)
+        state.step_count += n_batches
+        state.epoch = epoch
+        state.history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val,
+                              "seconds": time.perf_counter() - t0})
+        improved = val < state.best_val or cfg.selection == "last"
+        if improved:
+            state.best_val, state.best_epoch = val, epoch
+            state.best_state = {k: v.detach().to("cpu", copy=True)
+                                for k, v in model.state_dict().items()}
+        hooks.epoch_end(state, improved)
+        if stopped_early(cfg, epoch, state.best_epoch):
+            break
+    return state
+
+
 def train_model(
     dataset: PatchDataset,
     cfg: TrainConfig,
@@ -319,206 +472,25 @@ def train_model(
     device: str | torch.device | None = None,
     progress: bool = True,
     rgb_weights: str | Path | None = None,
-    checkpoint_path: str | Path | None = None,
-    on_batch_end: Callable[[int, int, float], None] | None = None,
-    keep_best_on_interrupt: bool = True,
-    model: torch.nn.Module | None = None,
-    snapshot_path: str | Path | None = None,
-    snapshot_key: Any = None,
-    snapshot_every_s: float = 60.0,
+    **run: Any,
 ) -> TrainResult:
-    """Train a DGTNet with Adam and the masked loss; keep the epoch ``cfg.selection`` picks.
+    """Train a new :class:`DGTNet` on ``dataset`` with Adam and the masked loss (:func:`fit`
+    inside :func:`~dgt_lib.learning.run.train_network`); keep the epoch ``cfg.selection``
+    picks. Returns its :class:`TrainResult` (test-split metrics per vehicle).
 
-    Args:
-        dataset: all patches with their ``split``; only TRAIN updates weights, VAL
-            picks the best epoch, TEST gives ``TrainResult.metrics``.
-        cfg: epochs, batch size, learning rate, width … (``profile.train``);
-            ``head_init="prior"`` starts each head at logit(its vehicle's mean training
-            label) with its weights × 0.1 (:meth:`DGTNet.init_heads`, :func:`head_prior`),
-            ``"default"`` keeps PyTorch's init (can saturate on skewed labels).
-        vehicles: None = multi-task on every vehicle (one head each); a tuple of
-            names (e.g. ``("vw_van",)``) trains only on those vehicles' samples
-            with one head each (the single-task variant).
-        seed: seeds weight initialisation and batch order; same seed, same result
-            on the CPU with the same thread count (on a GPU, cuDNN's kernels vary
-            slightly from run to run).
-        device: default: a CUDA GPU when present, else the CPU.
-        progress: tqdm bars with the live loss.
-        rgb_weights: torchvision ImageNet ResNet-18 file for the RGB branch (width 64).
-        checkpoint_path: if given, the best model so far is saved there (atomically,
-            :func:`save_checkpoint`) each time the validation loss improves.
-        on_batch_end: called as ``on_batch_end(epoch, step, loss)`` after every step.
-        keep_best_on_interrupt: what Ctrl-C (KeyboardInterrupt) does. True: training
-            ends after the last finished epoch and the result holds the best weights so
-            far with ``interrupted=True`` (an interrupt before the first epoch finishes
-            has nothing to keep and is re-raised). False: the interrupt is re-raised at
-            once (the caller stops; nothing is evaluated or saved).
-        model: a network to train in place of a new DGTNet (e.g.
-            :class:`~dgt_lib.beyond.pooled.PooledNet`): it must take batches of
-            ``dataset.patches``, have one head per name of ``vehicles`` and its input
-            normalisation already set; ``width``, ``fc_hidden`` and ``rgb_weights`` are then
-            not used.
-        snapshot_path: if given, the training's state after a finished epoch is saved
-            there (``.pt``, atomically; :class:`~dgt_lib.learning.resume.TrainingState`)
-            whenever ``snapshot_every_s`` have passed since the last one, and a snapshot
-            found there of this same training (settings, vehicles, seed,
-            network, data and ``snapshot_key``) is resumed: the epochs after it run, and the
-            result equals that of a training never stopped (on the CPU, bit for bit; on a GPU
-            two trainings never stopped differ already). A snapshot of another training
-            is overwritten. The file stays when training ends (the caller deletes it once
-            the result is stored: :func:`~dgt_lib.stages.train.ensure_model` does).
-        snapshot_key: anything else that makes this training what it is for the snapshot
-            (e.g. the model cache's configuration); JSON-able.
-        snapshot_every_s: the least wall time between two snapshots [s] (0: after every
-            epoch). A width-64 snapshot is 270–360 MB and takes 0.4–1.5 s to write; the default
-            keeps that within training's run-to-run spread (``benchmarks/bench_resume.py``)
-            and an interrupt costs at most a minute plus the epoch in progress.
+    vehicles: None = multi-task on every vehicle (one head each); a tuple of names (e.g.
+    ``("vw_van",)``) trains on those vehicles' samples only (single-task). seed: weight
+    initialisation and batch order (same seed, same weights on the CPU with the same
+    thread count). rgb_weights: torchvision's ImageNet ResNet-18 file for the RGB branch
+    (width 64). ``run``: the run's bookkeeping (checkpoint, snapshots and resume, Ctrl-C,
+    live callback), as :func:`~dgt_lib.learning.run.train_network` takes it.
     """
-    vehicles = _vehicle_tuple(vehicles)
-    if cfg.epochs < 1 or cfg.batch_size < 2:
-        raise ValueError(f"need epochs ≥ 1 and batch_size ≥ 2, got {cfg.epochs}, {cfg.batch_size}")
-    chosen = np.isin(dataset.vehicle, [VEHICLES.index(v) for v in vehicles])
-    train_idx = np.flatnonzero(chosen & (dataset.split == TRAIN))
-    val_idx = np.flatnonzero(chosen & (dataset.split == VAL))
-    if len(train_idx) < 2 or len(val_idx) == 0:
-        raise ValueError(f"{vehicles}: need ≥ 2 training and ≥ 1 validation samples, "
-                         f"got {len(train_idx)} and {len(val_idx)}")
-    used = dataset.labels[np.concatenate([train_idx, val_idx])]
-    if not np.all((used >= 0) & (used <= 1)):  # also catches NaN
-        raise ValueError("labels must be locomotion values in [0, 1]; found "
-                         f"{np.sum(~((used >= 0) & (used <= 1)))} outside (or NaN)")
+    from dgt_lib.learning.run import train_network  # the run around fit; imports this module
+
+    data = TrainingSet.select(dataset, vehicles, cfg)
     device = resolve_device(device)
     torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    if model is not None and checkpoint_path is not None:
-        raise ValueError("checkpoint_path saves DGTNet checkpoints; save another model yourself")
-    if model is None:
-        model = DGTNet(vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
-                       rgb_weights=rgb_weights)
-        model.set_normalization(*channel_statistics(dataset.patches, train_idx))
-    elif tuple(model.vehicles) != vehicles:
-        raise ValueError(f"the model's heads {model.vehicles} are not the vehicles {vehicles}")
-    if cfg.head_init == "prior":
-        model.init_heads(head_prior(dataset, train_idx, vehicles))
-    live_taps = cfg.conv_taps == "live" and isinstance(model, DGTNet)
-    if live_taps:
-        model.use_live_taps()
-    model.to(device)
-    columns = _head_columns(model, dataset.vehicle)  # (N,) model column per sample
-    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate,
-                                 weight_decay=cfg.weight_decay)
-    labels = torch.from_numpy(dataset.labels.astype(np.float32))
-    heads = torch.from_numpy(columns)
-    weights = None
-    if cfg.label_weighting == "inverse_frequency":
-        weights = label_weights(dataset.labels, dataset.vehicle, train_idx, cfg.label_bins,
-                                cfg.max_label_weight)
-    sample_w = None if weights is None else torch.from_numpy(weights)
-
-    history: list[dict[str, float]] = []
-    best_state: dict[str, torch.Tensor] | None = None
-    best_epoch, best_val, interrupted = 0, float("inf"), False
-    name = "multi-task" if len(vehicles) > 1 else f"single-task {vehicles[0]}"
-    steps_per_epoch = sum(len(b) >= 2 for b in _index_batches(train_idx, cfg.batch_size))
-    total_steps, step_count, first_epoch = cfg.epochs * steps_per_epoch, 0, 1
-    identity, saved_epoch = None, 0  # saved_epoch: the last epoch in the snapshot file
-    last_snapshot = time.perf_counter()
-    if snapshot_path is not None:
-        identity = training_identity(cfg, vehicles, seed, model, dataset.patches,
-                                     dataset.labels, train_idx, val_idx, snapshot_key)
-        state, why = load_training_state(snapshot_path, identity)
-        if state is not None:
-            best_state = state.restore(model, optimizer, rng)
-            history, step_count = state.history, state.step_count
-            best_epoch, best_val = state.best_epoch, state.best_val
-            saved_epoch = state.epoch
-            first_epoch = (cfg.epochs + 1 if _stopped_early(cfg, saved_epoch, best_epoch)
-                           else saved_epoch + 1)
-            tqdm.write(f"[dgt] {name}: resuming after epoch {state.epoch} ({snapshot_path})")
-        elif why != "missing":
-            tqdm.write(f"[dgt] {name}: not resuming the snapshot {snapshot_path}, {why}; "
-                       "training from the start")
-    epochs_bar = tqdm(range(first_epoch, cfg.epochs + 1), desc=f"train {name}", unit="epoch",
-                      initial=first_epoch - 1, total=cfg.epochs, disable=not progress)
-    batch_bar = None
-    try:
-        for epoch in epochs_bar:
-            t0 = time.perf_counter()
-            model.train()
-            order = rng.permutation(train_idx)
-            batches = [b for b in _index_batches(order, cfg.batch_size) if len(b) >= 2]
-            total, seen = 0.0, 0  # BatchNorm needs ≥ 2 samples: a last batch of 1 is skipped
-            batch_bar = tqdm(batches, desc=f"epoch {epoch}", unit="batch", leave=False,
-                             disable=not progress)
-            for step, idx in enumerate(batch_bar):
-                x = batch_to_tensor(dataset.patches[idx], device)  # (B, 6, 22, 7) float32
-                if cfg.mirror_augment:  # left ↔ right: a vehicle's locomotion does not care
-                    flip = torch.from_numpy(rng.random(len(idx)) < 0.5).to(device)
-                    x = torch.where(flip[:, None, None, None], x.flip(-1), x)
-                loss = masked_loss(model(x), labels[idx].to(device), heads[idx].to(device),
-                                   None if sample_w is None else sample_w[idx].to(device))
-                optimizer.zero_grad(set_to_none=True)
-                loss.backward()
-                for group in optimizer.param_groups:
-                    group["lr"] = learning_rate_at(cfg, step_count, total_steps)
-                optimizer.step()
-                step_count += 1
-                value = loss.item()
-                total += value * len(idx)
-                seen += len(idx)
-                batch_bar.set_postfix(loss=f"{total / seen:.4f}")
-                if on_batch_end is not None:
-                    on_batch_end(epoch, step, value)
-            batch_bar.close()
-            val = _validation_loss(model, dataset, val_idx, columns, 1024, device, weights)
-            history.append({"epoch": epoch, "train_loss": total / seen, "val_loss": val,
-                            "seconds": time.perf_counter() - t0})
-            if val < best_val or cfg.selection == "last":
-                best_val, best_epoch = val, epoch
-                best_state = {k: v.detach().to("cpu", copy=True)
-                              for k, v in model.state_dict().items()}
-                if checkpoint_path is not None:  # the model holds the best weights right now
-                    save_checkpoint(checkpoint_path, TrainResult(
-                        model, copy.deepcopy(history), best_epoch, {}, False, cfg, seed))
-            if (snapshot_path is not None
-                    and time.perf_counter() - last_snapshot >= snapshot_every_s):
-                TrainingState.capture(identity, epoch, step_count, model, optimizer, rng,
-                                      history, best_epoch, best_val, best_state
-                                      ).save(snapshot_path)
-                saved_epoch, last_snapshot = epoch, time.perf_counter()
-            epochs_bar.set_postfix(train=f"{total / seen:.4f}", val=f"{val:.4f}",
-                                   best=best_epoch)
-            if _stopped_early(cfg, epoch, best_epoch):
-                break
-    except KeyboardInterrupt:
-        if saved_epoch:
-            epochs = "epoch 1 is" if saved_epoch == 1 else f"epochs 1–{saved_epoch} are"
-            tqdm.write(f"[dgt] {name}: {epochs} saved in {snapshot_path}; "
-                       f"the next run resumes after epoch {saved_epoch}")
-        if best_state is None or not keep_best_on_interrupt:
-            raise
-        interrupted = True
-        tqdm.write(f"[dgt] training interrupted: keeping epoch {best_epoch} "
-                   f"(val loss {best_val:.4f})")
-    finally:
-        if batch_bar is not None:
-            batch_bar.close()
-        epochs_bar.close()
-        if live_taps:
-            model.use_live_taps(False)  # the trained network evaluates with its full kernels
-    if best_state is None:
-        raise RuntimeError(f"training {name} diverged: validation loss "
-                           f"{[h['val_loss'] for h in history]}; try a lower learning rate")
-    model.load_state_dict(best_state)
-    model.eval()
-    metrics = evaluate(model, dataset.subset(chosen & (dataset.split == TEST)))
-    for v in collapsed_heads(metrics):
-        m = metrics[v]
-        warnings.warn(f"{name}: the {v} head predicts a near-constant L̂ on the test set "
-                      f"(std {m['pred_std']:.1e} against the labels' {m['label_std']:.2f}): "
-                      "it learned next to nothing (too few epochs, or a saturated sigmoid)",
-                      stacklevel=2)
-    result = TrainResult(model, history, best_epoch, metrics, interrupted, cfg, seed)
-    if checkpoint_path is not None:
-        save_checkpoint(checkpoint_path, result)
-    return result
+    model = DGTNet(data.vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
+                   rgb_weights=rgb_weights)
+    model.set_normalization(*channel_statistics(dataset.patches, data.train_index))
+    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)
