@@ -165,3 +165,33 @@ def test_no_module_over_500_lines():
     long = [f"{name} ({n})" for name, path in _modules().items()
             if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES]
     assert long == []
+
+
+def _code_size():
+    import importlib.util
+
+    path = PACKAGE.parent / "benchmarks" / "code_size.py"
+    spec = importlib.util.spec_from_file_location("code_size", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_code_lines_leave_out_docstrings_comments_and_blank_lines():
+    source = ('"""Module docstring,\non two lines."""\n\nimport os  # a comment\n\n'
+              'def f(x):\n    """Docstring."""\n    # a comment\n    s = """a\nstring"""\n'
+              '    return x\n')
+    assert _code_size().code_lines(source) == 5  # import, def, s = (two lines), return
+
+
+def test_the_paper_path_is_counted_and_does_not_reach_beyond():
+    """Notebooks 01–09 and every module they reach (any import) stay clear of ``beyond``."""
+    code_size = _code_size()
+    notebooks = sorted(p for p in (PACKAGE.parent / "notebooks").glob("*.ipynb")
+                       if p.name.startswith(code_size.PAPER_NOTEBOOKS))
+    reached, beyond = code_size.paper_path(PACKAGE, notebooks)
+    assert len(notebooks) == 9 and beyond == set()
+    assert {"dgt_lib.stages.costmaps", "dgt_lib.navigation.planner.search",
+            "dgt_lib.core.config"} <= reached
+    counts = code_size.sizes(PACKAGE, reached)
+    assert "beyond" not in counts and sum(counts.values()) > 5000

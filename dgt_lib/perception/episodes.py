@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, CollectConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.perception.bev import BEVAccumulator, bev_grid
 from dgt_lib.world.rendering import onboard_camera_pose, simulator, terrain_renderer
 from dgt_lib.world.simulator import CONTROL_DT_S, VehicleState
@@ -234,6 +234,15 @@ def episode_seed(profile_seed: int, vehicle: str, index: int) -> int:
     return int(ss.generate_state(1)[0])
 
 
+def _random_steer(st: VehicleState, ou: OUSteering, world: World, trees: np.ndarray,
+                  spec: VehicleSpec, cfg: CollectConfig) -> float:
+    """The collection's steering: OU noise, turned home near the world's edge and away
+    from trees ahead."""
+    x, y = st.position[0], st.position[1]
+    s = _homing(ou(CONTROL_DT_S), x, y, st.yaw, world.grid, cfg.edge_margin_m)
+    return _avoid_trees(s, x, y, st.yaw, trees, 0.5 * spec.width_m, cfg.tree_lookahead_m)
+
+
 def run_episode(
     world: World,
     vehicle: str,
@@ -246,19 +255,11 @@ def run_episode(
     render: bool = True,
     stop: Callable[[VehicleState], bool] | None = None,
 ) -> Episode:
-    """Drive one episode and record it (see the module docstring).
-
-    world: usually the training world. seed: spawn pose and steering noise.
-    start_pose: (3,) x, y, yaw to use instead of a random :func:`spawn_pose`.
-    steer: optional policy ``state -> steer ∈ [−1, 1]`` replacing the OU steering.
-    render: render an onboard frame every ``frame_spacing_m`` driven (and at the start)
-    into the episode's BEV; a stalled vehicle renders nothing new.
-    stop: optional condition ``state -> bool`` that ends the episode (reason
-    ``"stopped"``) once it holds, checked after the simulator's and the duration's ends
-    (the ground-truth drives of :mod:`dgt_lib.evaluation.ground_truth` stop a few metres
-    past their cell; collection never sets it).
-    Deterministic in ``seed`` (the simulator is bitwise repeatable).
-    """
+    """Drive one episode and record it (see the module docstring); deterministic in
+    ``seed`` (spawn pose, steering noise). ``start_pose`` (x, y, yaw) replaces the random
+    spawn, ``steer(state) -> [−1, 1]`` the OU steering; ``render`` adds an onboard frame
+    every ``frame_spacing_m`` driven to the episode's BEV; ``stop(state)`` ends it early
+    (reason ``"stopped"``: the ground-truth drives stop a few metres past their cell)."""
     cfg = config or CollectConfig()
     spec = get_vehicle(vehicle)
     rng = np.random.default_rng(seed)
@@ -310,26 +311,28 @@ def run_episode(
             segment_start, last_xy = st.position[:2].copy(), st.position[:2].copy()
             ou.value = 0.0
             continue
-        if steer is not None:
-            s = steer(st)
-        else:
-            x, y = st.position[0], st.position[1]
-            s = _homing(ou(CONTROL_DT_S), x, y, st.yaw, world.grid, cfg.edge_margin_m)
-            s = _avoid_trees(s, x, y, st.yaw, trees, 0.5 * spec.width_m, cfg.tree_lookahead_m)
+        s = steer(st) if steer is not None else _random_steer(st, ou, world, trees, spec, cfg)
         st = sim.step(speed_cmd_mps=cfg.speed_mps, steer=s)
     rows = rows[:n]
     if reason == "diverged":  # the simulator repeats the last good state: drop it
         rows = rows[:-1] if n > 1 else rows
+    return _episode(rows, spec.name, index, seed, reason, cfg, n_frames,
+                    acc.to_sparse() if render else None)
+
+
+def _episode(rows: np.ndarray, vehicle: str, index: int, seed: int, reason: str,
+             cfg: CollectConfig, n_frames: int, bev: dict[str, np.ndarray] | None) -> Episode:
+    """The :class:`Episode` of a drive's rows (t, x, y, yaw, z, speed, |ω| [°/s],
+    segment), with the rows whose time does not increase dropped."""
     keep = np.concatenate([[True], np.diff(rows[:, 0]) > 0])  # strictly increasing time
     rows = rows[keep]
     return Episode(
-        vehicle=spec.name, index=int(index), seed=int(seed),
+        vehicle=vehicle, index=int(index), seed=int(seed),
         time_s=rows[:, 0].astype(np.float32), pose=rows[:, 1:4].astype(np.float32),
         z=rows[:, 4].astype(np.float32), speed_mps=rows[:, 5].astype(np.float32),
         angular_rate_dps=rows[:, 6].astype(np.float32),
         valid=rows[:, 6] <= cfg.max_angular_rate_dps, end_reason=reason,
-        n_frames=n_frames, bev=acc.to_sparse() if render else None,
-        segment=rows[:, 7].astype(np.int16),
+        n_frames=n_frames, bev=bev, segment=rows[:, 7].astype(np.int16),
     )
 
 

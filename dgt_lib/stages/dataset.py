@@ -14,8 +14,8 @@ from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.dataset import PatchDataset, build_dataset, dataset_summary
 from dgt_lib.perception.locomotion import WINDOW_S
 from dgt_lib.stages.collect import collect_episodes, ensure_bev
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
-from dgt_lib.stages.registry import StageOutput
 
 DATASET_RELPATH = "dataset.npz"
 """The dataset artifact under the profile's data directory."""
