@@ -369,7 +369,7 @@ def _demo() -> Profile:
         # queries in 0.01–0.07 s median (docs/speed.md → Hybrid A*); weighting is no longer needed.
         planner=PlannerConfig(heuristic_weight=1.0),
         # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives, once for all three
-        # seeds: 39 s on 2 otherwise idle cores (a fresh clone's `make reproduce`, 9c7b4c7).
+        # seeds: 39 s on 2 otherwise idle cores (a fresh clone's `make reproduce`).
         ground_truth=GroundTruthConfig(cells=48),
     )
 

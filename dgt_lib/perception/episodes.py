@@ -1,38 +1,14 @@
 """Self-supervised data collection: one driving episode of one vehicle
 (paper: Methodology → Data Collection).
 
-A vehicle spawns at a random free pose (:func:`spawn_pose`: not in a tree, not near the
-map edge, not on steep ground), drives forward at u = 5 m/s under the simulator's PID
-speed controller with smooth random steering — an Ornstein–Uhlenbeck process
-(:class:`OUSteering`), turned back toward the map centre near the edge and around tree
-trunks ahead (ours: random driving hits a trunk every few hundred metres on our maps,
-which would end most runs for every vehicle alike; the paper's jeep ran nearly full
-100 s runs, ≈ 75 patches each) — and ends after ``episode_duration_s`` (paper: 100 s)
-or at a simulator end (``flipped``, ``off_map``, ``diverged``).
-
-**Stalls.** Immobilized for ``immobilized_limit_s`` (the simulator's immobility clock;
-ours: 5 s, shorter than the 10 s of the evaluation, so a stall still gives ~4 patches),
-the paper's run ends. Optionally (ours, off by default), with
-``turn_around_after_stall``, the vehicle is put back where it stopped facing the other
-way and drives on, in a new
-*segment* of the same episode (labels and patches never span two segments); the episode
-ends ``immobilized`` only when a segment stalls less than ``turn_around_min_m`` from
-where it began (stuck both ways). Why: a weak vehicle's runs end at the first slope it
-cannot climb, so its data are stalls uphill and hardly any descents — on the demo
-training world carla_cola had 9 patches more than 10° downhill against 255 uphill, and
-its head could not learn that it descends what it cannot climb (the directional claim
-of Experiment 1). Turning around descends the slope it stalled on — but a truck stalls
-near the foot of a steep slope, so this doubles its data without adding steep descents
-(measured: ``CollectConfig.turn_around_after_stall``); hence off by default.
-
-The pose is recorded at the 25 Hz control rate; an onboard RGB-D frame is rendered
-every 5 m driven (about once a second at u; rendering dominates the cost, and a stalled
-vehicle would only render the same view again) on a tile of the map around the camera
-(:class:`~dgt_lib.world.rendering.TerrainRenderer`), and accumulated up to 20 m depth
-into a per-episode :class:`~dgt_lib.perception.bev.BEVAccumulator`, stored sparsely.
-Samples with an angular rate above 100°/s are simulator glitches (paper:
-pre-filtering): no frame is rendered there and the dataset cuts no patch whose label
-window touches one. Caching and parallel runs are :mod:`dgt_lib.stages.collect`'s job.
+A vehicle spawns at a random free pose (:func:`spawn_pose`), drives forward at u = 5 m/s
+under the simulator's PID speed controller with smooth random steering (an
+Ornstein–Uhlenbeck process, :class:`OUSteering`, turned home near the map edge and around
+trunks ahead), and ends after ``episode_duration_s`` (paper: 100 s), when immobilized, or
+at a simulator end. The pose is recorded at 25 Hz; an onboard RGB-D frame every 5 m
+driven is accumulated into the episode's BEV; samples above 100°/s are simulator
+glitches (paper: pre-filtering). Stalls, turn-arounds and why: docs/stages.md →
+Collection. Caching and parallel runs are :mod:`dgt_lib.stages.collect`'s job.
 """
 
 from __future__ import annotations

@@ -63,7 +63,7 @@ def dataset_digest(profile: Profile | str | None = None, *, executor: Executor |
     prof = as_profile(profile)
     bev = ensure_bev("training", prof, executor=executor, progress=progress)
     digest = artifacts.fresh_fingerprint(DATASET_RELPATH, _dataset_config(prof, bev),
-                                         artifacts.config_hash, profile=cache_dir(prof))
+                                         profile=cache_dir(prof))
     return digest or dataset_fingerprint(ensure_dataset(prof, executor=executor,
                                                         progress=progress))
 
