@@ -9,8 +9,8 @@ import dgt_lib
 PACKAGE = Path(dgt_lib.__file__).parent
 LAYERS = ("core", "world", "perception", "learning", "mapping", "navigation", "beyond",
           "evaluation", "stages")
-"""Sub-packages in pipeline order; modules at the top level (viz, rr, report, cli, query)
-sit above them all. ``beyond`` holds what goes beyond the paper."""
+"""Sub-packages in pipeline order; modules at the top level (viz, recording, report,
+plan_one, cli, exercises) sit above them all. ``beyond`` holds what goes beyond the paper."""
 
 
 def _layer(module: str) -> int:
