@@ -151,7 +151,11 @@ def _reproduce(args: argparse.Namespace) -> int:
             for run, stage in bar:
                 tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
                 started, load, t0 = time.time(), machine_load(), time.perf_counter()
-                result = stage.load()(run)
+                result = stage.run(run)
+                if stage.report:  # figures, tables and recordings: the top level's
+                    from dgt_lib.report import report_stage
+
+                    result = report_stage(stage.name, run, result)
                 seconds = time.perf_counter() - t0
                 record_stage_time(run, stage.name, seconds, run=invocation,
                                   started_unix_s=started, load_before=load)

@@ -1,4 +1,5 @@
-"""rerun logging: the one module that owns entity paths and blueprints.
+"""rerun logging: the writer of every ``.rrd`` recording (entity paths and blueprints:
+:mod:`dgt_lib.recording_layout`).
 
 Library stages never import rerun; notebooks and experiment runners hand their
 arrays to a :class:`Recording`, which writes a ``.rrd`` file that opens in the
@@ -36,42 +37,39 @@ import os
 import re
 import subprocess
 import sys
-from collections.abc import Iterable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import rerun as rr
-import rerun.blueprint as rrb
 from matplotlib import colormaps
 
 from dgt_lib.core.config import Profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.paper import PAPER
-from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED
 from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.recording_layout import (
+    BEV,
+    BEV_NAMES,
+    BEV_TITLES,
+    COSTMAPS,
+    FRAMES,
+    NOTES,
+    OCCUPANCY,
+    PATHS,
+    PLOTS,
+    TERRAIN,
+    VEHICLES,
+    WORLD,
+    Layout,
+)
 from dgt_lib.world.worlds import World
 
-if TYPE_CHECKING:  # annotations only: importing them pulls in MPPI and the trials (~0.7 s)
-    from dgt_lib.beyond.explore import ExploreResult
+if TYPE_CHECKING:  # an annotation only: importing it pulls in MPPI and the trials (~0.7 s)
     from dgt_lib.evaluation.experiments import ExperimentResult
 
-WORLD = "world"
-TERRAIN = "world/terrain"
-FRAMES = "world/frames"
-PATHS = "world/paths"
-VEHICLES = "world/vehicle"
-COSTMAPS = "world/costmap"
-BEV = "maps/bev"
-OCCUPANCY = "maps/occupancy"
-PLOTS = "plots"
-NOTES = "notes"
-
-BEV_NAMES = ("rgb", "height", "std", "gradient")
-BEV_TITLES = {"height": "H̄ [m]", "std": "σ_H [m]", "gradient": "‖∇H̄‖"}
 COSTMAP_ABOVE_TERRAIN_M = 1.0
 """Costmap layers lie flat this far above the highest terrain point, over the terrain."""
 TRIAL_GAP_S = 1.0
@@ -141,91 +139,6 @@ def motion_yaw(xy: np.ndarray) -> np.ndarray:
     latest = np.maximum.accumulate(np.where(is_move, index, -1))  # latest move at or before
     yaw = heading[np.where(latest >= 0, latest, np.argmax(is_move))]
     return np.append(yaw, yaw[-1])
-
-
-# -- blueprints ------------------------------------------------------------
-@dataclass(frozen=True)
-class ViewSpec:
-    """One view of a blueprint: its kind, origin and contents (rerun query expressions)."""
-
-    kind: type
-    origin: str
-    name: str
-    contents: tuple[str, ...] = ("$origin/**",)
-    hidden: tuple[str, ...] = ()  # entities drawn only when switched on in the blueprint panel
-
-    def view(self) -> rrb.View:
-        overrides = {path: rrb.EntityBehavior(visible=False) for path in self.hidden}
-        return self.kind(origin=self.origin, name=self.name, contents=list(self.contents),
-                         **({"overrides": overrides} if overrides else {}))
-
-    def shows(self, path: str) -> bool:
-        """Whether ``path`` is in this view (its contents' ``+``/``-`` rules, later wins)."""
-        shown = False
-        for expr in self.contents:
-            sign, _, rule = expr.partition(" ") if expr[:2] in ("+ ", "- ") else ("+", "", expr)
-            rule = rule.replace("$origin", self.origin).strip("/")
-            if rule.endswith("/**"):
-                base = rule[:-3]
-                match = path == base or path.startswith(base + "/")
-            else:
-                match = path == rule
-            if match:
-                shown = sign == "+"
-        return shown
-
-
-@dataclass
-class Layout:
-    """What a recording logged, and the blueprint built from it."""
-
-    entities: set[str] = field(default_factory=set)
-    costmaps: dict[tuple[str, str], int] = field(default_factory=dict)  # (vehicle, method) → K
-    titles: dict[str, str] = field(default_factory=dict)  # entity → its view's name
-    runs: int = 0  # trajectories logged
-
-    def views(self) -> tuple[list[ViewSpec], list[ViewSpec]]:
-        """(left column, right tabs) of the blueprint."""
-        logged = self.entities
-        left = [ViewSpec(rrb.Spatial3DView, WORLD, "world",
-                         ("$origin/**", f"- {COSTMAPS}/**"))]
-        if any(p.startswith(PLOTS + "/") for p in logged):
-            left.append(ViewSpec(rrb.TimeSeriesView, PLOTS, "plots"))
-        right = []
-        for (vehicle, method), k in sorted(self.costmaps.items()):
-            base = f"{COSTMAPS}/{vehicle}/{method}"
-            right.append(ViewSpec(
-                rrb.Spatial3DView, WORLD,
-                f"costmap {METHOD_LABELS.get(method, method)} · {vehicle}",
-                (f"+ {TERRAIN}", f"+ {base}/**"),
-                tuple(f"{base}/heading_{i}" for i in range(1, k))))
-        right += [ViewSpec(rrb.Spatial2DView, p, self.titles.get(p, p))
-                  for p in (f"{BEV}/{ch}" for ch in (*BEV_NAMES, "observed")) if p in logged]
-        if OCCUPANCY in logged:
-            right.append(ViewSpec(rrb.Spatial2DView, OCCUPANCY, "occupancy"))
-        right += [ViewSpec(rrb.TextDocumentView, p, p.split("/", 1)[1])
-                  for p in sorted(logged) if p.startswith(NOTES + "/")]
-        return left, right
-
-    def blueprint(self) -> rrb.Blueprint:
-        """3D world (and plots) on the left; costmaps, BEV, occupancy and notes tabbed on
-        the right; every panel expanded, the time panel on ``elapsed`` when runs were
-        logged."""
-        left, right = self.views()
-        column = (rrb.Vertical(*[v.view() for v in left], row_shares=[3, 1])
-                  if len(left) > 1 else left[0].view())
-        root = rrb.Horizontal(column, rrb.Tabs(*[v.view() for v in right]),
-                              column_shares=[3, 2]) if right else column
-        return rrb.Blueprint(
-            root, rrb.BlueprintPanel(state="expanded"), rrb.SelectionPanel(state="expanded"),
-            rrb.TimePanel(state="expanded", timeline="elapsed" if self.runs else None),
-            collapse_panels=False)
-
-    def uncovered(self, entities: Iterable[str] | None = None) -> list[str]:
-        """The logged entity paths (or ``entities``) that no view shows."""
-        views = [v for side in self.views() for v in side]
-        return sorted(p for p in (self.entities if entities is None else entities)
-                      if not any(v.shows(p.strip("/")) for v in views))
 
 
 class Recording:
@@ -477,36 +390,3 @@ def log_experiment(result: ExperimentResult, world: World, maps: WorldMaps,
                                    {"speed_mps": r.speed}, color, vehicle=r.task.vehicle)
         rec.log_text("results", result.markdown(PAPER.get(result.name)))
     return rec.layout
-
-
-def write_exploration(path: str | Path, world: World, result: ExploreResult, vehicle: str,
-                      profile: Profile, *, max_snapshots: int = 20) -> Path:
-    """The recording of a :func:`~dgt_lib.beyond.explore.explore` run: the terrain,
-    the vehicle's costmap growing over ``sim_time`` (at most ``max_snapshots`` mapping
-    steps, evenly spaced, the last included), the path followed after each replan, the
-    track, the final BEV and a note with the update times. Returns the file's path."""
-    frames = result.frames
-    keep = sorted(set(np.linspace(0, len(frames) - 1, min(max_snapshots, len(frames)))
-                      .round().astype(int).tolist())) if frames else []
-    grid = result.bev.grid if result.bev is not None else world.grid
-    with Recording(path, "exploration", profile) as rec:
-        rec.log_terrain(world.heights, world.colors, world.grid)
-        for i in keep:
-            rec.log_costmap(frames[i].cost, grid, vehicle, time_s=frames[i].time_s)
-        replans = [f for i, f in enumerate(frames)
-                   if i == 0 or not np.array_equal(f.path, frames[i - 1].path)]
-        for f in replans:
-            xy = f.path[:, :2]
-            z = world.height_at(xy[:, 0], xy[:, 1]) + 0.5
-            rec.log_path("planned", np.column_stack([xy, z]), time_s=f.time_s)
-        traj = result.trajectory
-        rec.log_trajectory(vehicle, traj[:, 0], traj[:, 1:4], vehicle=vehicle, yaw=traj[:, 4])
-        if result.bev is not None:
-            rec.log_bev(result.bev.channels, result.bev.observed)
-        ms = np.array([f.update.wall_s for f in frames]) * 1e3
-        rec.log_text("exploration", (
-            f"**{result.outcome.reason}** after {result.outcome.duration_s:.1f} s, "
-            f"{len(frames)} frames, {len(result.replans)} plans. Costmap update per frame: "
-            f"median {np.median(ms):.0f} ms, p90 {np.percentile(ms, 90):.0f} ms (wall)."
-            if frames else f"**{result.outcome.reason}**, no frames"))
-    return Path(path)

@@ -1,5 +1,5 @@
 """The results report of ``dgt reproduce``: tables, figures and recordings of
-Experiments 1–3, and the ``experiments`` stage's entry point (:func:`stage_experiments`).
+Experiments 1–3: the ``experiments`` stage's report step (:func:`report_stage`).
 
 Writes ``results/README.md`` in the profile's data directory — each experiment's table
 (ours beside the paper's, with Wilson 95 % intervals), the routes each method planned,
@@ -20,23 +20,22 @@ import json
 
 import matplotlib.pyplot as plt  # noqa: E402
 
-from dgt_lib import recording, viz
+from dgt_lib import recording, recording_layout, viz
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.overrides import format_setting
 from dgt_lib.evaluation import accuracy, seeds
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.learning.training import collapsed_heads
-from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.stages.costmaps import ensure_world_costmaps
-from dgt_lib.stages.experiments import ensure_experiment, experiment_stem
+from dgt_lib.stages.experiments import experiment_stem
 from dgt_lib.stages.ground_truth import (
     accuracy_markdown,
     cached_costmap_accuracy,
     ensure_ground_truth,
 )
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import data_dir, profile_root
-from dgt_lib.stages.registry import StageOutput
 from dgt_lib.stages.train import cached_model_metrics
 from dgt_lib.world.terrain import get_world
 
@@ -130,13 +129,14 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
 
 def write_recording(result: ExperimentResult, prof: Profile) -> Path:
     """``runs/<stem>.rrd`` of an experiment (``experiment_stem``: a variant's has its own),
-    rewritten when older than its results or than ``dgt_lib/recording.py`` (the code that lays
-    it out)."""
+    rewritten when older than its results or than ``dgt_lib/recording.py`` or
+    ``recording_layout.py`` (the code that lays it out)."""
     out = data_dir(prof)
     stem = experiment_stem(result.name, prof)
     rrd = out / "runs" / f"{stem}.rrd"
     pkl = out / "experiments" / f"{stem}.pkl"
-    sources = [p for p in (pkl, Path(recording.__file__)) if p.exists()]
+    code = (recording.__file__, recording_layout.__file__)
+    sources = [p for p in (pkl, *map(Path, code)) if p.exists()]
     if not rrd.exists() or rrd.stat().st_mtime < max(p.stat().st_mtime for p in sources):
         vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
         maps = ensure_world_costmaps(result.world, vehicles, prof, progress=False)
@@ -144,20 +144,18 @@ def write_recording(result: ExperimentResult, prof: Profile) -> Path:
     return rrd
 
 
-def stage_experiments(profile: Profile) -> StageOutput:
-    """``dgt reproduce`` stage: Experiments 1–3 — tables in ``results/``, recordings in
-    ``runs/``, and ``results/README.md`` with every table and figure."""
+def report_stage(name: str, profile: Profile, output: StageOutput) -> StageOutput:
+    """The report step of a stage with ``report`` set (:mod:`dgt_lib.stages.registry`),
+    run by ``dgt reproduce`` after it: for ``experiments``, every experiment's recording
+    in ``runs/``, ``results/README.md`` with every table and figure, and the seed's
+    ``results/summary.json``; returns the stage's output with what it wrote first."""
+    if name != "experiments":
+        raise ValueError(f"no report step for stage {name!r}")
     prof = as_profile(profile)
-    paths, parts, results = [], [], []
-    for name in EXPERIMENTS:
-        res = ensure_experiment(name, prof)
-        results.append(res)
-        paths.append(write_recording(res, prof))
-        counts = ", ".join(f"{METHOD_LABELS[m]} {k}/{n}" for m, (k, n) in res.counts().items())
-        parts.append(f"{name}: {counts}")
-    paths.insert(0, write_results(results, prof))
-    paths.insert(1, write_seed_summary(results, prof))
-    return StageOutput(paths, "; ".join(parts))
+    results = output.value
+    paths = [write_results(results, prof), write_seed_summary(results, prof)]
+    paths += [write_recording(res, prof) for res in results]
+    return StageOutput(paths + output.paths, output.summary)
 
 
 SUMMARY_RELPATH = "results/summary.json"

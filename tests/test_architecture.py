@@ -9,8 +9,8 @@ import dgt_lib
 PACKAGE = Path(dgt_lib.__file__).parent
 LAYERS = ("core", "world", "perception", "learning", "mapping", "navigation", "beyond",
           "evaluation", "stages")
-"""Sub-packages in pipeline order; modules at the top level (viz, rr, report, cli, query)
-sit above them all. ``beyond`` holds what goes beyond the paper."""
+"""Sub-packages in pipeline order; modules at the top level (viz, recording, report,
+plan_one, cli, exercises) sit above them all. ``beyond`` holds what goes beyond the paper."""
 
 
 def _layer(module: str) -> int:
@@ -91,3 +91,107 @@ def test_module_level_imports_have_no_cycle():
         if name not in state:
             visit(name, [name])
     assert cycles == []
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Every dgt_lib module → the dgt_lib modules it imports, wherever the import statement
+    is (module level, in a function, under ``if TYPE_CHECKING``). ``from a.b import c``
+    counts as an import of ``a.b.c`` when that is a module, else of ``a.b``; the root
+    package (its lazy public API) is left out."""
+    modules = _modules()
+    graph = {}
+    for name, path in modules.items():
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                for alias in node.names:
+                    sub = f"{node.module}.{alias.name}"
+                    deps.add(sub if sub in modules else node.module)
+            elif isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names}
+        graph[name] = {d for d in deps if d in modules} - {name, "dgt_lib"}
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    cycles, state = [], {}
+
+    def visit(node, stack):
+        state[node] = "open"
+        for dep in sorted(graph[node]):
+            if state.get(dep) == "open":
+                cycles.append(stack[stack.index(dep):] + [dep])
+            elif dep not in state:
+                visit(dep, stack + [dep])
+        state[node] = "done"
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+    return cycles
+
+
+def test_no_import_cycle_of_any_kind():
+    """No cycle even through function-local or TYPE_CHECKING imports: each module can be
+    read (and tested) with only what it imports understood first."""
+    assert _cycles(_import_graph()) == []
+
+
+MAX_FUNCTION_LINES = 80
+MAX_MODULE_LINES = 500
+COMPILED = {"njit", "jit", "vectorize", "guvectorize"}
+"""numba decorators: a compiled kernel is one loop nest, kept whole for the compiler."""
+
+
+def _decorator_name(node: ast.expr) -> str:
+    node = node.func if isinstance(node, ast.Call) else node
+    return node.attr if isinstance(node, ast.Attribute) else getattr(node, "id", "")
+
+
+def test_no_function_over_80_lines_except_compiled_kernels():
+    long = []
+    for name, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                if {_decorator_name(d) for d in node.decorator_list} & COMPILED:
+                    continue
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_FUNCTION_LINES:
+                    long.append(f"{name}.{node.name} ({lines})")
+    assert long == []
+
+
+def test_no_module_over_500_lines():
+    long = [f"{name} ({n})" for name, path in _modules().items()
+            if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES]
+    assert long == []
+
+
+def _code_size():
+    import importlib.util
+
+    path = PACKAGE.parent / "benchmarks" / "code_size.py"
+    spec = importlib.util.spec_from_file_location("code_size", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_code_lines_leave_out_docstrings_comments_and_blank_lines():
+    source = ('"""Module docstring,\non two lines."""\n\nimport os  # a comment\n\n'
+              'def f(x):\n    """Docstring."""\n    # a comment\n    s = """a\nstring"""\n'
+              '    return x\n')
+    assert _code_size().code_lines(source) == 5  # import, def, s = (two lines), return
+
+
+def test_the_paper_path_is_counted_and_does_not_reach_beyond():
+    """Notebooks 01–09 and every module they reach (any import) stay clear of ``beyond``."""
+    code_size = _code_size()
+    notebooks = sorted(p for p in (PACKAGE.parent / "notebooks").glob("*.ipynb")
+                       if p.name.startswith(code_size.PAPER_NOTEBOOKS))
+    reached, beyond = code_size.paper_path(PACKAGE, notebooks)
+    assert len(notebooks) == 9 and beyond == set()
+    assert {"dgt_lib.stages.costmaps", "dgt_lib.navigation.planner.search",
+            "dgt_lib.core.config"} <= reached
+    counts = code_size.sizes(PACKAGE, reached)
+    assert "beyond" not in counts and sum(counts.values()) > 5000

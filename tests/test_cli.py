@@ -1,16 +1,17 @@
-import importlib
 import os
 import signal
 import subprocess
 import sys
 import textwrap
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from dgt_lib.cli import build_parser, main
 from dgt_lib.stages import registry as pipeline
+from tests import stage_examples
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,8 +31,8 @@ def two_stages(tmp_path, monkeypatch):
     file, the other reads it: ``tests/stage_examples.py``)."""
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
-        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+        pipeline.Stage("first", stage_examples.first, "writes a file"),
+        pipeline.Stage("second", stage_examples.second, "reads it")])
 
 
 def test_reproduce_runs_registered_stages_in_order_with_summary(capsys, tmp_path, two_stages):
@@ -65,12 +66,11 @@ def test_every_stage_s_wall_time_is_kept_per_seed_and_run_and_survives_an_interr
     assert all(r["seconds"] >= 0 and r["workers"] == 2 for r in first)
     assert len({r["run"] for r in first}) == 1
 
-    import tests.stage_examples as examples
-
     def interrupted(profile):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(examples, "second", interrupted)
+    monkeypatch.setattr(pipeline, "STAGES", [pipeline.STAGES[0],
+                                             replace(pipeline.STAGES[1], run=interrupted)])
     assert main(["reproduce", "--profile", "smoke"]) == 130
     records = read_stage_times("smoke")
     assert len(records) == 5  # the finished stage of the interrupted run is kept
@@ -80,7 +80,7 @@ def test_every_stage_s_wall_time_is_kept_per_seed_and_run_and_survives_an_interr
 
 
 def test_unknown_stage_and_profile_are_clear_errors(capsys, monkeypatch):
-    monkeypatch.setattr(pipeline, "STAGES", [pipeline.Stage("a", "x:y", "d")])
+    monkeypatch.setattr(pipeline, "STAGES", [pipeline.Stage("a", stage_examples.first, "d")])
     assert main(["reproduce", "--stages", "nope"]) == 2
     assert "unknown stage(s) nope; valid stages: a" in capsys.readouterr().err
     monkeypatch.setenv("DGT_PROFILE", "huge")
@@ -108,9 +108,8 @@ def test_ctrl_c_in_any_stage_stops_the_run_with_one_line_and_status_130(
             return pipeline.StageOutput([], f"{name} done")
         return stage
 
-    for stage in pipeline.STAGES:
-        module, _, func = stage.entry_point.partition(":")
-        monkeypatch.setattr(importlib.import_module(module), func, fake(stage.name))
+    monkeypatch.setattr(pipeline, "STAGES", [replace(s, run=fake(s.name), report=False)
+                                             for s in pipeline.STAGES])
     try:
         assert main(["reproduce", "--profile", "smoke"]) == 130
     except KeyboardInterrupt:
@@ -131,8 +130,9 @@ def test_ctrl_c_in_a_terminal_stops_a_pool_stage_in_seconds_and_keeps_its_result
     script = textwrap.dedent("""
         import sys
         from dgt_lib.stages import registry
-        registry.STAGES[:] = [registry.Stage("pool", "tests.stage_examples:pool", "jobs"),
-                              registry.Stage("first", "tests.stage_examples:first", "next")]
+        from tests import stage_examples
+        registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs"),
+                              registry.Stage("first", stage_examples.first, "next")]
         from dgt_lib.cli import main
         sys.exit(main(["reproduce", "--profile", "smoke"]))
     """)
@@ -175,7 +175,7 @@ def test_reproduce_runs_its_jobs_on_the_executor_it_is_given(kind, capsys, tmp_p
 
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("jobs", "tests.stage_examples:executor", "four quick jobs")])
+        pipeline.Stage("jobs", stage_examples.executor, "four quick jobs")])
     assert main(["reproduce", "--profile", "smoke", "--executor", kind, "--workers", "2"]) == 0
     out = capsys.readouterr().out
     assert f"jobs: {kind} on a local cluster of 2 workers" in out
@@ -218,7 +218,8 @@ def test_ctrl_c_stops_a_cluster_run_in_seconds_and_stops_its_local_cluster(kind,
     script = textwrap.dedent(f"""
         import sys
         from dgt_lib.stages import registry
-        registry.STAGES[:] = [registry.Stage("pool", "tests.stage_examples:pool", "jobs")]
+        from tests import stage_examples
+        registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs")]
         from dgt_lib.cli import main
         sys.exit(main(["reproduce", "--profile", "smoke", "--executor", "{kind}"]))
     """)
@@ -272,7 +273,7 @@ def test_profile_names_follow_one_rule_on_the_command_line_and_in_the_environmen
 def test_set_changes_settings_for_every_stage_and_seed(capsys, tmp_path, monkeypatch):
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("settings", "tests.stage_examples:settings", "says its settings")])
+        pipeline.Stage("settings", stage_examples.settings, "says its settings")])
     assert main(["reproduce", "--profile", "smoke", "--seeds", "2", "--set", "planner.beta=50",
                  "--set", "experiments.n_hill=10"]) == 0
     out = capsys.readouterr().out
@@ -291,7 +292,7 @@ def test_a_bad_set_is_a_clear_error_before_anything_runs(capsys, tmp_path, monke
                                                          setting, message):
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("first", "tests.stage_examples:first", "writes a file")])
+        pipeline.Stage("first", stage_examples.first, "writes a file")])
     assert main(["reproduce", "--profile", "smoke", "--set", setting]) == 2
     assert f"dgt: error: {message}" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []  # nothing ran
@@ -326,8 +327,8 @@ def test_the_pipeline_bar_counts_stages_and_promises_no_time_left(capsys, tmp_pa
     it shows how many stages ran and the time spent, no ETA and no rate."""
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("first", "tests.stage_examples:first", "writes a file"),
-        pipeline.Stage("second", "tests.stage_examples:second", "reads it")])
+        pipeline.Stage("first", stage_examples.first, "writes a file"),
+        pipeline.Stage("second", stage_examples.second, "reads it")])
     assert main(["reproduce", "--profile", "smoke"]) == 0
     bar = capsys.readouterr().err.replace("\r", "\n")
     assert "2/2 stages [" in bar

@@ -111,7 +111,7 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
                                                    "seed, seeds, workers"):
         get_profile("demo").with_overrides({"plan.beta": 50})
     with pytest.raises(InvalidOverrideError, match="unknown setting 'name'"):
-        parse_overrides(["name=paper"])
+        get_profile("demo").with_overrides(parse_overrides(["name=paper"]))
 
 
 @pytest.mark.parametrize("key, value, expected", [

@@ -264,19 +264,6 @@ def test_a_resumed_run_redoes_only_the_damaged_trial(tmp_path, monkeypatch):
         assert list(read_journal(path)) == [_journal_task(i) for i in (0, 1, 3, 4, 2)]
 
 
-def test_a_journal_of_bare_pickles_is_still_read_and_appended_to(tmp_path):
-    """Journals written before records were framed (one pickle after another)."""
-    import pickle
-
-    path = tmp_path / "j.pkl"
-    path.write_bytes(pickle.dumps(_journaled(0)) + pickle.dumps(_journaled(1))[:-7])
-    with pytest.warns(UserWarning, match="skipped 1 damaged record"):
-        assert list(read_journal(path)) == [_journal_task(0)]
-    with Journal(path) as log:
-        log.append(_journaled(1))
-    assert list(read_journal(path)) == [_journal_task(0), _journal_task(1)]
-
-
 def test_a_customised_profile_travels_with_its_trials():
     """A trial plans with the settings of the profile it was made from, not with the
     default profile of the same name (the worker gets the whole Profile)."""

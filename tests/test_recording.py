@@ -13,6 +13,7 @@ from dgt_lib.evaluation.trials import TrialResult, TrialTask
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.perception.bev import BEVMap
+from dgt_lib.recording_layout import Layout, ViewSpec
 from dgt_lib.world.worlds import from_heightmap
 
 SMOKE = get_profile("smoke")
@@ -37,7 +38,7 @@ def _recording_entities(printed: str) -> set[str]:
     return entities
 
 
-def _file_views(path) -> list[dgt_rr.ViewSpec]:
+def _file_views(path) -> list[ViewSpec]:
     """The views of the blueprint stored in the file, read from `rerun rrd print -vvv`:
     each view's origin (``/view/<id>``) and contents (``/view/<id>/ViewContents``)."""
     printed = subprocess.run([dgt_rr._rerun_exe(), "rrd", "print", "-vvv", str(path)],
@@ -53,7 +54,7 @@ def _file_views(path) -> list[dgt_rr.ViewSpec]:
                 origins[m.group(1)] = last
             elif m := re.fullmatch(r"/view/([0-9a-f-]+)/ViewContents", entity):
                 contents[m.group(1)] = tuple(q.strip() for q in last.split(","))
-    return [dgt_rr.ViewSpec(object, origins[i], i, contents.get(i, ("$origin/**",)))
+    return [ViewSpec(object, origins[i], i, contents.get(i, ("$origin/**",)))
             for i in origins]
 
 
@@ -102,7 +103,7 @@ def test_every_entity_of_an_experiment_recording_is_in_a_view(tmp_path):
 
 
 def test_the_coverage_check_finds_an_entity_no_view_shows():
-    layout = dgt_rr.Layout(entities={"world/terrain", "maps/occupancy", "stray/thing"})
+    layout = Layout(entities={"world/terrain", "maps/occupancy", "stray/thing"})
     assert layout.uncovered() == ["stray/thing"]
     # the world view leaves costmaps to their own views: one not registered is uncovered
     layout.entities.add("world/costmap/jeep/dgt/heading_0")

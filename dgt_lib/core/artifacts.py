@@ -257,24 +257,14 @@ def stored_digest(relpath: str | Path, *, profile: str) -> str:
         raise FileNotFoundError(f"no valid artifact at {meta_path.with_suffix('')}: {exc}") from exc
 
 
-def fresh_fingerprint(relpath: str | Path, config: Any, fingerprint: Callable[[Any], str],
-                      *, profile: str) -> str | None:
-    """The ``fingerprint`` of a fresh artifact (see :func:`ensure`) without loading it: read
-    from its metadata, where :func:`ensure` records it; an artifact written before it was
-    recorded is loaded once, and its fingerprint added to the metadata. None when
-    :func:`ensure` would rebuild the artifact."""
+def fresh_fingerprint(relpath: str | Path, config: Any, *, profile: str) -> str | None:
+    """The fingerprint recorded by :func:`ensure` for a fresh artifact, read from its
+    metadata without loading it; None when :func:`ensure` would rebuild the artifact or
+    no fingerprint was recorded."""
     path = profile_dir(profile) / Path(relpath)
     if _check(path, config) is not None:
         return None
-    meta_path = _meta_path(path)
-    meta = json.loads(meta_path.read_text())
-    if "fingerprint" not in meta:
-        try:
-            meta["fingerprint"] = fingerprint(load(path))
-        except Exception:  # noqa: BLE001 - unreadable: ensure will say why and rebuild
-            return None
-        _atomic_write(meta_path, lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
-    return meta["fingerprint"]
+    return json.loads(_meta_path(path).read_text()).get("fingerprint")
 
 
 def is_fresh(relpath: str | Path, config: Any, *, profile: str) -> bool:

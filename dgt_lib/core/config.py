@@ -29,6 +29,8 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
+from dgt_lib.core.overrides import apply_overrides, format_setting
+
 PROFILE_NAMES: tuple[str, ...] = ("smoke", "demo", "paper")
 DEFAULT_PROFILE = "demo"
 ENV_VAR = "DGT_PROFILE"
@@ -306,8 +308,6 @@ class Profile:
         would be typed on the command line, or a Python value of that type. An unknown name
         or a value that does not fit raises ``InvalidOverrideError`` naming the valid fields
         or the type expected. The rules: :mod:`dgt_lib.core.overrides`."""
-        from dgt_lib.core.overrides import apply_overrides  # (it imports this module)
-
         return apply_overrides(self, overrides)
 
     def describe(self) -> str:
@@ -315,8 +315,6 @@ class Profile:
         ``'demo' with planner.beta=50.0``."""
         text = repr(self.name)
         if self.overrides:
-            from dgt_lib.core.overrides import format_setting
-
             text += " with " + ", ".join(f"{k}={format_setting(v)}" for k, v in self.overrides)
         return text
 
@@ -371,7 +369,7 @@ def _demo() -> Profile:
         # queries in 0.01–0.07 s median (docs/speed.md → Hybrid A*); weighting is no longer needed.
         planner=PlannerConfig(heuristic_weight=1.0),
         # 48 cells × 8 headings × 5 world–vehicle pairs = 1,920 drives, once for all three
-        # seeds: 39 s on 2 otherwise idle cores (a fresh clone's `make reproduce`, 9c7b4c7).
+        # seeds: 39 s on 2 otherwise idle cores (a fresh clone's `make reproduce`).
         ground_truth=GroundTruthConfig(cells=48),
     )
 

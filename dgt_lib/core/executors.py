@@ -380,43 +380,57 @@ def run_jobs(
         serial = isinstance(ex, SerialExecutor)
         n_workers = getattr(ex, "workers", workers)
         limit = max_in_flight or (1 if serial else max(2, 2 * n_workers))
-        order = {job: k for k, job in enumerate(jobs)}
-        queue = iter(jobs)
-        pending: dict[Future, tuple] = {}
         bar = tqdm(total=total if total is not None else initial + len(jobs), initial=initial,
                    desc=desc, unit=unit, disable=not progress)
 
-        def fill() -> None:
-            while len(pending) < limit:
-                job = next(queue, None)
-                if job is None:
-                    return
-                pending[ex.submit(fn, *job)] = job
+        def finished(job: tuple, result: Any) -> None:
+            out[job] = result
+            if on_result is not None:
+                on_result(job, result)
+            bar.update(1)
+            if postfix is not None:
+                bar.set_postfix_str(postfix())
 
         try:
             with worker_environment():
-                fill()
-                while pending:
-                    finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
-                    failed: BaseException | None = None
-                    for fut in sorted(finished, key=lambda f: order[pending[f]]):
-                        job = pending.pop(fut)
-                        if fut.exception() is not None:  # keep the others' results first
-                            failed = failed or fut.exception()
-                            continue
-                        out[job] = result = fut.result()
-                        if on_result is not None:
-                            on_result(job, result)
-                        bar.update(1)
-                        if postfix is not None:
-                            bar.set_postfix_str(postfix())
-                    if failed is not None:
-                        raise failed
-                    fill()
-        except BaseException:
-            for fut in pending:
-                fut.cancel()
-            raise
+                _submit_all(ex, fn, jobs, limit, finished)
         finally:
             bar.close()
     return out
+
+
+def _submit_all(ex: Executor, fn: Callable[..., Any], jobs: Sequence[tuple], limit: int,
+                finished: Callable[[tuple, Any], None]) -> None:
+    """Submit ``fn(*job)`` for ``jobs`` in order, at most ``limit`` in flight, and call
+    ``finished(job, result)`` for each, in ``jobs`` order among those finishing together; a
+    failed job's exception is raised once the others finished with it are handed over. On
+    any exception the jobs not yet finished are cancelled."""
+    order = {job: k for k, job in enumerate(jobs)}
+    queue = iter(jobs)
+    pending: dict[Future, tuple] = {}
+
+    def fill() -> None:
+        while len(pending) < limit:
+            job = next(queue, None)
+            if job is None:
+                return
+            pending[ex.submit(fn, *job)] = job
+
+    try:
+        fill()
+        while pending:
+            done, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+            failed: BaseException | None = None
+            for fut in sorted(done, key=lambda f: order[pending[f]]):
+                job = pending.pop(fut)
+                if fut.exception() is not None:  # keep the others' results first
+                    failed = failed or fut.exception()
+                    continue
+                finished(job, fut.result())
+            if failed is not None:
+                raise failed
+            fill()
+    except BaseException:
+        for fut in pending:
+            fut.cancel()
+        raise

@@ -13,52 +13,49 @@ import types
 import typing
 from collections.abc import Iterable, Mapping
 from dataclasses import fields, is_dataclass, replace
-
-from dgt_lib.core.config import Profile
+from functools import cache
 
 TOP_LEVEL_SETTINGS: tuple[str, ...] = ("seed", "seeds", "workers")
 """The :class:`Profile` fields that are settings of their own (not a section's)."""
 
-_PROFILE_TYPES: dict[str, object] = typing.get_type_hints(Profile)
 
-SECTIONS: tuple[str, ...] = tuple(f.name for f in fields(Profile)
-                                  if is_dataclass(_PROFILE_TYPES[f.name]) and f.compare)
-"""The :class:`Profile` sections ``--set`` can change, one per pipeline stage: worlds,
-collect, train, costmap, planner, experiments, ground_truth. (``execution`` — where jobs
-run, not what they compute — is set by ``--executor``, ``--address`` and ``--device``.)"""
+@cache
+def _schema(profile_type: type) -> tuple[dict[str, object], tuple[str, ...]]:
+    """The annotations of a :class:`Profile` class and its sections ``--set`` can change,
+    one per pipeline stage: worlds, collect, train, costmap, planner, experiments,
+    ground_truth. (``execution`` — where jobs run, not what they compute — is set by
+    ``--executor``, ``--address`` and ``--device``.) The class comes from the profile being
+    changed, so this module needs no import of :mod:`dgt_lib.core.config`."""
+    types_ = typing.get_type_hints(profile_type)
+    sections = tuple(f.name for f in fields(profile_type)
+                     if is_dataclass(types_[f.name]) and f.compare)
+    return types_, sections
 
 
 class InvalidOverrideError(ValueError):
     """An override with an unknown name, or a value that does not fit its field's type."""
 
 
-def setting_names(section: str | None = None) -> list[str]:
-    """The valid dotted names: every ``section.field`` and :data:`TOP_LEVEL_SETTINGS`, or
-    one section's ``section.field`` names."""
-    chosen = SECTIONS if section is None else (section,)
-    names = [f"{s}.{f.name}" for s in chosen for f in fields(_PROFILE_TYPES[s])]
-    return names + list(TOP_LEVEL_SETTINGS) if section is None else names
-
-
-def setting_type(key: str) -> tuple[str | None, str, object]:
+def setting_type(profile_type: type, key: str) -> tuple[str | None, str, object]:
     """``"planner.beta"`` → ``("planner", "beta", float)``: the section (None for a
-    top-level setting), the field and its annotation. Raises
+    top-level setting), the field and its annotation in ``profile_type``. Raises
     :class:`InvalidOverrideError` listing the valid names for an unknown one."""
+    types_, sections = _schema(profile_type)
     section, dot, name = key.strip().rpartition(".")
     if not dot and name in TOP_LEVEL_SETTINGS:
-        return None, name, _PROFILE_TYPES[name]
-    if not dot or section not in SECTIONS:
+        return None, name, types_[name]
+    if not dot or section not in sections:
         raise InvalidOverrideError(
             f"unknown setting {key!r}: a setting is SECTION.FIELD, SECTION one of "
-            f"{', '.join(SECTIONS)}, or one of {', '.join(TOP_LEVEL_SETTINGS)}")
-    hints = typing.get_type_hints(_PROFILE_TYPES[section])
+            f"{', '.join(sections)}, or one of {', '.join(TOP_LEVEL_SETTINGS)}")
+    hints = typing.get_type_hints(types_[section])
     if name not in hints:
-        raise InvalidOverrideError(f"unknown setting {key!r}; valid {section} settings: "
-                                   + ", ".join(setting_names(section)))
+        valid = ", ".join(f"{section}.{f.name}" for f in fields(types_[section]))
+        raise InvalidOverrideError(f"unknown setting {key!r}; valid {section} settings: {valid}")
     return section, name, hints[name]
 
 
-def _current(profile: Profile, section: str | None, name: str) -> object:
+def _current(profile: object, section: str | None, name: str) -> object:
     """The profile's value of a setting (the example in an error message)."""
     return getattr(profile if section is None else getattr(profile, section), name)
 
@@ -73,6 +70,9 @@ def format_setting(value: object) -> str:
         return ",".join(format_setting(v) for v in value)
     return str(value)
 
+
+P = typing.TypeVar("P")
+"""A :class:`~dgt_lib.core.config.Profile` (its class is read from the instance)."""
 
 _TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
 _TYPE_WORDS = {bool: "true or false", int: "an integer", float: "a number", str: "a string"}
@@ -154,25 +154,24 @@ def coerce_setting(key: str, value: object, hint: object, *, example: object = N
 
 def parse_overrides(items: Iterable[str]) -> dict[str, str]:
     """``["planner.beta=50", "experiments.n_hill=10"]`` → ``{"planner.beta": "50", …}``
-    (the command line's ``--set``; a later item wins). The names are checked here, the
-    values by :meth:`Profile.with_overrides`."""
+    (the command line's ``--set``; a later item wins). Names and values are checked by
+    :meth:`Profile.with_overrides`."""
     out: dict[str, str] = {}
     for item in items:
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
             raise InvalidOverrideError(f"a setting is NAME=VALUE (e.g. planner.beta=50), "
                                        f"got {item!r}")
-        setting_type(key)
         out[key.strip()] = value
     return out
 
 
-def apply_overrides(profile: Profile, overrides: Mapping[str, object]) -> Profile:
+def apply_overrides(profile: P, overrides: Mapping[str, object]) -> P:
     """``profile`` with ``overrides`` applied (see :meth:`Profile.with_overrides`); the
     changed settings are recorded in ``Profile.overrides``."""
     prof, recorded = profile, dict(profile.overrides)
     for key, raw in overrides.items():
-        section, name, hint = setting_type(key)
+        section, name, hint = setting_type(type(profile), key)
         value = coerce_setting(key, raw, hint, example=_current(prof, section, name))
         try:
             if section is None:

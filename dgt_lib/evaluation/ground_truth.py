@@ -2,57 +2,17 @@
 predict, measured by driving (paper: Locomotion, Self-Supervised Label Generation; ours:
 the paper scores its costmaps only in closed loop).
 
-A learned costmap says C(x, y, θ, v) = 1 − L̂. The simulator can say what L *is*: put the
-vehicle on a straight line through the cell at heading θ, drive it exactly as the data
-were collected — :func:`~dgt_lib.perception.episodes.run_episode` with the collection's
-PID speed controller holding u = 5 m/s, steering held to the line by pure pursuit — and
-apply the paper's formula in the labels' 1 s centred window, centred when the vehicle's
-centre passes the cell:
+The vehicle drives a straight line through a cell at heading θ exactly as the data were
+collected (:func:`drive_through`: u = 5 m/s, a 15 m run-up) and the paper's formula is
+applied in the labels' 1 s window centred on the crossing:
 
-    L* = exp( −1/(2σ²) · ((u·Δt − ‖Δx‖) / (u·Δt))² ),   Δt = 1 s centred on t_c,
-    t_c: the time the vehicle's centre crosses the line through the cell ⟂ θ.
+    L* = exp( −1/(2σ²) · ((u·Δt − ‖Δx‖) / (u·Δt))² ),   Δt = 1 s centred on t_c.
 
-**The drive** (:func:`drive_through`). It starts at rest ``run_up_m`` (15 m) before the cell
-— on flat ground every vehicle is at 5 m/s (L ≥ 0.99) after 12 m — and stops ``past_m``
-(4.4 m, the patch's forward reach) beyond it. Each drive ends with a status
-(:data:`STATUSES`):
-
-- ``passed``: the centre crossed the cell; L* as above.
-- ``stuck``: the run ended for good (immobilized, flipped, out of time) with the cell
-  under the vehicle — its centre got within half its length of the cell, its front at or
-  past it — but never across. The vehicle does not move through the cell, so its
-  displacement there is 0: L* = e^{−1/(2σ²)} = e^{−4.5} ≈ 0.011, what the label of a
-  stalled vehicle reads. (Not the locomotion of the run's last second: a truck that cannot
-  climb rolls back down the slope and charges it again until its time is up, and its last
-  window shows motion, not progress through the cell.)
-- ``blocked_terrain`` / ``blocked_tree``: the vehicle never got the cell under it —
-  terrain behind the cell stopped it, or a trunk stands in the run-up. Whether the cell's
-  own terrain would hold it is then tried directly: the vehicle starts at rest centred on
-  the cell. If it cannot get 1 m on from there, the terrain under it holds it and the
-  sample is ``stuck``; if it drives off, L* at speed is unknown (a start from rest is
-  slower than u) and the sample stays ``blocked_*``, unmeasured. So a slope the vehicle
-  cannot climb is ``stuck`` uphill however far up the cell lies, while a flat cell behind
-  a cliff is ``blocked``.
-
-  Why "under the vehicle" and not "within the patch" (4.4 m): a van high-centred on a
-  crest stands with the crest under its belly, and that is where its labels are cut; a
-  cell 3–4 m beyond the crest was never under it, and a van standing there drives off.
-  Counting such a cell as stuck would charge it for an obstacle it lies behind, which no
-  label does.
-- ``glitch``: the window touches a simulator glitch (angular rate > 100 °/s), which the
-  dataset drops too; ``failed``: the simulator diverged or the vehicle left the map.
-
-**The cells** (:func:`sample_cells`): the world's cells at least ``edge_margin_m`` from the
-map edge (a run-up stays on the map), ``tree_clearance_m`` from a trunk and at most
-``max_slope_deg`` steep, stratified by slope (0–4–10–18–30°), roughness (RMS relief about
-a 1 m blur, below or above 4 cm: the ridge's crest, bumps, rocks) and whether they lie on
-one of the world's routes (the hill's Routes A and B, the ridge's crossings, the dirt
-paths), and drawn in turn from each stratum, so the experiments' terrain and steep or
-rough ground are not drowned by the flat majority. Every
-vehicle of a world drives the same cells. Everything here is deterministic — the physics
-is bitwise repeatable on one machine, the cells come from ``GroundTruthConfig.seed`` —
-and independent of the run seed; caching and parallel drives are
-:mod:`dgt_lib.stages.ground_truth`'s job.
+A drive ends ``passed``, ``stuck`` (the cell under the vehicle, never crossed: L* =
+e^{−4.5}), ``blocked_terrain`` / ``blocked_tree``, ``glitch`` or ``failed``
+(:data:`STATUSES`); the cells (:func:`sample_cells`) are stratified by slope, roughness and
+route. The rules and why: docs/stages.md → Ground truth. Deterministic and independent of
+the run seed; caching and parallel drives are :mod:`dgt_lib.stages.ground_truth`'s job.
 """
 
 from __future__ import annotations

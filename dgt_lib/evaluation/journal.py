@@ -6,13 +6,10 @@ little-endian uint32), then the payload (a pickle) — written in one call. A da
 record (cut short by a crash, or corrupted) is skipped when the file is read back, with
 one warning; the records after it are still read, so only the damaged ones are redone.
 Opening a damaged journal to append rewrites it without the damaged records first.
-Journals written before records were framed (bare pickles, one after another) are read
-too, and appending to one frames the new records.
 """
 
 from __future__ import annotations
 
-import io
 import os
 import pickle
 import struct
@@ -24,7 +21,6 @@ from typing import Any
 
 MAGIC = b"DGTJ"
 _HEADER = struct.Struct("<4sII")  # magic, payload length [bytes], CRC-32 of the payload
-_BARE_PICKLES = (b"\x80\x04\x95", b"\x80\x05\x95")  # how an unframed record began
 DAMAGED = object()
 """What :func:`_scan` yields for a damaged stretch of a journal."""
 
@@ -33,16 +29,6 @@ def encode_record(record: Any) -> bytes:
     """One framed journal record: header (magic, length, CRC-32) + the pickled record."""
     payload = pickle.dumps(record, protocol=pickle.HIGHEST_PROTOCOL)
     return _HEADER.pack(MAGIC, len(payload), zlib.crc32(payload)) + payload
-
-
-def _unpickle(data: bytes, pos: int) -> tuple[Any, int] | None:
-    """The pickle starting at ``pos`` and the position after it; None if it does not load."""
-    stream = io.BytesIO(data)
-    stream.seek(pos)
-    try:
-        return pickle.load(stream), stream.tell()
-    except Exception:  # noqa: BLE001 - any failure means a damaged record
-        return None
 
 
 def _framed(data: bytes, pos: int) -> tuple[Any, int] | None:
@@ -54,34 +40,22 @@ def _framed(data: bytes, pos: int) -> tuple[Any, int] | None:
     start, end = pos + _HEADER.size, pos + _HEADER.size + length
     if end > len(data) or zlib.crc32(data[start:end]) != crc:
         return None
-    loaded = _unpickle(data[start:end], 0)
-    return None if loaded is None else (loaded[0], end)
-
-
-def _next_start(data: bytes, pos: int, bare: bool) -> int:
-    """Where the next record may begin after ``pos`` (the end of ``data`` if nowhere)."""
-    starts = (MAGIC, *_BARE_PICKLES) if bare else (MAGIC,)
-    found = [i for i in (data.find(s, pos) for s in starts) if i >= 0]
-    return min(found, default=len(data))
+    try:
+        return pickle.loads(data[start:end]), end
+    except Exception:  # noqa: BLE001 - any failure means a damaged record
+        return None
 
 
 def _scan(data: bytes) -> Iterator[Any]:
     """Every record of a journal's bytes in order, :data:`DAMAGED` for each damaged
-    stretch.
-
-    Bare pickles are accepted only before the first framed record (the old layout, to
-    which new records were appended framed); after it, only checked frames count."""
-    pos, framed_seen = 0, False
+    stretch (skipped up to the next frame's magic)."""
+    pos = 0
     while pos < len(data):
-        at_frame = data.startswith(MAGIC, pos)
-        framed_seen |= at_frame
-        if at_frame:
-            loaded = _framed(data, pos)
-        else:
-            loaded = None if framed_seen else _unpickle(data, pos)
+        loaded = _framed(data, pos) if data.startswith(MAGIC, pos) else None
         if loaded is None:
             yield DAMAGED
-            pos = _next_start(data, pos + 1, bare=not framed_seen)
+            found = data.find(MAGIC, pos + 1)
+            pos = found if found >= 0 else len(data)
         else:
             yield loaded[0]
             pos = loaded[1]

@@ -42,39 +42,38 @@ def _heading(rng, base_rad: float, jitter_deg: float) -> float:
     return float(wrap_angle(base_rad + np.radians(rng.uniform(-jitter_deg, jitter_deg))))
 
 
+def _back_and_forth(rng: np.random.Generator, n: int, cfg: ExperimentsConfig,
+                    there: tuple, back: tuple) -> list[Query]:
+    """n queries alternating ``there`` and ``back``, each (start, goal, start yaw [rad],
+    label); the start and goal jittered by ``start_jitter_m``, the yaw by
+    ``heading_jitter_deg``."""
+    out = []
+    for i in range(n):
+        a, b, yaw, label = there if i % 2 == 0 else back
+        out.append(Query((*_jitter(rng, a, cfg.start_jitter_m),
+                          _heading(rng, yaw, cfg.heading_jitter_deg)),
+                         _jitter(rng, b, cfg.start_jitter_m), label))
+    return out
+
+
 def hill_queries(world: World, n: int, cfg: ExperimentsConfig, seed: int) -> list[Query]:
     """n queries alternating ascent (base → summit) and descent (summit → base).
 
     Ascents start facing north-east, between Route A (east) and Route B (north), so
     the start heading favours neither; descents start facing south-east likewise.
     """
-    rng = np.random.default_rng(seed)
     base, summit = world.landmarks["base"], world.landmarks["summit"]
-    out = []
-    for i in range(n):
-        if i % 2 == 0:
-            out.append(Query((*_jitter(rng, base, cfg.start_jitter_m),
-                              _heading(rng, np.pi / 4, cfg.heading_jitter_deg)),
-                             _jitter(rng, summit, cfg.start_jitter_m), "ascent"))
-        else:
-            out.append(Query((*_jitter(rng, summit, cfg.start_jitter_m),
-                              _heading(rng, -np.pi / 4, cfg.heading_jitter_deg)),
-                             _jitter(rng, base, cfg.start_jitter_m), "descent"))
-    return out
+    return _back_and_forth(np.random.default_rng(seed), n, cfg,
+                           (base, summit, np.pi / 4, "ascent"),
+                           (summit, base, -np.pi / 4, "descent"))
 
 
 def ridge_queries(world: World, n: int, cfg: ExperimentsConfig, seed: int) -> list[Query]:
     """n queries alternating south → north and north → south across the ridge."""
-    rng = np.random.default_rng(seed)
     south, north = world.landmarks["south"], world.landmarks["north"]
-    out = []
-    for i in range(n):
-        a, b, yaw, label = ((south, north, np.pi / 2, "northbound") if i % 2 == 0
-                            else (north, south, -np.pi / 2, "southbound"))
-        out.append(Query((*_jitter(rng, a, cfg.start_jitter_m),
-                          _heading(rng, yaw, cfg.heading_jitter_deg)),
-                         _jitter(rng, b, cfg.start_jitter_m), label))
-    return out
+    return _back_and_forth(np.random.default_rng(seed), n, cfg,
+                           (south, north, np.pi / 2, "northbound"),
+                           (north, south, -np.pi / 2, "southbound"))
 
 
 REJECTIONS: tuple[str, ...] = ("off_map", "footprint", "hazard", "infeasible")

@@ -1,38 +1,14 @@
 """Self-supervised data collection: one driving episode of one vehicle
 (paper: Methodology → Data Collection).
 
-A vehicle spawns at a random free pose (:func:`spawn_pose`: not in a tree, not near the
-map edge, not on steep ground), drives forward at u = 5 m/s under the simulator's PID
-speed controller with smooth random steering — an Ornstein–Uhlenbeck process
-(:class:`OUSteering`), turned back toward the map centre near the edge and around tree
-trunks ahead (ours: random driving hits a trunk every few hundred metres on our maps,
-which would end most runs for every vehicle alike; the paper's jeep ran nearly full
-100 s runs, ≈ 75 patches each) — and ends after ``episode_duration_s`` (paper: 100 s)
-or at a simulator end (``flipped``, ``off_map``, ``diverged``).
-
-**Stalls.** Immobilized for ``immobilized_limit_s`` (the simulator's immobility clock;
-ours: 5 s, shorter than the 10 s of the evaluation, so a stall still gives ~4 patches),
-the paper's run ends. Optionally (ours, off by default), with
-``turn_around_after_stall``, the vehicle is put back where it stopped facing the other
-way and drives on, in a new
-*segment* of the same episode (labels and patches never span two segments); the episode
-ends ``immobilized`` only when a segment stalls less than ``turn_around_min_m`` from
-where it began (stuck both ways). Why: a weak vehicle's runs end at the first slope it
-cannot climb, so its data are stalls uphill and hardly any descents — on the demo
-training world carla_cola had 9 patches more than 10° downhill against 255 uphill, and
-its head could not learn that it descends what it cannot climb (the directional claim
-of Experiment 1). Turning around descends the slope it stalled on — but a truck stalls
-near the foot of a steep slope, so this doubles its data without adding steep descents
-(measured: ``CollectConfig.turn_around_after_stall``); hence off by default.
-
-The pose is recorded at the 25 Hz control rate; an onboard RGB-D frame is rendered
-every 5 m driven (about once a second at u; rendering dominates the cost, and a stalled
-vehicle would only render the same view again) on a tile of the map around the camera
-(:class:`~dgt_lib.world.rendering.TerrainRenderer`), and accumulated up to 20 m depth
-into a per-episode :class:`~dgt_lib.perception.bev.BEVAccumulator`, stored sparsely.
-Samples with an angular rate above 100°/s are simulator glitches (paper:
-pre-filtering): no frame is rendered there and the dataset cuts no patch whose label
-window touches one. Caching and parallel runs are :mod:`dgt_lib.stages.collect`'s job.
+A vehicle spawns at a random free pose (:func:`spawn_pose`), drives forward at u = 5 m/s
+under the simulator's PID speed controller with smooth random steering (an
+Ornstein–Uhlenbeck process, :class:`OUSteering`, turned home near the map edge and around
+trunks ahead), and ends after ``episode_duration_s`` (paper: 100 s), when immobilized, or
+at a simulator end. The pose is recorded at 25 Hz; an onboard RGB-D frame every 5 m
+driven is accumulated into the episode's BEV; samples above 100°/s are simulator
+glitches (paper: pre-filtering). Stalls, turn-arounds and why: docs/stages.md →
+Collection. Caching and parallel runs are :mod:`dgt_lib.stages.collect`'s job.
 """
 
 from __future__ import annotations
@@ -48,7 +24,7 @@ import numpy as np  # noqa: E402
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, CollectConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.perception.bev import BEVAccumulator, bev_grid
 from dgt_lib.world.rendering import onboard_camera_pose, simulator, terrain_renderer
 from dgt_lib.world.simulator import CONTROL_DT_S, VehicleState
@@ -234,6 +210,15 @@ def episode_seed(profile_seed: int, vehicle: str, index: int) -> int:
     return int(ss.generate_state(1)[0])
 
 
+def _random_steer(st: VehicleState, ou: OUSteering, world: World, trees: np.ndarray,
+                  spec: VehicleSpec, cfg: CollectConfig) -> float:
+    """The collection's steering: OU noise, turned home near the world's edge and away
+    from trees ahead."""
+    x, y = st.position[0], st.position[1]
+    s = _homing(ou(CONTROL_DT_S), x, y, st.yaw, world.grid, cfg.edge_margin_m)
+    return _avoid_trees(s, x, y, st.yaw, trees, 0.5 * spec.width_m, cfg.tree_lookahead_m)
+
+
 def run_episode(
     world: World,
     vehicle: str,
@@ -246,19 +231,11 @@ def run_episode(
     render: bool = True,
     stop: Callable[[VehicleState], bool] | None = None,
 ) -> Episode:
-    """Drive one episode and record it (see the module docstring).
-
-    world: usually the training world. seed: spawn pose and steering noise.
-    start_pose: (3,) x, y, yaw to use instead of a random :func:`spawn_pose`.
-    steer: optional policy ``state -> steer ∈ [−1, 1]`` replacing the OU steering.
-    render: render an onboard frame every ``frame_spacing_m`` driven (and at the start)
-    into the episode's BEV; a stalled vehicle renders nothing new.
-    stop: optional condition ``state -> bool`` that ends the episode (reason
-    ``"stopped"``) once it holds, checked after the simulator's and the duration's ends
-    (the ground-truth drives of :mod:`dgt_lib.evaluation.ground_truth` stop a few metres
-    past their cell; collection never sets it).
-    Deterministic in ``seed`` (the simulator is bitwise repeatable).
-    """
+    """Drive one episode and record it (see the module docstring); deterministic in
+    ``seed`` (spawn pose, steering noise). ``start_pose`` (x, y, yaw) replaces the random
+    spawn, ``steer(state) -> [−1, 1]`` the OU steering; ``render`` adds an onboard frame
+    every ``frame_spacing_m`` driven to the episode's BEV; ``stop(state)`` ends it early
+    (reason ``"stopped"``: the ground-truth drives stop a few metres past their cell)."""
     cfg = config or CollectConfig()
     spec = get_vehicle(vehicle)
     rng = np.random.default_rng(seed)
@@ -310,26 +287,28 @@ def run_episode(
             segment_start, last_xy = st.position[:2].copy(), st.position[:2].copy()
             ou.value = 0.0
             continue
-        if steer is not None:
-            s = steer(st)
-        else:
-            x, y = st.position[0], st.position[1]
-            s = _homing(ou(CONTROL_DT_S), x, y, st.yaw, world.grid, cfg.edge_margin_m)
-            s = _avoid_trees(s, x, y, st.yaw, trees, 0.5 * spec.width_m, cfg.tree_lookahead_m)
+        s = steer(st) if steer is not None else _random_steer(st, ou, world, trees, spec, cfg)
         st = sim.step(speed_cmd_mps=cfg.speed_mps, steer=s)
     rows = rows[:n]
     if reason == "diverged":  # the simulator repeats the last good state: drop it
         rows = rows[:-1] if n > 1 else rows
+    return _episode(rows, spec.name, index, seed, reason, cfg, n_frames,
+                    acc.to_sparse() if render else None)
+
+
+def _episode(rows: np.ndarray, vehicle: str, index: int, seed: int, reason: str,
+             cfg: CollectConfig, n_frames: int, bev: dict[str, np.ndarray] | None) -> Episode:
+    """The :class:`Episode` of a drive's rows (t, x, y, yaw, z, speed, |ω| [°/s],
+    segment), with the rows whose time does not increase dropped."""
     keep = np.concatenate([[True], np.diff(rows[:, 0]) > 0])  # strictly increasing time
     rows = rows[keep]
     return Episode(
-        vehicle=spec.name, index=int(index), seed=int(seed),
+        vehicle=vehicle, index=int(index), seed=int(seed),
         time_s=rows[:, 0].astype(np.float32), pose=rows[:, 1:4].astype(np.float32),
         z=rows[:, 4].astype(np.float32), speed_mps=rows[:, 5].astype(np.float32),
         angular_rate_dps=rows[:, 6].astype(np.float32),
         valid=rows[:, 6] <= cfg.max_angular_rate_dps, end_reason=reason,
-        n_frames=n_frames, bev=acc.to_sparse() if render else None,
-        segment=rows[:, 7].astype(np.int16),
+        n_frames=n_frames, bev=bev, segment=rows[:, 7].astype(np.int16),
     )
 
 

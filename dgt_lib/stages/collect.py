@@ -45,8 +45,8 @@ from dgt_lib.perception.episodes import (
     load_episode,
     run_episode,
 )
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
-from dgt_lib.stages.registry import StageOutput
 from dgt_lib.world.mujoco_model import CAMERA, LIGHTING, MAX_DEPTH_M, PHYSICS
 from dgt_lib.world.rendering import survey_frames, survey_poses
 from dgt_lib.world.terrain import WORLD_NAMES, get_world

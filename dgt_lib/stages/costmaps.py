@@ -47,8 +47,8 @@ from dgt_lib.stages.collect import (
     warn_if_unobserved,
 )
 from dgt_lib.stages.dataset import dataset_digest, dataset_fingerprint, ensure_dataset
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
-from dgt_lib.stages.registry import StageOutput
 from dgt_lib.stages.train import ensure_model, model_digest
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
@@ -180,17 +180,32 @@ def _costmap_config(prof: Profile, bev_path: str, method: str, source: str) -> d
             "costmap": {f: getattr(prof.costmap, f) for f in INFERENCE_FIELDS}}
 
 
+def _slope_costmaps(prof: Profile, bev: BEVMap, bev_path: str, key: str,
+                    ds_hash: str | None, kwargs: dict) -> dict[str, np.ndarray]:
+    """The slope baseline's costmaps of every vehicle on a world (one cached file)."""
+    slope_models = ensure_slope_models(prof, dataset_hash=ds_hash, progress=kwargs["progress"])
+    config = _costmap_config(prof, bev_path, "slope",
+                             artifacts.stored_digest("baselines/slope_models.json",
+                                                     profile=cache_dir(prof)))
+
+    def build_slope() -> dict[str, np.ndarray]:
+        cost = slope_costmap(bev, [slope_models[v] for v in VEHICLES],
+                             prof.costmap.n_headings, **kwargs)
+        return {name: cost[i] for i, name in enumerate(VEHICLES)}
+
+    return artifacts.ensure(f"costmaps/{key}/slope.npz", config, build_slope,
+                            profile=cache_dir(prof))
+
+
 def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None = None,
                           profile: Profile | str | None = None, *,
                           methods: tuple[str, ...] = METHODS,
                           progress: bool = True) -> WorldMaps:
     """The costmaps of ``methods`` for ``vehicles`` (default: the experiment's) on a world
-    (a name of the kit's worlds, or any :class:`World`, e.g. your own terrain).
-
-    Cached under ``costmaps/<world>/``: the multi-task (``dgt``) and slope maps of
-    all four vehicles in one file each (one backbone pass serves every head), one
-    file per single-task model. Isotropic and binary are derived on the fly.
-    """
+    (a name of the kit's worlds, or any :class:`World`, e.g. your own terrain). Cached
+    under ``costmaps/<world>/``: the multi-task (``dgt``) and slope maps of all four
+    vehicles in one file each, one file per single-task model; isotropic and binary are
+    derived on the fly."""
     prof = as_profile(profile)
     world_name = world if isinstance(world, str) else world.name
     vehicles = tuple(vehicles or EXPERIMENT_VEHICLES.get(world_name, VEHICLES))
@@ -253,17 +268,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
                 f"costmaps/{key}/single_{v}.npz", config, build_st,
                 profile=cache_dir(prof))["cost"]
     if "slope" in methods:
-        slope_models = ensure_slope_models(prof, dataset_hash=ds_hash, progress=progress)
-        config = _costmap_config(prof, bev_path, "slope",
-                                 artifacts.stored_digest("baselines/slope_models.json",
-                                                         profile=cache_dir(prof)))
-
-        def build_slope() -> dict[str, np.ndarray]:
-            cost = slope_costmap(bev, [slope_models[v] for v in VEHICLES], k, **kwargs)
-            return {name: cost[i] for i, name in enumerate(VEHICLES)}
-
-        slope = artifacts.ensure(f"costmaps/{key}/slope.npz", config, build_slope,
-                                 profile=cache_dir(prof))
+        slope = _slope_costmaps(prof, bev, bev_path, key, ds_hash, kwargs)
         for v in vehicles:
             maps[("slope", v)] = slope[v]
     if "binary" in methods:

@@ -14,8 +14,8 @@ from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.dataset import PatchDataset, build_dataset, dataset_summary
 from dgt_lib.perception.locomotion import WINDOW_S
 from dgt_lib.stages.collect import collect_episodes, ensure_bev
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
-from dgt_lib.stages.registry import StageOutput
 
 DATASET_RELPATH = "dataset.npz"
 """The dataset artifact under the profile's data directory."""
@@ -63,7 +63,7 @@ def dataset_digest(profile: Profile | str | None = None, *, executor: Executor |
     prof = as_profile(profile)
     bev = ensure_bev("training", prof, executor=executor, progress=progress)
     digest = artifacts.fresh_fingerprint(DATASET_RELPATH, _dataset_config(prof, bev),
-                                         artifacts.config_hash, profile=cache_dir(prof))
+                                         profile=cache_dir(prof))
     return digest or dataset_fingerprint(ensure_dataset(prof, executor=executor,
                                                         progress=progress))
 

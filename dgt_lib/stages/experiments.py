@@ -5,8 +5,8 @@
 experiment, planner and costmap settings, the seed and the digests of the models and
 slope fits), journals every finished trial so an interrupted run resumes, and writes
 ``results/<name>.md``. :func:`trial_maps` is how trial workers read their costmaps.
-The stage entry point that also writes recordings and figures is
-:func:`dgt_lib.report.stage_experiments` (it sits above this layer).
+The stage's figures, report and recordings are written by the top level
+(:func:`dgt_lib.report.report_stage`).
 """
 
 from __future__ import annotations
@@ -15,11 +15,13 @@ from functools import lru_cache
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile, get_profile
-from dgt_lib.evaluation.experiments import ExperimentResult, run_experiment
+from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult, run_experiment
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import classify_route
+from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.train import MODEL_KINDS, model_relpath
 from dgt_lib.world.mujoco_model import PHYSICS
@@ -88,3 +90,17 @@ def ensure_experiment(name: str, profile: Profile | str | None = None, *,
     (out / "results").mkdir(parents=True, exist_ok=True)
     (out / "results" / f"{stem}.md").write_text(result.markdown(PAPER.get(name)))
     return result
+
+
+def stage_experiments(profile: Profile) -> StageOutput:
+    """``dgt reproduce`` stage: Experiments 1–3, each with its table in ``results/``; the
+    results (``value``) go to the report step."""
+    prof = as_profile(profile)
+    paths, parts, results = [], [], []
+    for name in EXPERIMENTS:
+        res = ensure_experiment(name, prof)
+        results.append(res)
+        paths.append(data_dir(prof) / "results" / f"{experiment_stem(name, prof)}.md")
+        counts = ", ".join(f"{METHOD_LABELS[m]} {k}/{n}" for m, (k, n) in res.counts().items())
+        parts.append(f"{name}: {counts}")
+    return StageOutput(paths, "; ".join(parts), value=results)

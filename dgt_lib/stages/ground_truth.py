@@ -35,8 +35,8 @@ from dgt_lib.evaluation.ground_truth import GroundTruth, drive_job, sample_cells
 from dgt_lib.evaluation.journal import Journal, read_journal
 from dgt_lib.mapping.methods import METHODS
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_tau_s, ensure_world_costmaps
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir, profile_root
-from dgt_lib.stages.registry import StageOutput
 from dgt_lib.world.mujoco_model import PHYSICS
 from dgt_lib.world.terrain import get_world
 

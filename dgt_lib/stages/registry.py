@@ -1,68 +1,96 @@
-"""The stages of ``dgt reproduce``, in pipeline order.
+"""The stages of ``dgt reproduce``, in pipeline order (docs/stages.md).
 
-A stage is a named, cached entry point ``run(profile) -> StageOutput``: it goes
-through the artifact cache (``dgt_lib.core.artifacts.ensure``), so a second run
-reuses what the first wrote. Issues that build a stage add it to :data:`STAGES`
-(keep the data-flow order of docs/ARCHITECTURE.md), saying what stays cached when Ctrl-C stops it.
-Entry points are named as ``"module:function"`` strings and imported only when run,
-so ``dgt --help`` stays fast and a stage's heavy imports are paid only when it runs.
+A stage is a named, cached callable ``run(profile) -> StageOutput``: it goes through the
+artifact cache (``dgt_lib.core.artifacts.ensure``), so a second run reuses what the first
+wrote. Each imports its module when called, so ``dgt --help`` stays fast and a stage's
+heavy imports are paid only when it runs. A stage with ``report`` set has its figures,
+tables and recordings written by the top level (:func:`dgt_lib.report.report_stage`).
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 from dgt_lib.core.config import Profile
-
-
-@dataclass
-class StageOutput:
-    """What a stage wrote (paths) and a one-line summary of it."""
-
-    paths: list[Path] = field(default_factory=list)
-    summary: str = ""
+from dgt_lib.stages.output import StageOutput
 
 
 @dataclass(frozen=True)
 class Stage:
     name: str
-    entry_point: str  # "dgt_lib.module:function", function(profile) -> StageOutput
+    run: Callable[[Profile], StageOutput]
     description: str
     kept: str = "what it had finished"
     """What stays in the cache when the stage is stopped by Ctrl-C (said to the user)."""
+    report: bool = False
+    """Whether ``dgt reproduce`` hands its output to :func:`dgt_lib.report.report_stage`."""
 
-    def load(self) -> Callable[[Profile], StageOutput]:
-        module, _, func = self.entry_point.partition(":")
-        return getattr(importlib.import_module(module), func)
+
+def collect(profile: Profile) -> StageOutput:
+    from dgt_lib.stages.collect import stage_collect
+
+    return stage_collect(profile)
+
+
+def bev(profile: Profile) -> StageOutput:
+    from dgt_lib.stages.collect import stage_bev
+
+    return stage_bev(profile)
+
+
+def dataset(profile: Profile) -> StageOutput:
+    from dgt_lib.stages.dataset import stage_dataset
+
+    return stage_dataset(profile)
+
+
+def train(profile: Profile) -> StageOutput:
+    from dgt_lib.stages.train import stage_train
+
+    return stage_train(profile)
+
+
+def costmaps(profile: Profile) -> StageOutput:
+    from dgt_lib.stages.costmaps import stage_costmaps
+
+    return stage_costmaps(profile)
+
+
+def ground_truth(profile: Profile) -> StageOutput:
+    from dgt_lib.stages.ground_truth import stage_ground_truth
+
+    return stage_ground_truth(profile)
+
+
+def experiments(profile: Profile) -> StageOutput:
+    from dgt_lib.stages.experiments import stage_experiments
+
+    return stage_experiments(profile)
 
 
 STAGES: list[Stage] = [
-    Stage("collect", "dgt_lib.stages.collect:stage_collect",
+    Stage("collect", collect,
           "drive every vehicle on the training world (episodes, sparse RGB-D)",
           "every episode finished so far"),
-    Stage("bev", "dgt_lib.stages.collect:stage_bev",
-          "global BEV maps of the training, hill, ridge and eval worlds",
+    Stage("bev", bev, "global BEV maps of the training, hill, ridge and eval worlds",
           "every BEV map finished so far"),
-    Stage("dataset", "dgt_lib.stages.dataset:stage_dataset",
+    Stage("dataset", dataset,
           "heading-aligned patches + locomotion labels, split by trajectory",
           "the episodes and BEV maps it needs (the dataset itself is built again)"),
-    Stage("train", "dgt_lib.stages.train:stage_train",
-          "multi-task model and one single-task model per vehicle",
+    Stage("train", train, "multi-task model and one single-task model per vehicle",
           "every model finished so far, and the interrupted one's training up to its last "
           "snapshot (models/<kind>.resume.pt)"),
-    Stage("costmaps", "dgt_lib.stages.costmaps:stage_costmaps",
+    Stage("costmaps", costmaps,
           "directional costmaps of every method, occupancy maps (τ_s)",
           "every costmap finished so far"),
-    Stage("ground_truth", "dgt_lib.stages.ground_truth:stage_ground_truth",
+    Stage("ground_truth", ground_truth,
           "drive every experiment vehicle through sampled cells at the K headings (L*, once "
           "per profile); score each method's costmap against it",
           "every drive finished so far (journaled)"),
-    Stage("experiments", "dgt_lib.report:stage_experiments",
+    Stage("experiments", experiments,
           "Experiments 1–3 in closed loop: tables, figures, rerun recordings",
-          "every finished experiment and every finished trial (journaled)"),
+          "every finished experiment and every finished trial (journaled)", report=True),
 ]
 
 

@@ -24,8 +24,8 @@ from dgt_lib.learning.checkpoints import (
 )
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.stages.dataset import dataset_fingerprint, ensure_dataset
+from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
-from dgt_lib.stages.registry import StageOutput
 
 if TYPE_CHECKING:
     import torch

@@ -163,50 +163,61 @@ def _add_vehicle(spec: mujoco.MjSpec, v: VehicleSpec) -> None:
     preload = (m_body / 4) * GRAVITY_MPS2 / k
     brake0 = v.rolling_resistance * v.mass_kg * GRAVITY_MPS2 * r / 4
     driven = ("fl", "fr", "rl", "rr") if v.drive == "awd" else ("rl", "rr")
-    w_max = v.max_wheel_speed_radps
     for name in WHEEL_NAMES:
-        x = (1 if name[0] == "f" else -1) * v.wheelbase_m / 2
-        y = (1 if name[1] == "l" else -1) * v.track_m / 2
-        hub = chassis.add_body(name=f"hub_{name}", pos=[x, y, 0])
-        hub.add_joint(name=f"susp_{name}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1],
-                      stiffness=[k, 0, 0], springref=-preload, damping=[c, 0, 0],
-                      range=[-SUSPENSION_TRAVEL_M, SUSPENSION_TRAVEL_M], limited=1)
-        hub.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0], mass=1.0,
-                     contype=0, conaffinity=0, group=3)
-        parent = hub
-        if name[0] == "f":
-            knuckle = hub.add_body(name=f"knuckle_{name}")
-            knuckle.add_joint(name=f"steer_{name}", type=mujoco.mjtJoint.mjJNT_HINGE,
-                              axis=[0, 0, 1], range=[-1.0, 1.0], limited=1,
-                              damping=[50.0, 0, 0], armature=1.0)
-            knuckle.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0], mass=1.0,
-                             contype=0, conaffinity=0, group=3)
-            spec.add_actuator(name=f"steer_{name}", target=f"steer_{name}",
-                              trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                              gaintype=mujoco.mjtGain.mjGAIN_FIXED, gainprm=[20000.0] + [0] * 9,
-                              biastype=mujoco.mjtBias.mjBIAS_AFFINE,
-                              biasprm=[0, -20000.0, -400.0] + [0] * 7,
-                              ctrlrange=[-1.0, 1.0], ctrllimited=1)
-            parent = knuckle
-        wheel = parent.add_body(name=f"wheel_{name}")
-        # Brakes are this joint's Coulomb friction (set per step); a stiff, hard
-        # friction constraint so a braked wheel holds instead of creeping.
-        wheel.add_joint(name=f"spin_{name}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0],
-                        frictionloss=brake0, solref_friction=[2 * TIMESTEP_S, 1.0],
-                        solimp_friction=[0.999, 0.9999, 0.001, 0.5, 2.0])
-        wheel.add_geom(name=f"wheel_{name}", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r, 0, 0],
-                       mass=m_wheel, contype=BIT_LOW, conaffinity=BIT_TERRAIN | BIT_TREE,
-                       friction=[FRICTION, 0.005, 0.0001], rgba=[0.1, 0.1, 0.1, 1],
-                       group=VEHICLE_GEOM_GROUP)
-        if name in driven:
-            t = v.drive_torque_nm
-            spec.add_actuator(name=f"motor_{name}", target=f"spin_{name}",
-                              trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                              gaintype=mujoco.mjtGain.mjGAIN_FIXED, gainprm=[t] + [0] * 9,
-                              biastype=mujoco.mjtBias.mjBIAS_AFFINE,
-                              biasprm=[0, 0, -t / w_max] + [0] * 7,
-                              ctrlrange=[-1.0, 1.0], ctrllimited=1,
-                              forcerange=[-t, t], forcelimited=1)
+        _add_wheel(spec, chassis, v, name, (k, c, preload), brake0, m_wheel, name in driven)
+
+
+def _add_wheel(spec: mujoco.MjSpec, chassis, v: VehicleSpec, name: str,
+               suspension: tuple[float, float, float], brake0: float, m_wheel: float,
+               driven: bool) -> None:
+    """One wheel ``name`` (fl, fr, rl, rr) under ``chassis``: a sprung hub (stiffness,
+    damping, preload of ``suspension``), a steered knuckle at the front, the spinning
+    wheel braked by ``brake0`` [N·m] of joint friction, and its motor if ``driven``."""
+    k, c, preload = suspension
+    r = v.wheel_radius_m
+    w_max = v.max_wheel_speed_radps
+    x = (1 if name[0] == "f" else -1) * v.wheelbase_m / 2
+    y = (1 if name[1] == "l" else -1) * v.track_m / 2
+    hub = chassis.add_body(name=f"hub_{name}", pos=[x, y, 0])
+    hub.add_joint(name=f"susp_{name}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1],
+                  stiffness=[k, 0, 0], springref=-preload, damping=[c, 0, 0],
+                  range=[-SUSPENSION_TRAVEL_M, SUSPENSION_TRAVEL_M], limited=1)
+    hub.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0], mass=1.0,
+                 contype=0, conaffinity=0, group=3)
+    parent = hub
+    if name[0] == "f":
+        knuckle = hub.add_body(name=f"knuckle_{name}")
+        knuckle.add_joint(name=f"steer_{name}", type=mujoco.mjtJoint.mjJNT_HINGE,
+                          axis=[0, 0, 1], range=[-1.0, 1.0], limited=1,
+                          damping=[50.0, 0, 0], armature=1.0)
+        knuckle.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0], mass=1.0,
+                         contype=0, conaffinity=0, group=3)
+        spec.add_actuator(name=f"steer_{name}", target=f"steer_{name}",
+                          trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                          gaintype=mujoco.mjtGain.mjGAIN_FIXED, gainprm=[20000.0] + [0] * 9,
+                          biastype=mujoco.mjtBias.mjBIAS_AFFINE,
+                          biasprm=[0, -20000.0, -400.0] + [0] * 7,
+                          ctrlrange=[-1.0, 1.0], ctrllimited=1)
+        parent = knuckle
+    wheel = parent.add_body(name=f"wheel_{name}")
+    # Brakes are this joint's Coulomb friction (set per step); a stiff, hard
+    # friction constraint so a braked wheel holds instead of creeping.
+    wheel.add_joint(name=f"spin_{name}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0],
+                    frictionloss=brake0, solref_friction=[2 * TIMESTEP_S, 1.0],
+                    solimp_friction=[0.999, 0.9999, 0.001, 0.5, 2.0])
+    wheel.add_geom(name=f"wheel_{name}", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r, 0, 0],
+                   mass=m_wheel, contype=BIT_LOW, conaffinity=BIT_TERRAIN | BIT_TREE,
+                   friction=[FRICTION, 0.005, 0.0001], rgba=[0.1, 0.1, 0.1, 1],
+                   group=VEHICLE_GEOM_GROUP)
+    if driven:
+        t = v.drive_torque_nm
+        spec.add_actuator(name=f"motor_{name}", target=f"spin_{name}",
+                          trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                          gaintype=mujoco.mjtGain.mjGAIN_FIXED, gainprm=[t] + [0] * 9,
+                          biastype=mujoco.mjtBias.mjBIAS_AFFINE,
+                          biasprm=[0, 0, -t / w_max] + [0] * 7,
+                          ctrlrange=[-1.0, 1.0], ctrllimited=1,
+                          forcerange=[-t, t], forcelimited=1)
 
 
 def build_model(world: World, vehicle: str | VehicleSpec) -> mujoco.MjModel:
