@@ -48,8 +48,9 @@ from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
 from dgt_lib.learning.checkpoints import load_checkpoint
+from dgt_lib.learning.run import train_model
 from dgt_lib.learning.synthetic import synthetic_dataset
-from dgt_lib.learning.training import predict, train_model
+from dgt_lib.learning.training import predict
 from dgt_lib.mapping.costmap import (
     _heading_layer,
     directional_costmap,

@@ -49,7 +49,8 @@ from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
 from dgt_lib.core.config import VEHICLES  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
-from dgt_lib.learning.training import evaluate, predict, train_model  # noqa: E402
+from dgt_lib.learning.run import train_model  # noqa: E402
+from dgt_lib.learning.training import evaluate, predict  # noqa: E402
 from dgt_lib.mapping.costmap import directional_costmap  # noqa: E402
 from dgt_lib.perception.bev import bev_grid  # noqa: E402
 from dgt_lib.perception.dataset import PatchDataset  # noqa: E402

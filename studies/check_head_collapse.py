@@ -37,7 +37,8 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.learning.model import HEAD_PRIOR_CLIP
-from dgt_lib.learning.training import collapsed_heads, train_model
+from dgt_lib.learning.run import train_model
+from dgt_lib.learning.training import collapsed_heads
 from dgt_lib.perception.dataset import TRAIN, PatchDataset
 
 

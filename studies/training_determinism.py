@@ -38,7 +38,7 @@ def child(profile_name: str, seed: int, kind: str, steps: int | None) -> None:
 
     from dgt_lib.core import artifacts
     from dgt_lib.core.config import get_profile
-    from dgt_lib.learning.training import train_model
+    from dgt_lib.learning.run import train_model
     from dgt_lib.perception.dataset import PatchDataset
     from dgt_lib.stages.dataset import DATASET_RELPATH
     from dgt_lib.stages.paths import data_dir

@@ -34,7 +34,8 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, get_profile
 from dgt_lib.evaluation import accuracy
 from dgt_lib.evaluation.queries import classify_route, hill_queries, ridge_queries
-from dgt_lib.learning.training import COLLAPSE_RATIO, predict, train_model
+from dgt_lib.learning.run import train_model
+from dgt_lib.learning.training import COLLAPSE_RATIO, predict
 from dgt_lib.mapping.costmap import directional_costmap
 from dgt_lib.mapping.occupancy import occupancy_map
 from dgt_lib.navigation.planner import HybridAStar

@@ -33,8 +33,9 @@ import torch
 
 from dgt_lib.core.config import VEHICLES, TrainConfig
 from dgt_lib.learning.model import DGTNet
+from dgt_lib.learning.run import train_model
 from dgt_lib.learning.synthetic import plane_patches
-from dgt_lib.learning.training import collapsed_heads, head_prior, train_model
+from dgt_lib.learning.training import collapsed_heads, head_prior
 from dgt_lib.perception.dataset import PatchDataset, split_by_trajectory
 
 # Adam at 1e-3 and batch 64 as in the profiles; 3 epochs of ~22 steps: ~2.5 s on one thread.

@@ -276,7 +276,7 @@ def test_device_auto_picks_cuda_when_torch_sees_it(monkeypatch):
 def test_ensure_model_trains_on_the_profiles_device(data_dir, monkeypatch):
     import torch
 
-    from dgt_lib.learning import training
+    from dgt_lib.learning import run
     from dgt_lib.stages import train
 
     asked = []
@@ -286,7 +286,7 @@ def test_ensure_model_trains_on_the_profiles_device(data_dir, monkeypatch):
         raise KeyboardInterrupt  # enough: nothing is trained or cached
 
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)  # as on a GPU machine
-    monkeypatch.setattr(training, "train_model", fake_train_model)
+    monkeypatch.setattr(run, "train_model", fake_train_model)
     monkeypatch.setattr(train, "dataset_fingerprint", lambda ds: "ds")
     prof = get_profile("smoke")
     for device in ("cpu", "auto"):

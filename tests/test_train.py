@@ -9,6 +9,7 @@ import torch
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, ExecutionConfig, TrainConfig, get_profile
+from dgt_lib.learning import run as train_run
 from dgt_lib.learning import training as train
 from dgt_lib.learning.checkpoints import (
     CheckpointError,
@@ -18,13 +19,13 @@ from dgt_lib.learning.checkpoints import (
     save_checkpoint,
 )
 from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet, PatchConv2d, centre_heights
+from dgt_lib.learning.run import train_model
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import (
     channel_statistics,
     masked_loss,
     predict,
     regression_metrics,
-    train_model,
 )
 from dgt_lib.perception.dataset import TEST, TRAIN
 from dgt_lib.stages import train as train_stage
@@ -280,8 +281,8 @@ def test_ctrl_c_before_the_first_epoch_ends_is_reraised(dataset):
 
 def test_ensure_model_caches_per_kind(dataset, data_dir, monkeypatch):
     calls = []
-    real = train.train_model
-    monkeypatch.setattr(train, "train_model",
+    real = train_run.train_model
+    monkeypatch.setattr(train_run, "train_model",
                         lambda *a, **k: calls.append(k) or real(*a, **k))
     profile = get_profile("smoke").with_(train=TINY)
     first = ensure_model(profile, dataset, "single:vw_van", progress=False)
@@ -306,7 +307,7 @@ def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
     profile = get_profile("smoke").with_(  # the CPU: a GPU's runs differ even unstopped
         train=TrainConfig(epochs=3, batch_size=64, width=8, fc_hidden=32),
         execution=ExecutionConfig(device=CPU))
-    real, trained, stop = train.train_model, [], [True]
+    real, trained, stop = train_run.train_model, [], [True]
 
     def interrupt_in_epoch_2(epoch, step, loss):
         if epoch == 2 and stop[0]:
@@ -317,7 +318,7 @@ def test_ctrl_c_in_training_stops_the_stage_and_caches_no_half_trained_model(
         return real(*a, **k, on_batch_end=interrupt_in_epoch_2 if k["vehicles"] == ("jeep",)
                     else None)
 
-    monkeypatch.setattr(train, "train_model", train_model)
+    monkeypatch.setattr(train_run, "train_model", train_model)
     monkeypatch.setattr(train_stage, "SNAPSHOT_EVERY_S", 0.0)  # these epochs take ~0.1 s
     kinds = ("single:carla_cola", "single:jeep", "single:vw_van")
     with pytest.raises(KeyboardInterrupt):

@@ -47,7 +47,7 @@ from dgt_lib.mapping.costmap import (
     fill_lattice,
     lattice_to_windows,
 )
-from dgt_lib.perception.bev import N_CHANNELS, BEVMap
+from dgt_lib.perception.bev import N_CHANNELS, BEVMap, changed_mask
 from dgt_lib.perception.patches import (
     PATCH_COLS,
     PATCH_ROWS,
@@ -64,20 +64,6 @@ Box = tuple[slice, slice]
 
 _SUPPORT_MARGIN = 0.5
 """Slack [cells] around a bilinear support (cv2 rounds coordinates to 1/32 cell)."""
-
-
-def changed_mask(old: BEVMap | None, new: BEVMap) -> np.ndarray | None:
-    """(H, W) bool: the cells whose channels or observed flag differ between two BEV maps
-    of one grid (every observed cell of ``new`` when ``old`` is None); None when nothing
-    changed. What :meth:`IncrementalCostmap.update` wants: with the mask instead of its
-    bounding box it re-evaluates only windows that read a changed cell."""
-    if old is None:
-        diff = new.observed.copy()
-    else:
-        if old.grid != new.grid:
-            raise ValueError(f"BEV maps of different grids: {old.grid} vs {new.grid}")
-        diff = (old.observed != new.observed) | np.any(old.channels != new.channels, axis=0)
-    return diff if diff.any() else None
 
 
 def changed_cells(old: BEVMap | None, new: BEVMap) -> Box | None:

@@ -3,8 +3,8 @@ per-batch callback, the best model's checkpoint, snapshots and resume, Ctrl-C, t
 test metrics and the collapsed-head check.
 
 :func:`train_network` trains any network of the :class:`~dgt_lib.learning.training.MultiHeadNet`
-kind (a new :class:`~dgt_lib.learning.model.DGTNet` from
-:func:`~dgt_lib.learning.training.train_model`, or another network its caller built) and
+kind (a new :class:`~dgt_lib.learning.model.DGTNet` from :func:`train_model`, or another
+network its caller built) and
 returns its :class:`~dgt_lib.learning.checkpoints.TrainResult`. With ``snapshot_path`` the
 training is saved after an epoch (:mod:`dgt_lib.learning.resume`) and the next call resumes
 after it: an interrupt or a crash costs at most ``snapshot_every_s`` and an epoch.
@@ -26,19 +26,21 @@ from tqdm.auto import tqdm
 
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.learning.checkpoints import TrainResult, save_checkpoint
+from dgt_lib.learning.model import DGTNet
 from dgt_lib.learning.resume import TrainingState, load_training_state, training_identity
 from dgt_lib.learning.training import (
     FitHooks,
     FitState,
     MultiHeadNet,
     TrainingSet,
+    channel_statistics,
     collapsed_heads,
     evaluate,
     fit,
     head_prior,
     resolve_device,
 )
-from dgt_lib.perception.dataset import TEST
+from dgt_lib.perception.dataset import TEST, PatchDataset
 
 
 class Snapshots:
@@ -234,3 +236,34 @@ def _result(model: MultiHeadNet, data: TrainingSet, cfg: TrainConfig, seed: int,
     if checkpoint_path is not None:
         save_checkpoint(checkpoint_path, result)
     return result
+
+
+def train_model(
+    dataset: PatchDataset,
+    cfg: TrainConfig,
+    *,
+    vehicles: tuple[str, ...] | list[str] | str | None = None,
+    seed: int = 0,
+    device: str | torch.device | None = None,
+    progress: bool = True,
+    rgb_weights: str | Path | None = None,
+    **run: Any,
+) -> TrainResult:
+    """Train a new :class:`DGTNet` on ``dataset`` with Adam and the masked loss (:func:`fit`
+    inside :func:`train_network`); keep the epoch ``cfg.selection``
+    picks. Returns its :class:`TrainResult` (test-split metrics per vehicle).
+
+    vehicles: None = multi-task on every vehicle (one head each); a tuple of names (e.g.
+    ``("vw_van",)``) trains on those vehicles' samples only (single-task). seed: weight
+    initialisation and batch order (same seed, same weights on the CPU with the same
+    thread count). rgb_weights: torchvision's ImageNet ResNet-18 file for the RGB branch
+    (width 64). ``run``: the run's bookkeeping (checkpoint, snapshots and resume, Ctrl-C,
+    live callback), as :func:`train_network` takes it.
+    """
+    data = TrainingSet.select(dataset, vehicles, cfg)
+    device = resolve_device(device)
+    torch.manual_seed(seed)
+    model = DGTNet(data.vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
+                   rgb_weights=rgb_weights)
+    model.set_normalization(*channel_statistics(dataset.patches, data.train_index))
+    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)

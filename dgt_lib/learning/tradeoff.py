@@ -51,7 +51,7 @@ def width_tradeoff(dataset, cfg, widths: Sequence[int], *, epochs: int, seed: in
     from tqdm.auto import tqdm
 
     from dgt_lib.learning.model import count_parameters
-    from dgt_lib.learning.training import train_model
+    from dgt_lib.learning.run import train_model
 
     test = dataset.part("test")
     if len(test) == 0:

@@ -29,8 +29,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import torch
@@ -40,7 +39,7 @@ from dgt_lib.learning.model import N_CHANNELS, DGTNet, centre_heights
 from dgt_lib.perception.dataset import TRAIN, VAL, PatchDataset
 
 if TYPE_CHECKING:
-    from dgt_lib.learning.checkpoints import TrainResult
+    pass
 
 def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor,
                 weight: torch.Tensor | None = None) -> torch.Tensor:
@@ -461,36 +460,3 @@ def fit(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: TrainingSet
         if stopped_early(cfg, epoch, state.best_epoch):
             break
     return state
-
-
-def train_model(
-    dataset: PatchDataset,
-    cfg: TrainConfig,
-    *,
-    vehicles: tuple[str, ...] | list[str] | str | None = None,
-    seed: int = 0,
-    device: str | torch.device | None = None,
-    progress: bool = True,
-    rgb_weights: str | Path | None = None,
-    **run: Any,
-) -> TrainResult:
-    """Train a new :class:`DGTNet` on ``dataset`` with Adam and the masked loss (:func:`fit`
-    inside :func:`~dgt_lib.learning.run.train_network`); keep the epoch ``cfg.selection``
-    picks. Returns its :class:`TrainResult` (test-split metrics per vehicle).
-
-    vehicles: None = multi-task on every vehicle (one head each); a tuple of names (e.g.
-    ``("vw_van",)``) trains on those vehicles' samples only (single-task). seed: weight
-    initialisation and batch order (same seed, same weights on the CPU with the same
-    thread count). rgb_weights: torchvision's ImageNet ResNet-18 file for the RGB branch
-    (width 64). ``run``: the run's bookkeeping (checkpoint, snapshots and resume, Ctrl-C,
-    live callback), as :func:`~dgt_lib.learning.run.train_network` takes it.
-    """
-    from dgt_lib.learning.run import train_network  # the run around fit; imports this module
-
-    data = TrainingSet.select(dataset, vehicles, cfg)
-    device = resolve_device(device)
-    torch.manual_seed(seed)
-    model = DGTNet(data.vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
-                   rgb_weights=rgb_weights)
-    model.set_normalization(*channel_statistics(dataset.patches, data.train_index))
-    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)

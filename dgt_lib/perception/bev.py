@@ -455,3 +455,18 @@ def bev_quality(bev: BEVMap, world: World) -> dict[str, float]:
     err = np.abs(bev.mean_height[seen] - world.height_at(x[seen], y[seen]))
     return {"coverage": float(seen.sum() / max(inside.sum(), 1)),
             "height_median_abs_err_m": float(np.median(err)) if err.size else math.inf}
+
+
+def changed_mask(old: BEVMap | None, new: BEVMap) -> np.ndarray | None:
+    """(H, W) bool: the cells whose channels or observed flag differ between two BEV maps
+    of one grid (every observed cell of ``new`` when ``old`` is None); None when nothing
+    changed. What an incremental costmap update
+    (:mod:`dgt_lib.beyond.incremental`) wants: with the mask instead of its
+    bounding box it re-evaluates only windows that read a changed cell."""
+    if old is None:
+        diff = new.observed.copy()
+    else:
+        if old.grid != new.grid:
+            raise ValueError(f"BEV maps of different grids: {old.grid} vs {new.grid}")
+        diff = (old.observed != new.observed) | np.any(old.channels != new.channels, axis=0)
+    return diff if diff.any() else None

@@ -1,7 +1,7 @@
 """Stage ``train``: the multi-task model and one single-task model per vehicle, cached
 (paper: Multi-Task Learning, Baselines → DGT-Map(ST)).
 
-The training itself is :func:`dgt_lib.learning.training.train_model`; this module keys
+The training itself is :func:`dgt_lib.learning.run.train_model`; this module keys
 each model by what determines it (dataset, settings, seed) and stores it under
 ``models/<kind>.pt``.
 """
@@ -148,7 +148,8 @@ def ensure_model(
     a CUDA GPU when there is one); not part of the cache key — a checkpoint holds
     CPU tensors and loads on any device.
     """
-    from dgt_lib.learning.training import resolve_device, train_model  # torch: only here
+    from dgt_lib.learning.run import train_model  # torch: only here
+    from dgt_lib.learning.training import resolve_device
 
     vehicles = parse_kind(kind)
     device = resolve_device(device if device is not None else profile.execution.device)
