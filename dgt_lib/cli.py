@@ -215,8 +215,8 @@ def settings_table(profile: Profile) -> list[tuple[str, str, str]]:
     (:func:`dgt_lib.core.overrides.setting_names`), so it lists exactly what ``--set``
     checks against."""
     rows = []
-    for name in setting_names():
-        section, field_name, hint = setting_type(name)
+    for name in setting_names(type(profile)):
+        section, field_name, hint = setting_type(type(profile), name)
         owner = profile if section is None else getattr(profile, section)
         rows.append((name, _type_text(hint), format_setting(getattr(owner, field_name))))
     return rows

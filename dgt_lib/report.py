@@ -11,14 +11,11 @@ failed trials ended (marker by reason), and the ground truth on the learned laye
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import matplotlib
-
-matplotlib.use("Agg", force=False)
-import json
-
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 from dgt_lib import recording, recording_layout, viz
 from dgt_lib.core.config import Profile, as_profile
@@ -51,7 +48,14 @@ def _title(prof: Profile) -> str:
     return prof.describe().replace(repr(prof.name), name, 1)
 
 
+def _headless() -> None:
+    """Draw off-screen when called from the command line; a notebook keeps its backend
+    (inline figures), so importing this module never switches it."""
+    matplotlib.use("Agg", force=False)
+
+
 def _figures(result: ExperimentResult, prof: Profile, out: Path) -> list[Path]:
+    _headless()
     paths = []
     fig = viz.plot_success_rates(result, PAPER.get(result.name))
     paths.append(out / f"{result.name}_success.png")
@@ -99,6 +103,7 @@ def _accuracy_section(prof: Profile, out: Path) -> list[str]:
         return parts + ["Not measured for this seed: run `dgt reproduce --stages "
                         "ground_truth` (it runs before the experiments).", ""]
     parts += [ACCURACY_INTRO, "", accuracy_markdown(result)]
+    _headless()
     for world, vehicle in ACCURACY_FIGURES:
         truth = ensure_ground_truth(world, vehicle, prof, progress=False)
         maps = ensure_world_costmaps(world, (vehicle,), prof, progress=False)

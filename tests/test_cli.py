@@ -378,13 +378,13 @@ def test_plan_takes_only_the_four_vehicles(capsys):
 def test_settings_lists_every_name_set_takes_with_its_type_and_the_profile_s_value(capsys):
     from dataclasses import replace
 
-    from dgt_lib.core.config import get_profile
+    from dgt_lib.core.config import Profile, get_profile
     from dgt_lib.core.overrides import setting_names
 
     assert main(["settings", "--profile", "demo"]) == 0
     lines = capsys.readouterr().out.splitlines()
     rows = {line.split()[0]: line.split(None, 1)[1] for line in lines[1:]}
-    assert list(rows) == setting_names()  # every name, nothing else
+    assert list(rows) == setting_names(Profile)  # every name, nothing else
     assert rows["planner.beta"].split() == ["float", "150.0"]
     assert rows["costmap.stride"].split() == ["tuple[int,", "int]", "4,2"]  # demo's, not (6, 3)
     assert rows["train.patience"].split()[:3] == ["int", "|", "None"]
@@ -416,7 +416,7 @@ def test_one_seed_alone_leaves_the_pooled_results_as_they_are(capsys, tmp_path, 
 
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
-        pipeline.Stage("experiments", "tests.stage_examples:first", "stands in")])
+        pipeline.Stage("experiments", stage_examples.first, "stands in")])
     pooled = []
     monkeypatch.setattr(dgt_lib.report, "write_seeds_report",
                         lambda profile: pooled.append(profile.seed_profiles()) or tmp_path)

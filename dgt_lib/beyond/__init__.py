@@ -2,12 +2,14 @@
 
 The sub-packages ``learning``, ``mapping``, ``navigation`` hold the paper's method and
 its baselines only. What goes further lives here and plugs into them through small
-interfaces (e.g. :data:`dgt_lib.mapping.costmap.DENSE_EVALUATORS`), never through an
+interfaces (e.g. :func:`dgt_lib.mapping.costmap.field_costmap`, the training loop's
+:class:`~dgt_lib.learning.training.MultiHeadNet`), never through an
 ``isinstance`` on an annex type inside a paper module:
 
 ==================  ===================================================================
 ``pooled``          PooledNet: a window network that dense evaluation computes exactly
 ``equivariant``     C8Net: all K = 8 headings in one pass (a C8-equivariant network)
+``group_conv``      the C8 group convolutions C8Net is built from
 ``dense``           dense evaluation of DGTNet (a measured negative result)
 ``incremental``     costmaps updated only where new BEV cells changed them
 ``explore``         driving an unknown world: frames → BEV → incremental costmap → replan

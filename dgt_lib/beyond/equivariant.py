@@ -33,7 +33,7 @@ crop of the real map, of the network's receptive field, around the patch pose, s
 network sees at training exactly the context it sees at inference; convolutions are
 "valid" and the crop's single output cell is the sample's prediction. Off-map and
 unobserved cells are 0 after normalisation, and inference pads the map with such zeros,
-so borders agree too. Measured against DGTNet by ``benchmarks/eval_equivariant.py``.
+so borders agree too. Measured against DGTNet by ``studies/eval_equivariant.py``.
 """
 
 from __future__ import annotations

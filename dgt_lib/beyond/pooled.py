@@ -34,7 +34,7 @@ Training (:func:`train_pooled`) runs the library's own loop,
 :func:`~dgt_lib.learning.run.train_network` around :func:`~dgt_lib.learning.training.fit`
 (the same masked loss, recipe and mirror augmentation as DGTNet), on a dataset whose patches
 are the margin crops with the observed mask as a 7th channel (:func:`context_dataset`).
-Measured against DGTNet by ``benchmarks/eval_pooled.py``; :func:`bfloat16_copy` trades
+Measured against DGTNet by ``studies/eval_pooled.py``; :func:`bfloat16_copy` trades
 exactness (mean |ΔC| < 10⁻³) for a ~5× faster trunk on CPUs with AMX
 (``benchmarks/bench_costmap.py --bf16``).
 """
@@ -84,7 +84,7 @@ class PooledNet(nn.Module):
 
     ``depth`` 6 (a 15 × 15-cell, 6 m view per trunk feature, margin 7): of depth 4, 6, 8 and
     width 64 at depth 4, trained on the ``demo`` data (3 seeds each), it came closest to the
-    ridge's measured ground truth (``benchmarks/eval_pooled.py``; docs/speed.md). Picked on those
+    ridge's measured ground truth (``studies/eval_pooled.py``; docs/speed.md). Picked on those
     results, so the ``paper`` profile's seeds are its independent check.
     """
 

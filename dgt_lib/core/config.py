@@ -69,7 +69,7 @@ class CollectConfig:
     immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
     # True (ours, an option): after a stall the vehicle turns around where it stopped and
     # drives on (a new segment); False = the paper's runs, which end at the first stall.
-    # Measured on the demo training world (benchmarks/descent_coverage.py, 20 carla_cola runs):
+    # Measured on the demo training world (studies/descent_coverage.py, 20 carla_cola runs):
     # 2× the driving time, but steep descents stay rare (samples more than 15° downhill:
     # 0 → 2), because the truck stalls at the foot of steep slopes.
     turn_around_after_stall: bool = False
@@ -358,7 +358,7 @@ def _demo() -> Profile:
         # cosine schedule, last epoch kept: with ~30–100 validation patches of the smaller
         # vehicles, picking the lowest validation loss picked epoch 1 by a 2e-5 lead in one
         # seed (the van then crossed the sharp ridge), a near-prior model in another
-        # (benchmarks/training_recipes.py: README → "Training recipe").
+        # (studies/training_recipes.py: README → "Training recipe").
         train=TrainConfig(epochs=15, batch_size=128, width=32, lr_schedule="cosine",
                           selection="last"),
         # stride 4×2: ~9× faster than the literal procedure, mean |ΔC| 0.004 (6×3: 18×, 0.006;

@@ -36,6 +36,15 @@ class InvalidOverrideError(ValueError):
     """An override with an unknown name, or a value that does not fit its field's type."""
 
 
+def setting_names(profile_type: type, section: str | None = None) -> list[str]:
+    """The valid dotted names of ``profile_type``: every ``section.field`` and
+    :data:`TOP_LEVEL_SETTINGS`, or one section's ``section.field`` names."""
+    types_, sections = _schema(profile_type)
+    chosen = sections if section is None else (section,)
+    names = [f"{s}.{f.name}" for s in chosen for f in fields(types_[s])]
+    return names + list(TOP_LEVEL_SETTINGS) if section is None else names
+
+
 def setting_type(profile_type: type, key: str) -> tuple[str | None, str, object]:
     """``"planner.beta"`` → ``("planner", "beta", float)``: the section (None for a
     top-level setting), the field and its annotation in ``profile_type``. Raises

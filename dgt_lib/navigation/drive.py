@@ -147,9 +147,9 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     tolerance) has nothing to track: the vehicle holds still and the rule judges where
     it stands (success at t = 0 when that is within 5 m of the goal).
     ``on_command(state, speed_cmd [m/s], steer ∈ [−1, 1] of the steering lock)`` sees every
-    command MPPI gives, with the state it answered (``benchmarks/replay_trial.py`` prints
+    command MPPI gives, with the state it answered (``studies/replay_trial.py`` prints
     them). ``mppi_settings``: :class:`MPPIConfig` fields to change for this drive, e.g.
-    ``{"lateral_accel_max": 2.0}`` (``benchmarks/controller_variants.py``); the experiments
+    ``{"lateral_accel_max": 2.0}`` (``studies/controller_variants.py``); the experiments
     use the defaults. The same as :func:`start_trial` then :func:`drive_steps` to the end.
     """
     sim = Simulator(world, get_vehicle(vehicle))

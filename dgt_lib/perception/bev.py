@@ -36,7 +36,7 @@ surveys: H̄ within 0.14 cm, ‖∇H̄‖ within 0.014 of the truth on 10–28°
 ``result("points")`` gives the literal reading. ‖∇H̄‖ keeps the paper's central
 differences of H̄: they are closer to the terrain's central differences than the planes'
 own slopes ‖(a, b)‖ (p99 error 0.018 vs 0.072 on that ridge, 0.005 vs 0.013 on a bump,
-equal on ramps; ``benchmarks/bev_slopes.py``), and a tree's trunk and crown still stand
+equal on ramps; ``studies/bev_slopes.py``), and a tree's trunk and crown still stand
 out with a high gradient around them.
 
 Aggregation is streaming: a :class:`BEVAccumulator` keeps per-cell sums of the point
