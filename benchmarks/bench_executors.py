@@ -1,5 +1,5 @@
 """The same collection episodes and closed-loop trials through each executor: wall time and
-whether the results are identical (README → Run it bigger).
+whether the results are identical (docs/scale-out.md).
 
 Run: ``.venv/bin/python benchmarks/bench_executors.py [--profile smoke] [--workers 2]
 [--executors process dask ray] [--episodes N] [--trials 4]``.

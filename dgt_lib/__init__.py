@@ -49,7 +49,7 @@ _API = {
     "ensure_costmap_accuracy": "dgt_lib.stages.ground_truth",
     # one query on any terrain
     "plan_query": "dgt_lib.plan_one",
-    # where the work runs (README → Run it bigger): executors and devices
+    # where the work runs (docs/scale-out.md): executors and devices
     "ExecutionConfig": "dgt_lib.core.config", "make_executor": "dgt_lib.core.executors",
     "use_executor": "dgt_lib.core.executors",
 }

@@ -1,6 +1,6 @@
 """Running bigger: the same episodes and trials on a Dask (or Ray) cluster as in the process
 pool, no finished work lost when a worker dies, one place that opens and closes executors,
-and the device switch (README → Run it bigger)."""
+and the device switch (docs/scale-out.md)."""
 
 import os
 import signal

@@ -215,7 +215,7 @@ DEVICES: tuple[str, ...] = ("auto", "cpu", "cuda")
 
 @dataclass(frozen=True)
 class ExecutionConfig:
-    """Where the work runs — never what it computes (README → Run it bigger).
+    """Where the work runs — never what it computes (docs/scale-out.md).
 
     executor: what runs the independent jobs (collection episodes, closed-loop trials):
     ``"process"`` a pool of ``Profile.workers`` processes on this machine; ``"dask"`` a
@@ -358,7 +358,7 @@ def _demo() -> Profile:
         # cosine schedule, last epoch kept: with ~30–100 validation patches of the smaller
         # vehicles, picking the lowest validation loss picked epoch 1 by a 2e-5 lead in one
         # seed (the van then crossed the sharp ridge), a near-prior model in another
-        # (studies/training_recipes.py: README → "Training recipe").
+        # (studies/training_recipes.py: docs/results.md → "Training recipe").
         train=TrainConfig(epochs=15, batch_size=128, width=32, lr_schedule="cosine",
                           selection="last"),
         # stride 4×2: ~9× faster than the literal procedure, mean |ΔC| 0.004 (6×3: 18×, 0.006;
