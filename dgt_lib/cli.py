@@ -45,6 +45,7 @@ from dgt_lib.core.overrides import (
     setting_names,
     setting_type,
 )
+from dgt_lib.mapping.methods import METHODS
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import profile_root
 
@@ -332,7 +333,8 @@ def _plan(args: argparse.Namespace) -> int:
             report = plan_query(args.world, args.vehicle, args.start, args.goal,
                                 method=args.method, profile=profile, drive=args.drive,
                                 resolution_m=args.resolution,
-                                vertical_scale_m=args.vertical_scale)
+                                vertical_scale_m=args.vertical_scale,
+                                crs_coords=args.crs_coords, nodata=args.nodata)
     except (InvalidQueryError, FileNotFoundError, ValueError) as exc:
         print(f"dgt plan: error: {exc}", file=sys.stderr)
         return 2
@@ -382,6 +384,47 @@ def _add_reproduce(sub) -> None:
     rep.set_defaults(func=_reproduce)
 
 
+WORLD_HELP = ("hill, ridge, eval, training, a .npy / 16-bit .png heightmap, or a DEM: GeoTIFF "
+              "(.tif) or ESRI ASCII grid (.asc; pip install 'dgt-kit[geo]')")
+
+
+def _add_world_options(parser: argparse.ArgumentParser) -> None:
+    """``dgt plan``'s and ``dgt costmap``'s: world, vehicle, method, profile, device."""
+    parser.add_argument("--world", required=True, help=WORLD_HELP)
+    parser.add_argument("--vehicle", required=True, choices=VEHICLES,
+                        help="whose costmap (and for a plan footprint and turning radius)")
+    parser.add_argument("--method", default="dgt", choices=METHODS)
+    parser.add_argument("--profile", type=_profile_arg, default=None,
+                        metavar=PROFILE_METAVAR, help=PROFILE_HELP)
+    parser.add_argument("--resolution", type=float, default=0.4,
+                        help="heightmap file: metres per pixel (default 0.4); a DEM is "
+                             "resampled to the profile's worlds.hfield_resolution_m")
+    parser.add_argument("--vertical-scale", type=float, default=None,
+                        help="PNG heightmap: metres at the brightest pixel")
+    parser.add_argument("--nodata", choices=("error", "crop"), default="error",
+                        help="DEM no-data cells: an error, or keep the largest valid rectangle")
+    _add_set_option(parser)
+    _device_arg(parser)
+
+
+def _add_costmap(sub) -> None:
+    cm = sub.add_parser("costmap", help="write a world's directional costmap (GeoTIFF, Nav2)",
+                        description="Write a costmap's K heading layers and the occupancy as "
+                                    "a GeoTIFF (band k+1 = heading θ_k, last band occupancy) "
+                                    "or map_server PGM + YAML files (--format nav2).")
+    _add_world_options(cm)
+    cm.add_argument("--out", required=True, metavar="FILE",
+                    help="the GeoTIFF; nav2: FILE_heading<k>/FILE_occupancy .pgm + .yaml")
+    cm.add_argument("--format", dest="fmt", choices=("geotiff", "nav2"), default="geotiff")
+    cm.set_defaults(func=_costmap)
+
+
+def _costmap(args: argparse.Namespace) -> int:
+    from dgt_lib.costmap_export import run_command
+
+    return run_command(args, _with_execution(_profile(args), args))
+
+
 def _add_plan(sub) -> None:
     pl = sub.add_parser("plan", help="plan (and drive) one query on a world or your terrain",
                         description="Plan one query with Hybrid A* on a method's directional "
@@ -389,29 +432,19 @@ def _add_plan(sub) -> None:
                                     "a rerun recording, and optionally drive the path in "
                                     "MuJoCo. Exit status 0: a path was found; 1: no path; 2: an "
                                     "invalid query.")
-    pl.add_argument("--world", required=True,
-                    help="hill, ridge, eval, training, or a .npy / 16-bit .png heightmap")
-    pl.add_argument("--vehicle", required=True, choices=VEHICLES,
-                    help="whose costmap, footprint and turning radius the plan uses")
+    _add_world_options(pl)
     pl.add_argument("--start", required=True, type=lambda t: _floats(t, 3, "--start"),
                     help="x,y,yaw [m, m, rad]; negative values are fine (-5,14,0.8)")
     pl.add_argument("--goal", required=True, type=lambda t: _floats(t, 2, "--goal"),
                     help="x,y [m]")
-    pl.add_argument("--method", default="dgt",
-                    choices=("dgt", "isotropic", "single-task", "slope", "binary"))
+    pl.add_argument("--crs-coords", action="store_true",
+                    help="DEM: --start/--goal x,y in the file's CRS (e.g. lon,lat in "
+                         "degrees), not metres from the map's south-west corner")
     pl.add_argument("--drive", action="store_true", help="drive the path in MuJoCo")
     pl.add_argument("--json", action="store_true",
                     help="print only the report as one JSON object on stdout (the path's rows "
                          "x, y, yaw; length; cost; the named route; the drive's outcome); "
                          "progress goes to stderr")
-    pl.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
-                    help=PROFILE_HELP)
-    pl.add_argument("--resolution", type=float, default=0.4,
-                    help="heightmap file: metres per pixel (default 0.4)")
-    pl.add_argument("--vertical-scale", type=float, default=None,
-                    help="PNG heightmap: metres at the brightest pixel")
-    _add_set_option(pl)
-    _device_arg(pl)
     pl.set_defaults(func=_plan)
 
 
@@ -431,6 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_set_option(se)
     se.set_defaults(func=_settings)
     _add_plan(sub)
+    _add_costmap(sub)
     return parser
 
 

@@ -33,6 +33,7 @@ from dgt_lib.stages.costmaps import ensure_world_costmaps, world_occupancy
 from dgt_lib.stages.dataset import DATASET_RELPATH
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.stages.train import model_relpath
+from dgt_lib.world.dem import Georeference, is_dem_path, load_dem
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World, load_heightmap
 
@@ -45,16 +46,42 @@ HIGH_COST = 0.5
 
 def resolve_world(world: str | World, profile: Profile, *, resolution_m: float = 0.4,
                   vertical_scale_m: float | None = None) -> World:
-    """A :class:`World` from a kit world's name, a ``.npy``/``.png`` heightmap file, or a World."""
+    """A :class:`World` from a kit world's name, a ``.npy``/``.png`` heightmap file, a DEM
+    (``.tif``/``.asc``) or a World (:func:`load_world` without the georeference)."""
+    return load_world(world, profile, resolution_m=resolution_m,
+                      vertical_scale_m=vertical_scale_m)[0]
+
+
+def load_world(world: str | World, profile: Profile, *, resolution_m: float = 0.4,
+               vertical_scale_m: float | None = None,
+               nodata: str = "error") -> tuple[World, Georeference | None]:
+    """A :class:`World` and, for a DEM, its :class:`~dgt_lib.world.dem.Georeference`.
+
+    A DEM (GeoTIFF ``.tif``, ESRI ASCII grid ``.asc``) is resampled to the profile's
+    ``worlds.hfield_resolution_m`` (:func:`~dgt_lib.world.dem.load_dem`; ``nodata``: what
+    to do with its no-data cells); a ``.npy``/``.png`` heightmap has ``resolution_m``
+    [m/pixel] and no georeference, nor does a kit world or a World."""
     if isinstance(world, World):
-        return world
+        return world, None
     if world in WORLD_NAMES:
-        return get_world(world, profile)
+        return get_world(world, profile), None
     path = Path(world)
     if not path.exists():
         raise FileNotFoundError(f"{world!r} is neither a world ({', '.join(WORLD_NAMES)}) "
-                                "nor an existing .npy/.png heightmap file")
-    return load_heightmap(path, resolution_m, vertical_scale_m=vertical_scale_m)
+                                "nor an existing .npy/.png heightmap or .tif/.asc DEM file")
+    if is_dem_path(path):
+        return load_dem(path, profile.worlds.hfield_resolution_m, nodata=nodata)
+    return load_heightmap(path, resolution_m, vertical_scale_m=vertical_scale_m), None
+
+
+def crs_to_local(georef: Georeference | None, start, goal) -> tuple[tuple, tuple]:
+    """Start (x, y, yaw) and goal (x, y) given in the DEM file's CRS → the world frame [m]
+    (yaw is kept: it is measured in the world frame, from east). ValueError without a
+    georeference (only a DEM has one)."""
+    if georef is None:
+        raise ValueError("coordinates in the file's CRS need a DEM (.tif / .asc) world")
+    xs, ys = georef.to_local([start[0], goal[0]], [start[1], goal[1]])
+    return ((float(xs[0]), float(ys[0]), float(start[2])), (float(xs[1]), float(ys[1])))
 
 
 @dataclass
@@ -219,21 +246,27 @@ def output_stem(world: World, vehicle: str, method: str, start, goal, *,
 def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "dgt",
                profile: Profile | str | None = None, drive: bool = False,
                resolution_m: float = 0.4, vertical_scale_m: float | None = None,
-               out_dir: Path | None = None, progress: bool = True) -> QueryReport:
+               out_dir: Path | None = None, progress: bool = True, crs_coords: bool = False,
+               nodata: str = "error") -> QueryReport:
     """Plan (and optionally drive) one query; see the module docstring.
 
     start (x, y, yaw) [m, m, rad], goal (x, y) [m]. Raises
     :class:`dgt_lib.navigation.planner.InvalidQueryError` when the start or goal is off the map
     or in an obstacle (the message names which) — found before any dataset or model is
     built (:func:`check_query`). With ``progress``, prints when a model must be trained.
+    ``crs_coords``: start and goal x, y are in a DEM file's CRS (:func:`crs_to_local`);
+    ``nodata``: a DEM's no-data policy (:func:`load_world`).
     """
     prof = as_profile(profile)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
     get_vehicle(vehicle)  # an unknown vehicle is a clear error before any work
-    w = resolve_world(world, prof, resolution_m=resolution_m, vertical_scale_m=vertical_scale_m)
+    w, georef = load_world(world, prof, resolution_m=resolution_m,
+                           vertical_scale_m=vertical_scale_m, nodata=nodata)
     start = tuple(float(v) for v in start)
     goal = tuple(float(v) for v in goal)[:2]
+    if crs_coords:
+        start, goal = crs_to_local(georef, start, goal)
     check_query(w, vehicle, start, goal, prof, progress=progress)
     notice = training_notice(method, vehicle, prof)
     if progress and notice:

@@ -1,0 +1,68 @@
+"""The engine of ``dgt costmap``: a world's directional costmap written for other tools.
+
+The costmap is the one ``dgt plan`` uses, from the same cache
+(:func:`~dgt_lib.stages.costmaps.ensure_world_costmaps`: built once, training first when
+the profile has no model yet); the writers are :mod:`dgt_lib.mapping.export`::
+
+    paths = export_costmap("dem.tif", "jeep", "jeep_costmap.tif", method="dgt")
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.mapping.export import write_geotiff, write_nav2
+from dgt_lib.mapping.methods import METHODS
+from dgt_lib.plan_one import load_world, training_notice
+from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.world.worlds import World
+
+FORMATS: tuple[str, ...] = ("geotiff", "nav2")
+"""``geotiff``: one multi-band GeoTIFF; ``nav2``: map_server PGM + YAML per layer."""
+
+
+def export_costmap(world: str | World, vehicle: str, out: str | Path, *, method: str = "dgt",
+                   fmt: str = "geotiff", profile: Profile | str | None = None,
+                   resolution_m: float = 0.4, vertical_scale_m: float | None = None,
+                   nodata: str = "error", progress: bool = True) -> list[Path]:
+    """Write ``method``'s K-heading costmap of ``vehicle`` on ``world`` (a kit world, a
+    heightmap or DEM file: :func:`~dgt_lib.plan_one.load_world`) to ``out`` in ``fmt``
+    (:data:`FORMATS`), georeferenced when the world came from a DEM. Returns the files
+    written (the GeoTIFF, or the YAML files)."""
+    prof = as_profile(profile)
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown format {fmt!r}; valid formats: {', '.join(FORMATS)}")
+    get_vehicle(vehicle)
+    w, georef = load_world(world, prof, resolution_m=resolution_m,
+                           vertical_scale_m=vertical_scale_m, nodata=nodata)
+    notice = training_notice(method, vehicle, prof)
+    if progress and notice:
+        print(notice, flush=True)
+    maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
+    cost = maps.costmap(method, vehicle)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if fmt == "geotiff":
+        return [write_geotiff(out, cost, maps.occupancy, maps.grid, georef)]
+    return write_nav2(out, cost, maps.occupancy, maps.grid)
+
+
+def run_command(args: argparse.Namespace, profile: Profile) -> int:
+    """``dgt costmap`` (its options: ``dgt costmap --help``): prints the files written;
+    exit status 0, or 2 with a one-line error for a bad world, file, method or format."""
+    try:
+        paths = export_costmap(args.world, args.vehicle, args.out, method=args.method,
+                               fmt=args.fmt, profile=profile, resolution_m=args.resolution,
+                               vertical_scale_m=args.vertical_scale, nodata=args.nodata)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"dgt costmap: error: {exc}", file=sys.stderr)
+        return 2
+    for path in paths:
+        print(path)
+    return 0

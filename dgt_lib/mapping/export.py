@@ -1,0 +1,133 @@
+"""Directional costmaps out, in formats other tools open.
+
+:func:`write_geotiff`: one multi-band GeoTIFF (QGIS, rasterio, GDAL): band k + 1 is the
+cost layer of heading θ_k = 2πk/K (its description ``heading_k=k theta_deg=…``, the same
+as band tags), the last band the occupancy map (0 free, 1 occupied, 2 unobserved). It is in
+the DEM's CRS and transform when the world came from one (a :class:`Georeference`), else in
+the world's metric frame with no CRS.
+
+:func:`write_nav2`: for ROS 2 Nav2's map_server, one PGM image + YAML per heading
+(``mode: scale``: free 254 … lethal 0, i.e. C = 0 … 1; occupied and unobserved cells lethal)
+and one for the occupancy (``mode: trinary``: free, occupied, unknown), ``origin`` the
+south-west corner in the world frame [m].
+
+Rows are flipped on the way out: both formats put the north edge first, the kit's grids
+the south (docs/ARCHITECTURE.md → Conventions).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.mapping.occupancy import FREE, OCCUPIED
+from dgt_lib.world.dem import Georeference, import_rasterio
+
+TRINARY_FREE, TRINARY_OCCUPIED, TRINARY_UNKNOWN = 254, 0, 205
+"""map_server's trinary pixel values (those of its own map saver)."""
+
+TRINARY_THRESHOLDS = (0.65, 0.196)
+"""(occupied_thresh, free_thresh) of the occupancy map: map_server's defaults."""
+
+SCALE_THRESHOLDS = (0.999, 0.001)
+"""(occupied_thresh, free_thresh) of the cost layers: only C = 1 is lethal, C = 0 free, and
+map_server scales everything between linearly to 1..98."""
+
+
+def heading_label(k: int, n_headings: int) -> str:
+    """``heading_k=2 theta_deg=90.0``: band description of layer k of K."""
+    return f"heading_k={k} theta_deg={360.0 * k / n_headings:.1f}"
+
+
+def _check(cost: np.ndarray, occupancy: np.ndarray, grid: GridSpec) -> None:
+    if cost.ndim != 3 or cost.shape[1:] != grid.shape or occupancy.shape != grid.shape:
+        raise ValueError(f"cost must be (K, H, W) and occupancy (H, W) on the grid {grid.shape}, "
+                         f"got {cost.shape} and {occupancy.shape}")
+
+
+def north_up_transform(grid: GridSpec, georef: Georeference | None = None):
+    """The affine transform of a grid's north-up image: its north-west corner, in the
+    georeference's CRS when there is one, else in the world frame [m]."""
+    from rasterio.transform import Affine
+
+    ox, oy = georef.origin if georef is not None else (0.0, 0.0)
+    x0, y0 = grid.origin_xy
+    res = grid.resolution
+    return Affine(res, 0.0, ox + x0, 0.0, -res, oy + y0 + grid.height * res)
+
+
+def write_geotiff(path: str | Path, cost: np.ndarray, occupancy: np.ndarray, grid: GridSpec,
+                  georef: Georeference | None = None) -> Path:
+    """K cost layers + the occupancy as a (K + 1)-band float32 GeoTIFF (module docstring)."""
+    rasterio = import_rasterio()
+    _check(cost, occupancy, grid)
+    k_layers, h, w = cost.shape
+    bands = np.concatenate([cost, occupancy[None]]).astype(np.float32)[:, ::-1]
+    path = Path(path)
+    profile = {"driver": "GTiff", "height": h, "width": w, "count": k_layers + 1,
+               "dtype": "float32", "transform": north_up_transform(grid, georef),
+               "crs": None if georef is None else georef.crs}
+    if np.isnan(bands).any():
+        profile["nodata"] = float("nan")
+    with rasterio.open(path, "w", **profile) as dst:
+        dst.write(bands)
+        for k in range(k_layers):
+            dst.set_band_description(k + 1, heading_label(k, k_layers))
+            dst.update_tags(k + 1, heading_k=k, theta_deg=f"{360.0 * k / k_layers:.1f}")
+        dst.set_band_description(k_layers + 1, "occupancy 0=free 1=occupied 2=unobserved")
+        dst.update_tags(k_layers + 1, layer="occupancy")
+    return path
+
+
+def _write_pgm(path: Path, image: np.ndarray) -> None:
+    """A binary greyscale PGM (P5, maxval 255) of a (H, W) uint8 image, row 0 at the top."""
+    h, w = image.shape
+    path.write_bytes(f"P5\n{w} {h}\n255\n".encode("ascii") + np.ascontiguousarray(image).tobytes())
+
+
+def _write_yaml(path: Path, image: Path, grid: GridSpec, mode: str,
+                thresholds: tuple[float, float]) -> None:
+    x0, y0 = grid.origin_xy
+    path.write_text(f"image: {image.name}\nmode: {mode}\nresolution: {grid.resolution}\n"
+                    f"origin: [{x0}, {y0}, 0.0]\nnegate: 0\n"
+                    f"occupied_thresh: {thresholds[0]}\nfree_thresh: {thresholds[1]}\n")
+
+
+def cost_to_pixels(cost: np.ndarray, occupancy: np.ndarray) -> np.ndarray:
+    """One cost layer (H, W), C in 0..1, as map_server ``scale`` pixels: 255·(1 − C) rounded,
+    0 (lethal) where occupied, unobserved or C is not finite."""
+    c = np.clip(np.nan_to_num(cost, nan=1.0), 0.0, 1.0)
+    pixels = np.rint(255.0 * (1.0 - c)).astype(np.uint8)
+    pixels[occupancy != FREE] = 0
+    return pixels
+
+
+def occupancy_to_pixels(occupancy: np.ndarray) -> np.ndarray:
+    """The occupancy (H, W) as map_server ``trinary`` pixels: free 254, occupied 0, unknown 205."""
+    pixels = np.full(occupancy.shape, TRINARY_UNKNOWN, np.uint8)
+    pixels[occupancy == FREE] = TRINARY_FREE
+    pixels[occupancy == OCCUPIED] = TRINARY_OCCUPIED
+    return pixels
+
+
+def write_nav2(path: str | Path, cost: np.ndarray, occupancy: np.ndarray,
+               grid: GridSpec) -> list[Path]:
+    """map_server image + YAML pairs: ``<stem>_heading<k>.pgm/.yaml`` for each heading θ_k
+    and ``<stem>_occupancy.pgm/.yaml``, beside ``path`` (its suffix is dropped). Returns the
+    YAML files, headings first."""
+    _check(cost, occupancy, grid)
+    path = Path(path)
+    stem = path.parent / path.stem
+    written = []
+    layers = [(f"heading{k}", cost_to_pixels(cost[k], occupancy), "scale", SCALE_THRESHOLDS)
+              for k in range(cost.shape[0])]
+    layers.append(("occupancy", occupancy_to_pixels(occupancy), "trinary", TRINARY_THRESHOLDS))
+    for label, pixels, mode, thresholds in layers:
+        pgm = Path(f"{stem}_{label}.pgm")
+        _write_pgm(pgm, pixels[::-1])
+        yaml = pgm.with_suffix(".yaml")
+        _write_yaml(yaml, pgm, grid, mode, thresholds)
+        written.append(yaml)
+    return written

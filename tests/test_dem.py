@@ -1,0 +1,161 @@
+"""Real terrain in: GeoTIFF and ESRI ASCII DEMs, projected and geographic, with no-data."""
+
+import sys
+
+import numpy as np
+import pytest
+
+from dgt_lib.core.config import get_profile
+from dgt_lib.plan_one import crs_to_local, load_world
+from dgt_lib.world.dem import (
+    import_rasterio,
+    largest_valid_rectangle,
+    load_dem,
+    read_dem,
+    utm_epsg,
+)
+from dgt_lib.world.worlds import HeightmapError
+
+rasterio = pytest.importorskip("rasterio")
+from rasterio.transform import from_origin  # noqa: E402
+
+N = 60
+"""DEM side [cells]."""
+
+
+def plane(n: int = N) -> np.ndarray:
+    """Heights of a tilted plane, north-up rows (row 0 the north edge): 100 m at the
+    north-west corner, +0.1 m per column (east), -0.5 m per row (south)."""
+    r, c = np.mgrid[0:n, 0:n]
+    return (100.0 - 0.5 * r + 0.1 * c).astype(np.float32)
+
+
+def write_dem(path, heights, *, crs, transform, nodata=-9999.0, driver="GTiff"):
+    with rasterio.open(path, "w", driver=driver, height=heights.shape[0],
+                       width=heights.shape[1], count=1, dtype="float32", crs=crs,
+                       transform=transform, nodata=nodata) as dst:
+        dst.write(heights, 1)
+    return path
+
+
+def utm_dem(tmp_path, heights=None, name="utm.tif"):
+    """A 60 m × 60 m DEM at 1 m in UTM 31N, its north-west corner at (500000, 5000060)."""
+    return write_dem(tmp_path / name, plane() if heights is None else heights,
+                     crs="EPSG:32631", transform=from_origin(500000.0, 5000060.0, 1.0, 1.0))
+
+
+def geo_dem(tmp_path, heights=None, name="geo.tif"):
+    """A DEM in degrees (EPSG:4326) near (2.0003° E, 45.0003° N): 60 × 60 cells of 1e-5°."""
+    return write_dem(tmp_path / name, plane() if heights is None else heights,
+                     crs="EPSG:4326", transform=from_origin(2.0, 45.0006, 1e-5, 1e-5))
+
+
+def test_projected_dem_keeps_its_crs_and_is_resampled_south_row_first(tmp_path):
+    dem = read_dem(utm_dem(tmp_path), 0.4)
+    assert dem.heights.shape == (150, 150) and dem.resolution == 0.4
+    assert dem.georef.origin == (500000.0, 5000000.0)  # the south-west corner
+    assert rasterio.crs.CRS.from_wkt(dem.georef.crs).to_epsg() == 32631
+    # row 0 is the south edge now: it is 29.5 m lower than the north edge's
+    assert dem.heights[0].mean() < dem.heights[-1].mean() - 29.0
+    # a cell centre inside: x = 30.2 m, y = 30.2 m from the south-west corner
+    row, col = 75, 75
+    expected = 100.0 - 0.5 * (N - 30.2 - 0.5) + 0.1 * (30.2 - 0.5)
+    assert dem.heights[row, col] == pytest.approx(expected, abs=1e-3)
+
+
+def test_geographic_dem_is_reprojected_to_the_utm_zone_of_its_centre(tmp_path):
+    dem = read_dem(geo_dem(tmp_path), 0.4)
+    assert rasterio.crs.CRS.from_wkt(dem.georef.crs).to_epsg() == 32631
+    h, w = dem.heights.shape
+    # 60 × 1e-5° ≈ 66.7 m north-south and 47.2 m east-west at 45° N
+    assert 62.0 < h * 0.4 < 67.0 and 43.0 < w * 0.4 < 48.0
+    assert np.isfinite(dem.heights).all()
+    assert 70.0 <= dem.heights.min() and dem.heights.max() <= 106.0  # no invented zero
+    # the DEM's centre in degrees lies at the map's centre in metres
+    x, y = dem.georef.to_local(2.0003, 45.0003)
+    assert x[0] == pytest.approx(w * 0.4 / 2, abs=1.5)
+    assert y[0] == pytest.approx(h * 0.4 / 2, abs=1.5)
+
+
+def test_nodata_is_an_error_naming_the_count_and_the_way_out(tmp_path):
+    heights = plane()
+    heights[10:14, 20:25] = -9999.0
+    with pytest.raises(HeightmapError, match=r"20 no-data cells of 3600.*--nodata crop"):
+        read_dem(utm_dem(tmp_path, heights), 0.4)
+
+
+@pytest.mark.parametrize("make", [utm_dem, geo_dem])
+def test_nodata_crop_keeps_the_largest_valid_rectangle_never_a_zero(tmp_path, make):
+    heights = plane()
+    heights[:, :12] = -9999.0  # a void along the west edge
+    heights[50:, :] = -9999.0  # and along the south edge
+    dem = read_dem(make(tmp_path, heights), 0.4, nodata="crop")
+    assert np.isfinite(dem.heights).all()
+    assert dem.heights.min() > 70.0  # neither the no-data value nor 0 got in
+    full = read_dem(make(tmp_path, plane(), name="full.tif"), 0.4)
+    assert dem.heights.size < 0.75 * full.heights.size  # the voids are gone...
+    assert dem.heights.size > 0.55 * full.heights.size  # ...and little else
+    # the crop is in place: the same ground has the same coordinates in both
+    ex, ey = np.subtract(dem.georef.origin, full.georef.origin)
+    assert ex > 4.0 and ey > 3.0  # the west and south voids moved the corner north-east
+    r, c = round(ey / 0.4), round(ex / 0.4)
+    np.testing.assert_allclose(dem.heights[5:10, 5:10], full.heights[r + 5:r + 10, c + 5:c + 10],
+                               atol=0.05)
+
+
+def test_esri_ascii_grid_without_a_crs_uses_its_own_units(tmp_path):
+    path = write_dem(tmp_path / "dem.asc", plane(), crs=None,
+                     transform=from_origin(1000.0, 2060.0, 1.0, 1.0), driver="AAIGrid")
+    dem = read_dem(path, 0.5)
+    assert dem.heights.shape == (120, 120)
+    assert dem.georef.crs is None and dem.georef.origin == (1000.0, 2000.0)
+    # cell (10, 10) is centred 5.25 m east and north of the south-west corner
+    assert dem.heights[10, 10] == pytest.approx(100.0 - 0.5 * (N - 5.25 - 0.5) + 0.1 * 4.75,
+                                                abs=1e-3)
+
+
+def test_esri_ascii_grid_with_nodata_is_an_error(tmp_path):
+    heights = plane()
+    heights[0, 0] = -9999.0
+    path = write_dem(tmp_path / "dem.asc", heights, crs="EPSG:32631",
+                     transform=from_origin(0.0, 60.0, 1.0, 1.0), driver="AAIGrid")
+    with pytest.raises(HeightmapError, match="1 no-data cells"):
+        read_dem(path, 0.4)
+
+
+def test_a_dem_becomes_a_world_at_the_profiles_heightfield_resolution(tmp_path):
+    profile = get_profile("smoke")
+    world, georef = load_world(str(utm_dem(tmp_path)), profile)
+    assert world.name == "utm" and world.resolution == profile.worlds.hfield_resolution_m
+    assert world.grid.origin_xy == (0.0, 0.0) and georef.origin == (500000.0, 5000000.0)
+    direct, _ = load_dem(utm_dem(tmp_path), profile.worlds.hfield_resolution_m)
+    np.testing.assert_array_equal(world.heights, direct.heights)
+    # --crs-coords: a start and goal in the file's CRS → metres from the south-west corner
+    start, goal = crs_to_local(georef, (500010.0, 5000020.0, 0.5), (500040.0, 5000030.0))
+    assert start == pytest.approx((10.0, 20.0, 0.5)) and goal == pytest.approx((40.0, 30.0))
+    with pytest.raises(ValueError, match="need a DEM"):
+        crs_to_local(None, start, goal)
+
+
+def test_missing_rasterio_is_a_one_line_error_naming_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "rasterio", None)
+    with pytest.raises(HeightmapError, match=r"pip install 'dgt-kit\[geo\]'"):
+        import_rasterio()
+
+
+def test_largest_valid_rectangle_matches_brute_force():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        valid = rng.random((7, 9)) < 0.8
+        rows, cols = largest_valid_rectangle(valid)
+        assert valid[rows, cols].all()
+        best = max(((r1 - r0) * (c1 - c0)) for r0 in range(7) for r1 in range(r0 + 1, 8)
+                   for c0 in range(9) for c1 in range(c0 + 1, 10)
+                   if valid[r0:r1, c0:c1].all()) if valid.any() else 0
+        assert (rows.stop - rows.start) * (cols.stop - cols.start) == best
+
+
+@pytest.mark.parametrize("lon,lat,epsg", [(2.0, 45.0, 32631), (-70.6, -33.4, 32719),
+                                          (179.9, 10.0, 32660), (-180.0, 0.0, 32601)])
+def test_utm_zone_of_a_point(lon, lat, epsg):
+    assert utm_epsg(lon, lat) == epsg
