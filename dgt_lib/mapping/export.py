@@ -2,14 +2,15 @@
 
 :func:`write_geotiff`: one multi-band GeoTIFF (QGIS, rasterio, GDAL): band k + 1 is the
 cost layer of heading θ_k = 2πk/K (its description ``heading_k=k theta_deg=…``, the same
-as band tags), the last band the occupancy map (0 free, 1 occupied, 2 unobserved). It is in
-the DEM's CRS and transform when the world came from one (a :class:`Georeference`), else in
-the world's metric frame with no CRS.
+as band tags; the binary method's one isotropic layer says so), the last band the
+occupancy map (0 free, 1 occupied, 2 unobserved). It is in the DEM's CRS and transform
+when the world came from one (a :class:`Georeference`), else in the world's metric frame
+with no CRS.
 
 :func:`write_nav2`: for ROS 2 Nav2's map_server, one PGM image + YAML per heading
-(``mode: scale``: free 254 … lethal 0, i.e. C = 0 … 1; occupied and unobserved cells lethal)
-and one for the occupancy (``mode: trinary``: free, occupied, unknown), ``origin`` the
-south-west corner in the world frame [m].
+(``mode: scale``: pixel 255·(1 − C), so 255 free … 0 lethal; occupied and unobserved
+cells lethal) and one for the occupancy (``mode: trinary``: free, occupied, unknown),
+``origin`` the south-west corner in the world frame [m].
 
 Rows are flipped on the way out: both formats put the north edge first, the kit's grids
 the south (docs/ARCHITECTURE.md → Conventions).
@@ -37,7 +38,10 @@ map_server scales everything between linearly to 1..98."""
 
 
 def heading_label(k: int, n_headings: int) -> str:
-    """``heading_k=2 theta_deg=90.0``: band description of layer k of K."""
+    """``heading_k=2 theta_deg=90.0``: band description of layer k of K; an isotropic
+    costmap's one layer (K = 1: the binary method) is ``isotropic (every heading)``."""
+    if n_headings == 1:
+        return "isotropic (every heading)"
     return f"heading_k={k} theta_deg={360.0 * k / n_headings:.1f}"
 
 
@@ -75,7 +79,8 @@ def write_geotiff(path: str | Path, cost: np.ndarray, occupancy: np.ndarray, gri
         dst.write(bands)
         for k in range(k_layers):
             dst.set_band_description(k + 1, heading_label(k, k_layers))
-            dst.update_tags(k + 1, heading_k=k, theta_deg=f"{360.0 * k / k_layers:.1f}")
+            if k_layers > 1:
+                dst.update_tags(k + 1, heading_k=k, theta_deg=f"{360.0 * k / k_layers:.1f}")
         dst.set_band_description(k_layers + 1, "occupancy 0=free 1=occupied 2=unobserved")
         dst.update_tags(k_layers + 1, layer="occupancy")
     return path
@@ -115,14 +120,15 @@ def occupancy_to_pixels(occupancy: np.ndarray) -> np.ndarray:
 def write_nav2(path: str | Path, cost: np.ndarray, occupancy: np.ndarray,
                grid: GridSpec) -> list[Path]:
     """map_server image + YAML pairs: ``<stem>_heading<k>.pgm/.yaml`` for each heading θ_k
-    and ``<stem>_occupancy.pgm/.yaml``, beside ``path`` (its suffix is dropped). Returns the
-    YAML files, headings first."""
+    (``<stem>_cost`` for an isotropic costmap's one layer) and ``<stem>_occupancy.pgm/.yaml``,
+    beside ``path`` (its suffix is dropped). Returns the YAML files, headings first."""
     _check(cost, occupancy, grid)
     path = Path(path)
     stem = path.parent / path.stem
     written = []
-    layers = [(f"heading{k}", cost_to_pixels(cost[k], occupancy), "scale", SCALE_THRESHOLDS)
-              for k in range(cost.shape[0])]
+    k_layers = cost.shape[0]
+    layers = [(f"heading{k}" if k_layers > 1 else "cost", cost_to_pixels(cost[k], occupancy),
+               "scale", SCALE_THRESHOLDS) for k in range(k_layers)]
     layers.append(("occupancy", occupancy_to_pixels(occupancy), "trinary", TRINARY_THRESHOLDS))
     for label, pixels, mode, thresholds in layers:
         pgm = Path(f"{stem}_{label}.pgm")
