@@ -81,7 +81,8 @@ def crs_to_local(georef: Georeference | None, start, goal) -> tuple[tuple, tuple
     if georef is None:
         raise ValueError("coordinates in the file's CRS need a DEM (.tif / .asc) world")
     xs, ys = georef.to_local([start[0], goal[0]], [start[1], goal[1]])
-    return ((float(xs[0]), float(ys[0]), float(start[2])), (float(xs[1]), float(ys[1])))
+    x, y = np.round(xs, 3), np.round(ys, 3)  # to the millimetre: the summary reads them
+    return ((float(x[0]), float(y[0]), float(start[2])), (float(x[1]), float(y[1])))
 
 
 @dataclass
