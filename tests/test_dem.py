@@ -103,6 +103,13 @@ def test_nodata_crop_keeps_the_largest_valid_rectangle_never_a_zero(tmp_path, ma
                                atol=0.05)
 
 
+def test_a_dem_too_large_to_map_is_an_error_before_resampling(tmp_path):
+    big = write_dem(tmp_path / "big.tif", plane(), crs="EPSG:32631",
+                    transform=from_origin(500000.0, 5006000.0, 100.0, 100.0))  # 6 km square
+    with pytest.raises(HeightmapError, match=r"6000 m × 6000 m.*crop it"):
+        read_dem(big, 0.4)
+
+
 def test_esri_ascii_grid_without_a_crs_uses_its_own_units(tmp_path):
     path = write_dem(tmp_path / "dem.asc", plane(), crs=None,
                      transform=from_origin(1000.0, 2060.0, 1.0, 1.0), driver="AAIGrid")

@@ -30,6 +30,11 @@ DEM_SUFFIXES: tuple[str, ...] = (".tif", ".tiff", ".asc")
 
 NODATA_POLICIES: tuple[str, ...] = ("error", "crop")
 
+MAX_DEM_CELLS = 4_000_000
+"""Most height cells a DEM may become (2000 × 2000: 800 m × 800 m at 0.4 m): the BEV survey
+and the costmaps grow with the area, and a 30 m DEM tile resampled to 0.4 m would not fit
+in memory. A larger DEM is an error that says to crop it first."""
+
 
 def import_rasterio():
     """rasterio, or a one-line error naming the extra that installs it."""
@@ -154,6 +159,11 @@ def read_dem(path: str | Path, resolution_m: float, *, nodata: str = "error") ->
         else:
             dst_transform, width, height = calculate_default_transform(
                 src.crs, dst_crs, src.width, src.height, *src.bounds, resolution=res)
+        if width * height > MAX_DEM_CELLS:
+            raise HeightmapError(
+                f"{p} covers {width * res:.0f} m × {height * res:.0f} m: {height} × {width} "
+                f"cells at {res} m, more than the {MAX_DEM_CELLS:,} the kit maps; crop it "
+                "to the area to plan in first (e.g. gdal_translate -projwin)")
         out = np.full((height, width), np.nan, np.float64)
         # without a CRS both sides share a stand-in one: GDAL then only resamples
         crs = dst_crs if dst_crs is not None else "EPSG:3857"
