@@ -5,6 +5,7 @@ import sys
 import numpy as np
 import pytest
 
+from dgt_lib.cli import main
 from dgt_lib.core.config import get_profile
 from dgt_lib.plan_one import crs_to_local, load_world
 from dgt_lib.world.dem import (
@@ -166,3 +167,10 @@ def test_largest_valid_rectangle_matches_brute_force():
                                           (179.9, 10.0, 32660), (-180.0, 0.0, 32601)])
 def test_utm_zone_of_a_point(lon, lat, epsg):
     assert utm_epsg(lon, lat) == epsg
+
+
+def test_crs_coords_on_a_plain_heightmap_is_a_usage_error(tmp_path, capsys):
+    np.save(tmp_path / "flat.npy", np.zeros((40, 40), np.float32))
+    assert main(["plan", "--world", str(tmp_path / "flat.npy"), "--vehicle", "jeep", "--start",
+                 "1,2,0", "--goal", "3,4", "--crs-coords", "--profile", "smoke"]) == 2
+    assert "coordinates in the file's CRS need a DEM" in capsys.readouterr().err

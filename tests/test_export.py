@@ -1,5 +1,7 @@
 """Costmaps out: GeoTIFF bands per heading and Nav2 map_server images, read back."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -111,7 +113,8 @@ def test_writers_reject_a_costmap_off_the_grid(tmp_path):
 
 
 def test_dgt_costmap_on_a_tiny_dem(tmp_path, monkeypatch, capsys):
-    """End to end on the smoke profile: a 40 m × 30 m DEM with a block, the binary method."""
+    """End to end on the smoke profile: a 40 m × 30 m DEM with a block, the binary method:
+    dgt costmap in both formats, then dgt plan on it with --crs-coords."""
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
     heights = np.full((30, 40), 250.0, np.float32)
     heights[10:20, 18:24] = 253.0
@@ -136,3 +139,10 @@ def test_dgt_costmap_on_a_tiny_dem(tmp_path, monkeypatch, capsys):
         "jeep_cost.yaml", "jeep_occupancy.yaml"]
     assert main([*args[:2], str(tmp_path / "none.tif"), *args[3:], "--out", "x.tif"]) == 2
     assert "dgt costmap: error:" in capsys.readouterr().err
+    # dgt plan on the same DEM (its maps cached now), start and goal in the file's CRS
+    plan = ["plan", *args[1:], "--start", "500005,5000005,0", "--goal", "500035,5000025",
+            "--crs-coords", "--json"]
+    assert main(plan) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["start"] == [5.0, 5.0, 0.0] and report["goal"] == [35.0, 25.0]
+    assert report["found"] and report["world"] == "dem"
