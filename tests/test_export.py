@@ -13,7 +13,12 @@ from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED
 from dgt_lib.world.dem import Georeference
 
 rasterio = pytest.importorskip("rasterio")
-from rasterio.transform import from_origin  # noqa: E402
+from rasterio.transform import Affine  # noqa: E402
+
+
+def from_origin(west: float, north: float, xsize: float, ysize: float) -> Affine:
+    """A north-up transform (rasterio's ``from_origin``, without its deprecated ``*``)."""
+    return Affine(xsize, 0.0, west, 0.0, -ysize, north)
 
 K, H, W = 8, 12, 20
 GRID = GridSpec((0.0, 0.0), 0.4, (H, W))
