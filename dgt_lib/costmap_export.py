@@ -19,6 +19,7 @@ from dgt_lib.mapping.export import write_geotiff, write_nav2
 from dgt_lib.mapping.methods import METHODS
 from dgt_lib.plan_one import load_world, training_notice
 from dgt_lib.stages.costmaps import ensure_world_costmaps
+from dgt_lib.world.dem import import_rasterio
 from dgt_lib.world.worlds import World
 
 FORMATS: tuple[str, ...] = ("geotiff", "nav2")
@@ -39,6 +40,8 @@ def export_costmap(world: str | World, vehicle: str, out: str | Path, *, method:
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r}; valid formats: {', '.join(FORMATS)}")
     get_vehicle(vehicle)
+    if fmt == "geotiff":
+        import_rasterio()  # missing: a one-line error now, not after the costmap is built
     w, georef = load_world(world, prof, resolution_m=resolution_m,
                            vertical_scale_m=vertical_scale_m, nodata=nodata)
     notice = training_notice(method, vehicle, prof)

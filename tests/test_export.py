@@ -1,6 +1,7 @@
 """Costmaps out: GeoTIFF bands per heading and Nav2 map_server images, read back."""
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -151,3 +152,14 @@ def test_dgt_costmap_on_a_tiny_dem(tmp_path, monkeypatch, capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["start"] == [5.0, 5.0, 0.0] and report["goal"] == [35.0, 25.0]
     assert report["found"] and report["world"] == "dem"
+
+
+def test_dgt_costmap_without_rasterio_says_which_extra_before_any_work(tmp_path, monkeypatch,
+                                                                       capsys):
+    monkeypatch.setitem(sys.modules, "rasterio", None)
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    np.save(tmp_path / "flat.npy", np.zeros((40, 40), np.float32))
+    assert main(["costmap", "--world", str(tmp_path / "flat.npy"), "--vehicle", "jeep",
+                 "--method", "binary", "--profile", "smoke", "--out", "x.tif"]) == 2
+    assert "pip install 'dgt-kit[geo]'" in capsys.readouterr().err
+    assert not (tmp_path / "data").exists()  # nothing was built
