@@ -20,6 +20,19 @@ def _default_signals() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+def _group_alive(pgid: int) -> list[int]:
+    """The running processes of process group ``pgid`` (a zombie left for init is not)."""
+    alive = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            alive.append(int(stat.parent.name))
+    return alive
+
+
 @pytest.mark.parametrize("target", ["process", "group"])
 def test_sigterm_stops_a_pool_stage_in_seconds_keeps_its_results_and_exits_143(
         tmp_path, target):
@@ -58,6 +71,10 @@ def test_sigterm_stops_a_pool_stage_in_seconds_keeps_its_results_and_exits_143(
         "finished. Rerun `dgt reproduce --profile smoke` to resume."]
     assert (tmp_path / "smoke" / "seed-0" / "jobs" / "0.json").exists()
     assert not (tmp_path / "smoke" / "seed-0" / "example.json").exists()  # "first" never ran
+    deadline = time.monotonic() + 10  # and no worker is left running its minute-long job
+    while _group_alive(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _group_alive(proc.pid) == []
 
 
 def test_sigterm_outside_a_command_keeps_its_usual_meaning():
