@@ -38,6 +38,7 @@ from dgt_lib.core.config import (
     get_profile,
     profile_name,
 )
+from dgt_lib.core.executors import Terminated, interrupted_status, sigterm_as_interrupt
 from dgt_lib.core.overrides import (
     InvalidOverrideError,
     format_setting,
@@ -59,9 +60,11 @@ stages differ in cost by 100× (the dataset takes a second, collection minutes),
 average over the stages done so far promised "3 s left" after collection."""
 
 
-def _interrupted_message(seed: int, stage: registry.Stage, command: str) -> str:
-    """The one line ``dgt reproduce`` prints when Ctrl-C stops it in a stage."""
-    return (f"dgt: interrupted in seed {seed} · {stage.name}. Kept: the earlier stages' "
+def _interrupted_message(seed: int, stage: registry.Stage, command: str,
+                         how: str = "interrupted") -> str:
+    """The one line ``dgt reproduce`` prints when Ctrl-C (or SIGTERM: ``how``
+    "terminated") stops it in a stage."""
+    return (f"dgt: {how} in seed {seed} · {stage.name}. Kept: the earlier stages' "
             f"outputs; {stage.kept}. Rerun `{command}` to resume.")
 
 
@@ -161,9 +164,10 @@ def _reproduce(args: argparse.Namespace) -> int:
                 record_stage_time(run, stage.name, seconds, run=invocation,
                                   started_unix_s=started, load_before=load)
                 rows.append((run.seed, stage.name, seconds, result))
-    except KeyboardInterrupt:
-        print(_interrupted_message(run.seed, stage, args.command_line), file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (executors.Terminated)
+        how = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        print(_interrupted_message(run.seed, stage, args.command_line, how), file=sys.stderr)
+        return interrupted_status(exc)
     print("\nSummary")
     for seed, name, seconds, result in rows:
         print(f"  seed {seed} {name:<12} {seconds:8.1f} s  {result.summary}")
@@ -471,23 +475,26 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status.
 
-    Ctrl-C ends any command with one line on stderr and status 130 (no traceback):
-    what the artifact cache holds stays, and the same command resumes from it. A reader
+    Ctrl-C ends any command with one line on stderr and status 130 (no traceback), and
+    SIGTERM the same way with status 143: what the artifact cache holds stays, and the
+    same command resumes from it. A reader
     that stops early (``dgt settings | head``) ends it quietly.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(_glue_negative_coordinates(argv))
     args.command_line = shlex.join(["dgt", *argv])
     try:
-        return args.func(args)
+        with sigterm_as_interrupt():  # SIGTERM stops a command as Ctrl-C does
+            return args.func(args)
     except (UnknownProfileError, InvalidOverrideError, registry.UnknownStageError,
             UsageError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"dgt: interrupted; kept everything finished so far. Rerun "
+    except KeyboardInterrupt as exc:
+        how = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        print(f"dgt: {how}; kept everything finished so far. Rerun "
               f"`{args.command_line}` to resume.", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return interrupted_status(exc)
     except BrokenPipeError:  # stdout's reader is gone: say nothing more to it
         os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
         return 1

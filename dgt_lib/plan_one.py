@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.core.config import Profile, as_profile, get_profile
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.queries import classify_route
@@ -225,13 +225,34 @@ def check_query(world: World, vehicle: str, start, goal, profile: Profile | str 
     HybridAStar.for_vehicle(free, occupancy, grid, vehicle, prof.planner).check_query(start, goal)
 
 
+PLAN_SECTIONS: tuple[str, ...] = ("worlds", "collect", "train", "costmap", "planner",
+                                   "experiments")
+"""The profile sections a query's plan (and drive) depends on: the data and model behind
+the costmap, the costmap, the search, the drive's time limit and controller samples."""
+
+
+def settings_tag(profile: Profile | None) -> str:
+    """``""`` for a profile's own settings, else ``"_set-<hash>"`` of the
+    :data:`PLAN_SECTIONS` it changes (``--set planner.beta=0``): a query under other
+    settings gets its own files and the default query keeps its name. (The profile's
+    name and run seed already pick the output directory.)"""
+    if profile is None or not profile.overrides:
+        return ""
+    own = get_profile(profile.name)
+    plan = {s: getattr(profile, s) for s in PLAN_SECTIONS}
+    if plan == {s: getattr(own, s) for s in PLAN_SECTIONS}:
+        return ""
+    return "_set-" + artifacts.config_hash(plan)[:8]
+
+
 def output_stem(world: World, vehicle: str, method: str, start, goal, *,
-                drive: bool = False) -> str:
+                drive: bool = False, profile: Profile | None = None) -> str:
     """File name (no suffix) of a query's figure and recording: readable — world, vehicle,
     method, start x, y [m] and heading [deg], goal x, y [m] — and unique: it ends in a
     hash of the exact query and the world's terrain, so distinct queries (another
     heading, a start 0.3 m away, another heightmap of the same name, driven or not)
-    never overwrite each other, and the same query replaces its own files."""
+    never overwrite each other, and the same query replaces its own files; settings
+    changed from the profile's add :func:`settings_tag`."""
     sx, sy, sth = (float(v) for v in start)
     gx, gy = (float(v) for v in tuple(goal)[:2])
     key = artifacts.config_hash({
@@ -241,7 +262,7 @@ def output_stem(world: World, vehicle: str, method: str, start, goal, *,
         "drive": bool(drive)})[:8]
     heading_deg = float(np.degrees(sth)) % 360.0
     return (f"{world.name}_{vehicle}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
-            f"{gx:.1f}_{gy:.1f}{'_driven' if drive else ''}_{key}")
+            f"{gx:.1f}_{gy:.1f}{'_driven' if drive else ''}_{key}{settings_tag(profile)}")
 
 
 def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "dgt",
@@ -282,7 +303,8 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
         report.route = classify_route(w, result.path) if w.routes else None
     out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
     out_dir.mkdir(parents=True, exist_ok=True)
-    stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success)
+    stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success,
+                       profile=prof)
     report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
     if drive and result.success:
         from dgt_lib.evaluation.trials import trial_time_limit_s  # imports MPPI: only to drive

@@ -1,5 +1,7 @@
 import copy
 import json
+import os
+import stat
 
 import numpy as np
 import pytest
@@ -200,3 +202,20 @@ def test_a_fingerprint_keys_what_is_built_on_an_artifact_by_content():
     plain = artifacts.stored_digest("p.json", profile="smoke")
     artifacts.ensure("p.json", {"v": 2}, build(4.7), profile="smoke", log=lambda _: None)
     assert artifacts.stored_digest("p.json", profile="smoke") != plain
+
+
+@pytest.mark.parametrize("umask, mode", [(0o022, 0o644), (0o002, 0o664), (0o077, 0o600)])
+@pytest.mark.parametrize("suffix", [".npz", ".json", ".pkl", ".pt"])
+def test_a_written_artifact_has_the_mode_the_umask_allows(data_dir, umask, mode, suffix):
+    """Atomic writes go through a private temporary file; the artifact and its metadata
+    end with the mode a plain ``open()`` would give them, so a group sharing a data
+    directory on a cluster (umask 002) can read each other's artifacts."""
+    value = {"a": np.arange(3)} if suffix in (".npz", ".pt") else {"a": 1}
+    old = os.umask(umask)
+    try:
+        artifacts.ensure(f"x{suffix}", {"k": 1}, lambda: value, profile="smoke")
+    finally:
+        os.umask(old)
+    path = data_dir / "smoke" / f"x{suffix}"
+    for written in (path, path.with_name(path.name + ".meta.json")):
+        assert stat.S_IMODE(written.stat().st_mode) == mode, written.name

@@ -124,6 +124,14 @@ def test_ctrl_c_in_any_stage_stops_the_run_with_one_line_and_status_130(
     assert "Traceback" not in out + err and "Summary" not in out
 
 
+def sigint_as_in_a_terminal() -> None:
+    """In the child, before it starts: SIGINT's default disposition, as a terminal's
+    program has it. A shell starts a background job (``nohup make test &``) with SIGINT
+    ignored and a child inherits that, so without this the Ctrl-C tests would send a
+    signal the run never sees."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_in_a_terminal_stops_a_pool_stage_in_seconds_and_keeps_its_results(tmp_path):
     """The real thing: SIGINT to the whole process group (as a terminal sends it) while a
     stage runs jobs in worker processes."""
@@ -139,7 +147,7 @@ def test_ctrl_c_in_a_terminal_stops_a_pool_stage_in_seconds_and_keeps_its_result
     env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=sigint_as_in_a_terminal)
     saved = tmp_path / "smoke" / "seed-0" / "jobs" / "0.json.meta.json"
     deadline = time.monotonic() + 60
     while not saved.exists() and proc.poll() is None and time.monotonic() < deadline:
@@ -226,7 +234,7 @@ def test_ctrl_c_stops_a_cluster_run_in_seconds_and_stops_its_local_cluster(kind,
     env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=sigint_as_in_a_terminal)
     saved = tmp_path / "smoke" / "seed-0" / "jobs" / "0.json.meta.json"
     pids = tmp_path / "pids"
     deadline = time.monotonic() + 120
@@ -287,6 +295,12 @@ def test_set_changes_settings_for_every_stage_and_seed(capsys, tmp_path, monkeyp
     ("planner.beta=fifty", "planner.beta expects a number (e.g. planner.beta=150.0), "
                            "got 'fifty'"),
     ("planner.beta", "a setting is NAME=VALUE"),
+    # out of range: refused before any stage, not stored as a run of failed trials
+    ("planner.beta=-5", "planner.beta=-5.0 is not allowed: planner.beta must be a finite "
+                        "number ≥ 0"),
+    ("train.epochs=0", "train.epochs=0 is not allowed: train.epochs must be an integer ≥ 1"),
+    ("train.batch_size=-1", "train.batch_size=-1 is not allowed"),
+    ("workers=0", "workers=0 is not allowed: workers must be an integer ≥ 1"),  # as --workers 0
 ])
 def test_a_bad_set_is_a_clear_error_before_anything_runs(capsys, tmp_path, monkeypatch,
                                                          setting, message):

@@ -123,7 +123,7 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
     ("collect.episodes", "1,2", "collect.episodes expects 4 integers separated by commas"),
     ("train.patience", "soon", "train.patience expects an integer or none"),
     ("planner.heuristic", 3, "planner.heuristic expects a string"),
-    ("seeds", "0", "seeds=0: Profile.seeds must be ≥ 1"),
+    ("seeds", "0", "seeds=0 is not allowed: seeds must be an integer ≥ 1"),
     # a choice is checked when set, not when training reaches it an hour later
     ("train.conv_taps", "half", "train.conv_taps=half: unknown conv_taps 'half'; valid: all, live"),
     ("train.lr_schedule", "step", "unknown lr_schedule 'step'; valid: constant, cosine"),
@@ -158,3 +158,81 @@ def test_a_changed_setting_changes_the_cache_key_of_what_depends_on_it_only(
     changed = keys(demo.with_overrides({"collect.steer_sigma": 0.5}))
     assert changed["episode"] != base["episode"]
     assert keys(demo.with_overrides({"planner.beta": 150})) == base  # the same value
+
+
+# ----------------------------------------------------------------------------- allowed values
+
+def _rows():
+    from dgt_lib.core.constraints import SETTING_RULES
+
+    return [pytest.param(name, rule, id=name) for name, rule in SETTING_RULES.items()]
+
+
+@pytest.mark.parametrize("name, rule", _rows())
+@pytest.mark.parametrize("profile_name_", PROFILE_NAMES)
+def test_every_setting_refuses_a_value_just_outside_its_range_and_keeps_the_profile_s(
+        profile_name_, name, rule):
+    """Generated from the table: the value just outside the allowed range is refused at
+    once, in one line naming the setting, the value and what is allowed; the profile's own
+    value passes (every shipped profile is valid)."""
+    from dgt_lib.core.constraints import _value
+    from dgt_lib.core.overrides import format_setting
+
+    profile = get_profile(profile_name_)
+    with pytest.raises(InvalidOverrideError) as err:
+        profile.with_overrides({name: rule.outside})
+    message = str(err.value)
+    assert "\n" not in message and message.startswith(f"{name}={format_setting(rule.outside)}")
+    assert rule.allowed in message or "valid:" in message  # the table's words or the section's
+    own = _value(profile, name)
+    assert profile.with_overrides({name: own}).with_(overrides=()) == profile
+
+
+def test_every_setting_but_a_switch_has_a_rule():
+    """A new numeric or text setting cannot be added without saying what it allows."""
+    from dataclasses import fields
+
+    from dgt_lib.core.config import Profile
+    from dgt_lib.core.constraints import SETTING_RULES
+    from dgt_lib.core.overrides import setting_names, setting_type
+
+    switches = {n for n in setting_names(Profile) if setting_type(Profile, n)[2] is bool}
+    assert set(SETTING_RULES) == set(setting_names(Profile)) - switches
+    assert len(fields(Profile)) > 0
+
+
+def test_the_planner_heuristic_rule_matches_the_planner_s_heuristics():
+    from dgt_lib.core.constraints import SETTING_RULES
+    from dgt_lib.navigation.planner.heuristics import HEURISTICS
+
+    rule = SETTING_RULES["planner.heuristic"]
+    assert all(rule.check(h) for h in HEURISTICS) and rule.allowed == "one of " + ", ".join(
+        HEURISTICS)
+
+
+@pytest.mark.parametrize("rule", [pytest.param(r, id="+".join(r.names)) for r in
+                                  __import__("dgt_lib.core.constraints",
+                                             fromlist=["CROSS_RULES"]).CROSS_RULES])
+def test_settings_that_must_agree_are_checked_together(rule):
+    """A cross-field rule is checked on the whole profile: each setting alone may be fine,
+    the pair is refused, naming both values; set together in one call, valid pairs pass
+    whatever the order."""
+    demo = get_profile("demo")
+    with pytest.raises(InvalidOverrideError) as err:
+        demo.with_overrides(rule.breaking)
+    assert all(name in str(err.value) for name in rule.names)
+    assert rule.allowed in str(err.value)
+
+
+def test_a_pair_valid_together_is_accepted_in_either_order():
+    demo = get_profile("demo")  # step 1.6: a substep of 2 is fine only with the longer step
+    for order in ({"planner.substep_m": 2.0, "planner.step_m": 3.0},
+                  {"planner.step_m": 3.0, "planner.substep_m": 2.0}):
+        p = demo.with_overrides(order)
+        assert (p.planner.step_m, p.planner.substep_m) == (3.0, 2.0)
+
+
+@pytest.mark.parametrize("value", ["inf", "-inf", float("inf")])
+def test_an_infinite_number_is_refused(value):
+    with pytest.raises(InvalidOverrideError, match="planner.beta=inf|planner.beta=-inf"):
+        get_profile("demo").with_overrides({"planner.beta": value})

@@ -277,3 +277,37 @@ def test_a_world_with_named_routes_reports_the_route_taken(data_dir):
     assert report.route == "B"
     assert plan_query(tiny_world(), "jeep", (8.0, 25.0, 0.0), (34.0, 25.0), method="binary",
                       profile="smoke", progress=False).route is None
+
+
+def test_dgt_plan_under_other_settings_writes_other_files(data_dir, tmp_path, capsys):
+    """``--set planner.beta=0`` plans another path: its figure and recording must not
+    overwrite the default settings' (and the default query keeps its file name)."""
+    heights = np.zeros((80, 120), np.float32)
+    heights[30:50, 55:65] = 3.0
+    np.save(tmp_path / "betas.npy", heights)
+    args = ["plan", "--world", str(tmp_path / "betas.npy"), "--vehicle", "jeep",
+            "--start", "8,16,0", "--goal", "40,16", "--method", "binary", "--profile", "smoke"]
+    plans = data_dir / "smoke" / "seed-0" / "plans"
+    assert main(args) == 0
+    assert main([*args, "--set", "planner.beta=0"]) == 0
+    assert main([*args, "--set", "planner.beta=150"]) == 0  # the profile's own value
+    capsys.readouterr()
+    rrds = {p.stem for p in plans.glob("betas_*.rrd")}
+    stems = {p.stem for p in plans.glob("betas_*.png")}
+    assert len(stems) == 2 and stems <= rrds
+    tagged = [s for s in stems if "_set-" in s]
+    assert len(tagged) == 1 and tagged[0].split("_set-")[0] in stems
+
+
+def test_output_stem_of_the_profile_s_own_settings_is_unchanged():
+    from dgt_lib.plan_one import output_stem
+
+    world = ramp_world()
+    smoke = get_profile("smoke")
+    stem = output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0))
+    assert output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=smoke) == stem
+    same = smoke.with_overrides({"planner.beta": 150, "seeds": 2})  # nothing the plan reads
+    assert output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=same) == stem
+    other = smoke.with_overrides({"planner.beta": 0})
+    tagged = output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=other)
+    assert tagged.startswith(stem + "_set-") and len(tagged) == len(stem) + 13

@@ -87,14 +87,32 @@ def _meta_path(path: Path) -> Path:
     return path.with_name(path.name + ".meta.json")
 
 
+def new_file_mode() -> int:
+    """The mode ``open()`` gives a new file here: ``0o666 & ~umask`` (0o644 under the
+    usual umask 022, 0o664 under 002 for a group's shared directory). Read from
+    ``/proc/self/status`` where it says, so no other thread sees a changed umask."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return 0o666 & ~int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)  # no /proc (macOS): read by setting and restoring
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Write through ``write(tmp_path)`` then rename: a crash never leaves half a file."""
+    """Write through ``write(tmp_path)`` then rename: a crash never leaves half a file.
+    The file gets :func:`new_file_mode` (the temporary file is private, 0o600, until then),
+    so others sharing the data directory can read it (docs/reliability.md)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     tmp_path = Path(tmp)
     try:
         write(tmp_path)
+        os.chmod(tmp_path, new_file_mode())
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():

@@ -20,7 +20,8 @@ by the field's annotation and checked (an unknown name lists the valid ones)::
     profile = get_profile("demo").with_overrides(parse_overrides(["planner.beta=50"]))
 
 (the command line's ``dgt reproduce --set planner.beta=50``; the rules live in
-:mod:`dgt_lib.core.overrides`).
+:mod:`dgt_lib.core.overrides`). Every profile made is checked against the allowed values
+of :mod:`dgt_lib.core.constraints`, so a value that cannot work fails at once.
 """
 
 from __future__ import annotations
@@ -29,6 +30,14 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
+from dgt_lib.core.constraints import (  # the choices of TrainConfig's text settings
+    CONV_TAPS,
+    HEAD_INITS,
+    LABEL_WEIGHTINGS,
+    LR_SCHEDULES,
+    SELECTIONS,
+    check_settings,
+)
 from dgt_lib.core.overrides import apply_overrides, format_setting
 
 PROFILE_NAMES: tuple[str, ...] = ("smoke", "demo", "paper")
@@ -89,13 +98,6 @@ class CollectConfig:
     survey_overlap: float = 0.2  # overlap of neighbouring survey footprints (fraction)
 
 
-HEAD_INITS: tuple[str, ...] = ("prior", "default")
-LABEL_WEIGHTINGS: tuple[str, ...] = ("none", "inverse_frequency")
-LR_SCHEDULES: tuple[str, ...] = ("constant", "cosine")
-SELECTIONS: tuple[str, ...] = ("best_val", "last")
-CONV_TAPS: tuple[str, ...] = ("all", "live")
-"""Valid ``TrainConfig.head_init``, ``label_weighting``, ``lr_schedule``, ``selection`` and
-``conv_taps`` values (checked when a ``TrainConfig`` is made, so ``--set`` fails at once)."""
 
 
 @dataclass(frozen=True)
@@ -291,8 +293,7 @@ class Profile:
     artifact is keyed by the fields it uses)."""
 
     def __post_init__(self) -> None:
-        if self.seeds < 1:
-            raise ValueError(f"Profile.seeds must be ≥ 1, got {self.seeds}")
+        check_settings(self)  # every setting in its range, on the whole profile (cross-field)
 
     def with_(self, **changes) -> Profile:
         """A copy with some fields changed, e.g. ``p.with_(seed=3)``."""

@@ -177,19 +177,23 @@ def parse_overrides(items: Iterable[str]) -> dict[str, str]:
 
 def apply_overrides(profile: P, overrides: Mapping[str, object]) -> P:
     """``profile`` with ``overrides`` applied (see :meth:`Profile.with_overrides`); the
-    changed settings are recorded in ``Profile.overrides``."""
-    prof, recorded = profile, dict(profile.overrides)
+    changed settings are recorded in ``Profile.overrides``. The profile is made once, with
+    every override in, so its range and cross-field checks
+    (:mod:`dgt_lib.core.constraints`) see the settings together."""
+    top: dict[str, object] = {}
+    sections: dict[str, object] = {}
+    recorded = dict(profile.overrides)
     for key, raw in overrides.items():
         section, name, hint = setting_type(type(profile), key)
-        value = coerce_setting(key, raw, hint, example=_current(prof, section, name))
-        try:
-            if section is None:
-                prof = replace(prof, **{name: value})
-            else:
-                prof = replace(prof, **{section: replace(getattr(prof, section),
-                                                         **{name: value})})
-        except ValueError as exc:  # a section's own check (Profile.seeds ≥ 1)
-            raise InvalidOverrideError(f"{key.strip()}={format_setting(value)}: {exc}"
-                                       ) from None
+        value = coerce_setting(key, raw, hint, example=_current(profile, section, name))
+        if section is None:
+            top[name] = value
+        else:
+            try:  # a section's own check (TrainConfig's choices)
+                sections[section] = replace(sections.get(section, getattr(profile, section)),
+                                            **{name: value})
+            except ValueError as exc:
+                raise InvalidOverrideError(f"{key.strip()}={format_setting(value)}: {exc}"
+                                           ) from None
         recorded[key.strip()] = value
-    return replace(prof, overrides=tuple(recorded.items()))
+    return replace(profile, **top, **sections, overrides=tuple(recorded.items()))

@@ -1,0 +1,194 @@
+"""What values each setting may take: one table, checked whenever a
+:class:`~dgt_lib.core.config.Profile` is made, so ``dgt reproduce --set``, ``dgt plan
+--set``, a notebook's ``SETTINGS`` and :meth:`Profile.with_overrides` refuse a value that
+cannot work before any stage runs (docs/reliability.md → Settings), with one line naming
+the setting, the value and what is allowed.
+
+:data:`SETTING_RULES` holds one :class:`Rule` per numeric or text setting (a bool fits
+by its type alone); :data:`CROSS_RULES` the rules between two settings.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from dgt_lib.core.overrides import InvalidOverrideError, format_setting
+
+HEAD_INITS: tuple[str, ...] = ("prior", "default")
+LABEL_WEIGHTINGS: tuple[str, ...] = ("none", "inverse_frequency")
+LR_SCHEDULES: tuple[str, ...] = ("constant", "cosine")
+SELECTIONS: tuple[str, ...] = ("best_val", "last")
+CONV_TAPS: tuple[str, ...] = ("all", "live")
+"""Valid ``TrainConfig.head_init``, ``label_weighting``, ``lr_schedule``, ``selection`` and
+``conv_taps`` values (re-exported by :mod:`dgt_lib.core.config`; checked when a
+``TrainConfig`` is made, so ``--set`` fails at once)."""
+
+
+class InvalidSettingError(InvalidOverrideError):
+    """A setting whose value is out of its allowed range (:data:`SETTING_RULES`)."""
+
+
+@dataclass(frozen=True)
+class Rule:
+    """``check(value)`` is True for an allowed value; ``allowed`` says which in words
+    (the error message); ``outside`` is a value just outside the range (the tests)."""
+
+    check: Callable[[object], bool]
+    allowed: str
+    outside: object
+
+
+def _number(v: object) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def at_least(low: float, *, integer: bool = False) -> Rule:
+    """``value ≥ low`` (finite)."""
+    kind = "an integer" if integer else "a finite number"
+    return Rule(lambda v: _number(v) and v >= low, f"{kind} ≥ {low:g}",
+                low - 1 if integer else low - 1e-3)
+
+
+def above(low: float) -> Rule:
+    """``value > low`` (finite)."""
+    return Rule(lambda v: _number(v) and v > low, f"a finite number > {low:g}", low)
+
+
+def between(low: float, high: float, *, high_open: bool = False) -> Rule:
+    """``low ≤ value ≤ high`` (``< high`` with ``high_open``)."""
+    end = ")" if high_open else "]"
+    return Rule(lambda v: _number(v) and low <= v and (v < high if high_open else v <= high),
+                f"in [{low:g}, {high:g}{end}", high if high_open else high + 1e-3)
+
+
+def above_up_to(low: float, high: float) -> Rule:
+    """``low < value ≤ high``."""
+    return Rule(lambda v: _number(v) and low < v <= high, f"in ({low:g}, {high:g}]", low)
+
+
+def one_of(*choices: str) -> Rule:
+    """One of ``choices``."""
+    return Rule(lambda v: v in choices, "one of " + ", ".join(choices), "bogus")
+
+
+def optional(rule: Rule) -> Rule:
+    """None, or what ``rule`` allows."""
+    return Rule(lambda v: v is None or rule.check(v), f"none or {rule.allowed}", rule.outside)
+
+
+def each(rule: Rule, n: int) -> Rule:
+    """A tuple of ``n`` values each allowed by ``rule``."""
+    return Rule(lambda v: all(rule.check(x) for x in v), f"{n} values, each {rule.allowed}",
+                (rule.outside,) * n)
+
+
+def increasing_within(low: float, high: float) -> Rule:
+    """A strictly increasing tuple inside the open range (low, high)."""
+    def check(v: tuple) -> bool:
+        return (all(_number(x) and low < x < high for x in v)
+                and all(a < b for a, b in zip(v, v[1:], strict=False)))
+    return Rule(check, f"increasing values in ({low:g}, {high:g})",
+                (float(low), high - 1.0))
+
+
+def episode_counts() -> Rule:
+    """Runs per vehicle: 4 integers ≥ 0, not all 0 (a vehicle may sit a collection out)."""
+    return Rule(lambda v: all(isinstance(x, int) and x >= 0 for x in v) and sum(v) > 0,
+                "4 integers ≥ 0, not all 0", (-1, 1, 1, 1))
+
+
+def distance_range() -> Rule:
+    """A (shortest, longest) pair: 0 < shortest ≤ longest."""
+    return Rule(lambda v: all(_number(x) for x in v) and 0 < v[0] <= v[1],
+                "two finite numbers 0 < low ≤ high", (2.0, 1.0))
+
+
+COUNT, POSITIVE, NON_NEGATIVE = at_least(1, integer=True), above(0), at_least(0)
+SEED = at_least(0, integer=True)
+
+SETTING_RULES: dict[str, Rule] = {
+    "seed": SEED, "seeds": COUNT, "workers": COUNT,
+    "worlds.training_size_m": POSITIVE, "worlds.eval_size_m": POSITIVE,
+    "worlds.hfield_resolution_m": POSITIVE, "worlds.training_seed": SEED,
+    "worlds.eval_seed": SEED,
+    "collect.episodes": episode_counts(), "collect.episode_duration_s": POSITIVE,
+    "collect.speed_mps": POSITIVE, "collect.immobilized_limit_s": POSITIVE,
+    "collect.turn_around_min_m": NON_NEGATIVE, "collect.steer_tau_s": POSITIVE,
+    "collect.steer_sigma": NON_NEGATIVE, "collect.edge_margin_m": NON_NEGATIVE,
+    "collect.tree_lookahead_m": NON_NEGATIVE, "collect.spawn_margin_m": NON_NEGATIVE,
+    "collect.spawn_max_slope_deg": above_up_to(0, 90), "collect.max_angular_rate_dps": POSITIVE,
+    "collect.frame_spacing_m": POSITIVE, "collect.frame_max_depth_m": POSITIVE,
+    "collect.patch_interval_s": POSITIVE, "collect.patch_start_s": NON_NEGATIVE,
+    "collect.survey_altitude_m": POSITIVE, "collect.survey_overlap": between(0, 1, high_open=True),
+    "train.epochs": COUNT, "train.batch_size": COUNT, "train.learning_rate": POSITIVE,
+    "train.weight_decay": NON_NEGATIVE, "train.width": COUNT, "train.fc_hidden": COUNT,
+    "train.patience": optional(COUNT), "train.head_init": one_of(*HEAD_INITS),
+    "train.label_weighting": one_of(*LABEL_WEIGHTINGS), "train.label_bins": COUNT,
+    "train.max_label_weight": POSITIVE, "train.lr_schedule": one_of(*LR_SCHEDULES),
+    "train.selection": one_of(*SELECTIONS), "train.conv_taps": one_of(*CONV_TAPS),
+    "costmap.n_headings": COUNT, "costmap.stride": each(COUNT, 2), "costmap.batch_size": COUNT,
+    "costmap.slope_trials": COUNT, "costmap.tau_s_margin": POSITIVE,
+    "planner.step_m": POSITIVE, "planner.beta": NON_NEGATIVE,
+    "planner.heuristic": one_of("euclidean", "cost_to_go"),  # navigation's HEURISTICS
+    "planner.heuristic_weight": at_least(1), "planner.goal_tolerance_m": POSITIVE,
+    "planner.goal_heading_tolerance_rad": above_up_to(0, math.pi), "planner.theta_bins": COUNT,
+    "planner.closed_cell_m": POSITIVE, "planner.substep_m": POSITIVE,
+    "planner.safety_margin_m": NON_NEGATIVE, "planner.shot_distance_m": NON_NEGATIVE,
+    "planner.max_expansions": COUNT, "planner.max_time_s": POSITIVE,
+    "experiments.n_hill": COUNT, "experiments.n_ridge": COUNT, "experiments.n_eval_jeep": COUNT,
+    "experiments.n_eval_vw_van": COUNT, "experiments.mppi_batch_size": COUNT,
+    "experiments.start_jitter_m": NON_NEGATIVE, "experiments.heading_jitter_deg": between(0, 180),
+    "experiments.eval_distance_m": distance_range(), "experiments.eval_min_hazard_m": NON_NEGATIVE,
+    "experiments.time_limit_base_s": POSITIVE, "experiments.time_limit_factor": NON_NEGATIVE,
+    "ground_truth.cells": COUNT, "ground_truth.run_up_m": NON_NEGATIVE,
+    "ground_truth.past_m": NON_NEGATIVE, "ground_truth.edge_margin_m": NON_NEGATIVE,
+    "ground_truth.tree_clearance_m": NON_NEGATIVE, "ground_truth.max_slope_deg": above_up_to(0, 90),
+    "ground_truth.slope_edges_deg": increasing_within(0, 90),
+    "ground_truth.roughness_edge_m": POSITIVE,
+    "ground_truth.contrast_threshold": between(0, 1, high_open=True), "ground_truth.seed": SEED,
+}
+"""Every setting's allowed values, by dotted name (``dgt settings`` lists the names)."""
+
+
+@dataclass(frozen=True)
+class CrossRule:
+    """A rule between settings: ``check(profile)`` is True when they agree; ``breaking``
+    is an override set that breaks it from any shipped profile (the tests)."""
+
+    names: tuple[str, ...]
+    check: Callable[[object], bool]
+    allowed: str
+    breaking: dict[str, object]
+
+
+CROSS_RULES: tuple[CrossRule, ...] = (
+    CrossRule(("planner.substep_m", "planner.step_m"),
+              lambda p: p.planner.substep_m <= p.planner.step_m,
+              "the collision-check spacing is at most one primitive",
+              {"planner.substep_m": 2.0, "planner.step_m": 1.0}),
+    CrossRule(("ground_truth.slope_edges_deg", "ground_truth.max_slope_deg"),
+              lambda p: p.ground_truth.slope_edges_deg[-1] < p.ground_truth.max_slope_deg,
+              "the slope strata end below the steepest cell sampled",
+              {"ground_truth.slope_edges_deg": "4,10,18", "ground_truth.max_slope_deg": 18.0}),
+)
+
+
+def _value(profile: object, name: str) -> object:
+    section, _, field_ = name.rpartition(".")
+    return getattr(getattr(profile, section) if section else profile, field_)
+
+
+def check_settings(profile: object) -> None:
+    """Raise :class:`InvalidSettingError` for the first setting of ``profile`` outside
+    :data:`SETTING_RULES` or the first broken :data:`CROSS_RULES` entry."""
+    for name, rule in SETTING_RULES.items():
+        value = _value(profile, name)
+        if not rule.check(value):
+            raise InvalidSettingError(f"{name}={format_setting(value)} is not allowed: "
+                                      f"{name} must be {rule.allowed}")
+    for rule in CROSS_RULES:
+        if not rule.check(profile):
+            given = ", ".join(f"{n}={format_setting(_value(profile, n))}" for n in rule.names)
+            raise InvalidSettingError(f"{given} do not fit together: {rule.allowed}")
