@@ -41,10 +41,8 @@ from dgt_lib.core.config import (
 from dgt_lib.core.executors import Terminated, interrupted_status, sigterm_as_interrupt
 from dgt_lib.core.overrides import (
     InvalidOverrideError,
-    format_setting,
     parse_overrides,
-    setting_names,
-    setting_type,
+    settings_table,
 )
 from dgt_lib.mapping.methods import METHODS
 from dgt_lib.stages import registry
@@ -208,28 +206,9 @@ def _stages(_: argparse.Namespace) -> int:
     return 0
 
 
-def _type_text(hint: object) -> str:
-    """A setting's annotation as it reads in the code: ``float``, ``int | None``,
-    ``tuple[int, int]``."""
-    return hint.__name__ if isinstance(hint, type) else str(hint)
-
-
-def settings_table(profile: Profile) -> list[tuple[str, str, str]]:
-    """Every name ``--set`` accepts, its type and the profile's value as it would be
-    typed: ``("planner.beta", "float", "150.0")``, read from the Profile's dataclasses
-    (:func:`dgt_lib.core.overrides.setting_names`), so it lists exactly what ``--set``
-    checks against."""
-    rows = []
-    for name in setting_names(type(profile)):
-        section, field_name, hint = setting_type(type(profile), name)
-        owner = profile if section is None else getattr(profile, section)
-        rows.append((name, _type_text(hint), format_setting(getattr(owner, field_name))))
-    return rows
-
-
 def _settings(args: argparse.Namespace) -> int:
     profile = _profile(args)
-    rows = settings_table(profile)
+    rows = settings_table(profile)  # every name --set accepts, its type, the profile's value
     print(f"Settings of profile {profile.describe()} (change one with --set NAME=VALUE):")
     widths = [max(len(r[i]) for r in rows) for i in range(2)]
     for name, kind, value in rows:

@@ -197,3 +197,22 @@ def apply_overrides(profile: P, overrides: Mapping[str, object]) -> P:
                                            ) from None
         recorded[key.strip()] = value
     return replace(profile, **top, **sections, overrides=tuple(recorded.items()))
+
+
+def _type_text(hint: object) -> str:
+    """A setting's annotation as it reads in the code: ``float``, ``int | None``,
+    ``tuple[int, int]``."""
+    return hint.__name__ if isinstance(hint, type) else str(hint)
+
+
+def settings_table(profile: object) -> list[tuple[str, str, str]]:
+    """Every name ``--set`` accepts, its type and the profile's value as it would be
+    typed: ``("planner.beta", "float", "150.0")``, read from the Profile's dataclasses
+    (:func:`setting_names`), so it lists exactly what ``--set``
+    checks against."""
+    rows = []
+    for name in setting_names(type(profile)):
+        section, field_name, hint = setting_type(type(profile), name)
+        owner = profile if section is None else getattr(profile, section)
+        rows.append((name, _type_text(hint), format_setting(getattr(owner, field_name))))
+    return rows
