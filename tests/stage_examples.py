@@ -1,7 +1,11 @@
 """Tiny stages used by tests/test_cli.py to exercise `dgt reproduce`."""
 
 import os
+import subprocess
+import sys
+import textwrap
 import time
+from pathlib import Path
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.executors import current_executor, run_jobs
@@ -60,3 +64,33 @@ def settings(profile):
     """Says two of the settings it was given (test_cli checks `--set` reaches the stages)."""
     return StageOutput([], f"n_hill={profile.experiments.n_hill!r} "
                            f"beta={profile.planner.beta!r}")
+
+
+POOL_RUN = textwrap.dedent("""
+    import sys
+    from dgt_lib.stages import registry
+    from tests import stage_examples
+    registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs"),
+                          registry.Stage("first", stage_examples.first, "next")]
+    from dgt_lib.cli import main
+    sys.exit(main(["reproduce", "--profile", "smoke"]))
+""")
+"""`dgt reproduce` of the stages ``pool`` (minute-long jobs in worker processes) then
+``first``, as a script for a child process."""
+
+
+def start_pool_run(data_dir: Path, preexec_fn) -> subprocess.Popen:
+    """:data:`POOL_RUN` in a child process of its own session (``preexec_fn`` sets its
+    signal dispositions), returned once the pool's first job is saved, so a signal sent
+    then stops a stage that has kept something."""
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "DGT_DATA_DIR": str(data_dir), "PYTHONPATH": str(root)}
+    proc = subprocess.Popen([sys.executable, "-c", POOL_RUN], cwd=root, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True, preexec_fn=preexec_fn)
+    saved = data_dir / "smoke" / "seed-0" / "jobs" / "0.json.meta.json"
+    deadline = time.monotonic() + 60
+    while not saved.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert saved.exists(), proc.stderr.read() if proc.poll() is not None else "not saved"
+    return proc

@@ -135,24 +135,7 @@ def sigint_as_in_a_terminal() -> None:
 def test_ctrl_c_in_a_terminal_stops_a_pool_stage_in_seconds_and_keeps_its_results(tmp_path):
     """The real thing: SIGINT to the whole process group (as a terminal sends it) while a
     stage runs jobs in worker processes."""
-    script = textwrap.dedent("""
-        import sys
-        from dgt_lib.stages import registry
-        from tests import stage_examples
-        registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs"),
-                              registry.Stage("first", stage_examples.first, "next")]
-        from dgt_lib.cli import main
-        sys.exit(main(["reproduce", "--profile", "smoke"]))
-    """)
-    env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True, preexec_fn=sigint_as_in_a_terminal)
-    saved = tmp_path / "smoke" / "seed-0" / "jobs" / "0.json.meta.json"
-    deadline = time.monotonic() + 60
-    while not saved.exists() and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert saved.exists()
+    proc = stage_examples.start_pool_run(tmp_path, sigint_as_in_a_terminal)
     t0 = time.monotonic()
     os.killpg(proc.pid, signal.SIGINT)
     out, err = proc.communicate(timeout=60)

@@ -3,13 +3,12 @@ container stopping) as Ctrl-C stops it (docs/reliability.md)."""
 
 import os
 import signal
-import subprocess
-import sys
-import textwrap
 import time
 from pathlib import Path
 
 import pytest
+
+from tests import stage_examples
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,24 +39,7 @@ def test_sigterm_stops_a_pool_stage_in_seconds_keeps_its_results_and_exits_143(
     workers included (a batch scheduler): it stops within seconds, says what it kept in
     one line, keeps the finished job, runs no later stage and exits with 143, the status
     of a process SIGTERM ended."""
-    script = textwrap.dedent("""
-        import sys
-        from dgt_lib.stages import registry
-        from tests import stage_examples
-        registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs"),
-                              registry.Stage("first", stage_examples.first, "next")]
-        from dgt_lib.cli import main
-        sys.exit(main(["reproduce", "--profile", "smoke"]))
-    """)
-    env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True, preexec_fn=_default_signals)
-    saved = tmp_path / "smoke" / "seed-0" / "jobs" / "0.json.meta.json"
-    deadline = time.monotonic() + 60
-    while not saved.exists() and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert saved.exists()
+    proc = stage_examples.start_pool_run(tmp_path, _default_signals)
     t0 = time.monotonic()
     if target == "group":
         os.killpg(proc.pid, signal.SIGTERM)
