@@ -225,9 +225,9 @@ def check_query(world: World, vehicle: str, start, goal, profile: Profile | str 
     HybridAStar.for_vehicle(free, occupancy, grid, vehicle, prof.planner).check_query(start, goal)
 
 
-PLAN_SECTIONS: tuple[str, ...] = ("worlds", "collect", "train", "costmap", "planner",
+PLAN_SECTIONS: tuple[str, ...] = ("worlds", "collect", "bev", "train", "costmap", "planner",
                                    "experiments")
-"""The profile sections a query's plan (and drive) depends on: the data and model behind
+"""The profile sections a query's plan (and drive) depends on: the data, map and model behind
 the costmap, the costmap, the search, the drive's time limit and controller samples."""
 
 

@@ -106,7 +106,7 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
     with pytest.raises(InvalidOverrideError, match="unknown setting 'planner.bta'") as err:
         get_profile("demo").with_overrides({"planner.bta": 50})
     assert "planner.beta" in str(err.value) and "planner.step_m" in str(err.value)
-    with pytest.raises(InvalidOverrideError, match="worlds, collect, train, costmap, planner, "
+    with pytest.raises(InvalidOverrideError, match="worlds, collect, bev, train, costmap, planner, "
                                                    "experiments, ground_truth, or one of "
                                                    "seed, seeds, workers"):
         get_profile("demo").with_overrides({"plan.beta": 50})

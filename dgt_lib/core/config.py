@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 from dgt_lib.core.constraints import (  # the choices of TrainConfig's text settings
     CONV_TAPS,
     HEAD_INITS,
+    INPUTS,
     LABEL_WEIGHTINGS,
     LR_SCHEDULES,
     SELECTIONS,
@@ -141,14 +142,41 @@ class TrainConfig:
     # (model.PatchConv2d): the same network, ~1.35× faster training steps at width 64 on
     # two CPU cores, trained weights equal in all but the last bits. One of CONV_TAPS.
     conv_taps: str = "all"
+    # What the network sees: "rgbd", every channel (the paper); "geometry", only H̄, σ_H and
+    # ‖∇H̄‖; "rgb", only the colours. The channels left out enter as their training mean
+    # (the input attribution study, README). One of INPUTS.
+    inputs: str = "rgbd"
 
     def __post_init__(self):
         for name, valid in (("head_init", HEAD_INITS), ("label_weighting", LABEL_WEIGHTINGS),
                             ("lr_schedule", LR_SCHEDULES), ("selection", SELECTIONS),
-                            ("conv_taps", CONV_TAPS)):
+                            ("conv_taps", CONV_TAPS), ("inputs", INPUTS)):
             if getattr(self, name) not in valid:
                 raise ValueError(f"unknown {name} {getattr(self, name)!r}; valid: "
                                  f"{', '.join(valid)}")
+
+
+@dataclass(frozen=True)
+class BEVConfig:
+    """How the frames are placed in the global BEV map (``dgt_lib.perception.pose_noise``):
+    the localisation error a real robot's frames would carry, and, for the input
+    attribution study, colours made independent of the geometry. The defaults are the
+    paper's: simulator ground-truth poses and the colours the camera saw.
+
+    The same settings apply to every frame the map is built from, the episodes' onboard
+    frames (the training data) and the surveys of the evaluation worlds.
+    """
+
+    pose_sigma_xy_m: float = 0.0  # per-frame position error, std of each of x and y [m]
+    pose_sigma_yaw_deg: float = 0.0  # per-frame heading error, std [deg]
+    # odometry drift: a position bias that random-walks from frame to frame, std of each
+    # step along x and y (after n frames the bias's std is √n × this) [m]
+    pose_drift_m: float = 0.0
+    # "observed": the colours the camera saw (the paper); "shuffled": the map's colour
+    # layer cut into 6.4 m tiles and the tiles permuted, so colour keeps its statistics
+    # but no longer marks where the terrain is steep or sharp (input attribution). One of
+    # BEV_COLOURS.
+    colour: str = "observed"
 
 
 @dataclass(frozen=True)
@@ -279,6 +307,7 @@ class Profile:
     workers: int = field(default=2, compare=False)
     worlds: WorldsConfig = field(default_factory=WorldsConfig)
     collect: CollectConfig = field(default_factory=CollectConfig)
+    bev: BEVConfig = field(default_factory=BEVConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
@@ -303,7 +332,7 @@ class Profile:
         """A copy with settings changed by dotted name, e.g.
         ``p.with_overrides({"planner.beta": 50, "collect.episodes": "10,10,10,10"})``.
 
-        A name is ``section.field`` (a field of a section: ``worlds``, ``collect``,
+        A name is ``section.field`` (a field of a section: ``worlds``, ``collect``, ``bev``,
         ``train``, ``costmap``, ``planner``, ``experiments``, ``ground_truth``) or ``seed``,
         ``seeds``, ``workers``. A value is converted to the field's type: a string as it
         would be typed on the command line, or a Python value of that type. An unknown name

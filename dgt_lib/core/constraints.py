@@ -21,9 +21,12 @@ LABEL_WEIGHTINGS: tuple[str, ...] = ("none", "inverse_frequency")
 LR_SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 SELECTIONS: tuple[str, ...] = ("best_val", "last")
 CONV_TAPS: tuple[str, ...] = ("all", "live")
-"""Valid ``TrainConfig.head_init``, ``label_weighting``, ``lr_schedule``, ``selection`` and
-``conv_taps`` values (re-exported by :mod:`dgt_lib.core.config`; checked when a
-``TrainConfig`` is made, so ``--set`` fails at once)."""
+INPUTS: tuple[str, ...] = ("rgbd", "geometry", "rgb")
+"""Valid ``TrainConfig.head_init``, ``label_weighting``, ``lr_schedule``, ``selection``,
+``conv_taps`` and ``inputs`` values (re-exported by :mod:`dgt_lib.core.config`; checked when
+a ``TrainConfig`` is made, so ``--set`` fails at once)."""
+BEV_COLOURS: tuple[str, ...] = ("observed", "shuffled")
+"""Valid ``BEVConfig.colour`` values."""
 
 
 class InvalidSettingError(InvalidOverrideError):
@@ -128,6 +131,7 @@ SETTING_RULES: dict[str, Rule] = {
     "train.label_weighting": one_of(*LABEL_WEIGHTINGS), "train.label_bins": COUNT,
     "train.max_label_weight": POSITIVE, "train.lr_schedule": one_of(*LR_SCHEDULES),
     "train.selection": one_of(*SELECTIONS), "train.conv_taps": one_of(*CONV_TAPS),
+    "train.inputs": one_of(*INPUTS),
     "costmap.n_headings": COUNT, "costmap.stride": each(COUNT, 2), "costmap.batch_size": COUNT,
     "costmap.slope_trials": COUNT, "costmap.tau_s_margin": POSITIVE,
     "planner.step_m": POSITIVE, "planner.beta": NON_NEGATIVE,
@@ -148,6 +152,8 @@ SETTING_RULES: dict[str, Rule] = {
     "ground_truth.slope_edges_deg": increasing_within(0, 90),
     "ground_truth.roughness_edge_m": POSITIVE,
     "ground_truth.contrast_threshold": between(0, 1, high_open=True), "ground_truth.seed": SEED,
+    "bev.pose_sigma_xy_m": NON_NEGATIVE, "bev.pose_sigma_yaw_deg": between(0, 180),
+    "bev.pose_drift_m": NON_NEGATIVE, "bev.colour": one_of(*BEV_COLOURS),
 }
 """Every setting's allowed values, by dotted name (``dgt settings`` lists the names)."""
 

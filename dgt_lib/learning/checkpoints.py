@@ -117,7 +117,8 @@ def load_checkpoint(
                 if arch.get(k) != architecture.get(k)}
         raise ArchitectureMismatchError(
             f"{where} has a different architecture (checkpoint, expected): {diff}")
-    model = DGTNet(arch["vehicles"], width=arch["width"], fc_hidden=arch["fc_hidden"])
+    model = DGTNet(arch["vehicles"], width=arch["width"], fc_hidden=arch["fc_hidden"],
+                   inputs=arch.get("inputs", "rgbd"))
     try:
         model.load_state_dict(ckpt["state_dict"])
     except RuntimeError as exc:

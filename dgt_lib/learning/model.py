@@ -43,6 +43,10 @@ N_CHANNELS = 6
 """Patch channels R, G, B, H̄, σ_H, ‖∇H̄‖ (docs/ARCHITECTURE.md → Conventions)."""
 RGB_CHANNELS = slice(0, 3)
 HEIGHT_CHANNELS = slice(3, 6)
+INPUT_CHANNELS: dict[str, tuple[int, ...]] = {"rgbd": (0, 1, 2, 3, 4, 5),
+                                              "geometry": (3, 4, 5), "rgb": (0, 1, 2)}
+"""The channels each ``TrainConfig.inputs`` choice lets the network see; the others enter
+as their training mean (the input attribution study)."""
 PATCH_SHAPE = (N_CHANNELS, 22, 7)
 """One patch: 8.8 m × 2.8 m at 0.4 m per cell, channels first."""
 HEAD_PRIOR_CLIP = (0.01, 0.99)
@@ -245,13 +249,17 @@ class DGTNet(nn.Module):
     """
 
     def __init__(self, vehicles: tuple[str, ...] | list[str] = VEHICLES, width: int = 64,
-                 fc_hidden: int = 256, rgb_weights: str | Path | None = None) -> None:
+                 fc_hidden: int = 256, rgb_weights: str | Path | None = None,
+                 inputs: str = "rgbd") -> None:
         super().__init__()
         vehicles = tuple(vehicles)
         unknown = [v for v in vehicles if v not in VEHICLES]
         if not vehicles or unknown or len(set(vehicles)) != len(vehicles):
             raise ValueError(f"vehicles must be distinct names from {VEHICLES}, got {vehicles}")
+        if inputs not in INPUT_CHANNELS:
+            raise ValueError(f"inputs must be one of {', '.join(INPUT_CHANNELS)}, got {inputs!r}")
         self.vehicles = vehicles
+        self.inputs = inputs
         self.width = int(width)
         self.fc_hidden = int(fc_hidden)
         self.rgb = ResNet18(3, self.width)
@@ -263,6 +271,9 @@ class DGTNet(nn.Module):
         self.vehicle_heads = nn.ModuleList(nn.Linear(self.fc_hidden, 1) for _ in vehicles)
         self.register_buffer("input_mean", torch.zeros(N_CHANNELS))
         self.register_buffer("input_std", torch.ones(N_CHANNELS))
+        seen = torch.zeros(N_CHANNELS)
+        seen[list(INPUT_CHANNELS[inputs])] = 1.0
+        self.register_buffer("input_seen", seen, persistent=False)
         self.rgb_pretrained = False
         if rgb_weights is not None:
             if self.width != 64:
@@ -273,9 +284,10 @@ class DGTNet(nn.Module):
 
     def architecture(self) -> dict[str, Any]:
         """What a checkpoint must match to load into this model."""
-        return {"name": "DGTNet", "vehicles": list(self.vehicles), "width": self.width,
+        arch = {"name": "DGTNet", "vehicles": list(self.vehicles), "width": self.width,
                 "fc_hidden": self.fc_hidden, "in_channels": N_CHANNELS,
                 "heights": "relative to the patch mean"}
+        return arch if self.inputs == "rgbd" else {**arch, "inputs": self.inputs}
 
     def head_index(self, vehicle: str | int) -> int:
         """Column of ``vehicle`` (name, or index into ``config.VEHICLES``) in the output."""
@@ -336,6 +348,8 @@ class DGTNet(nn.Module):
         x = centre_heights(x)  # H̄ relative to the patch's mean height
         x = (x - self.input_mean[:, None, None]) / self.input_std[:, None, None]
         x = torch.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
+        if self.inputs != "rgbd":  # the channels left out enter as their mean (0 here)
+            x = x * self.input_seen[:, None, None]
         features = torch.cat([self.rgb(x[:, RGB_CHANNELS]), self.height(x[:, HEIGHT_CHANNELS])],
                              dim=1)  # (B, 16·width)
         return self.fc(features)  # (B, fc_hidden)

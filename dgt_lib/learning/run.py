@@ -264,6 +264,6 @@ def train_model(
     device = resolve_device(device)
     torch.manual_seed(seed)
     model = DGTNet(data.vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
-                   rgb_weights=rgb_weights)
+                   rgb_weights=rgb_weights, inputs=cfg.inputs)
     model.set_normalization(*channel_statistics(dataset.patches, data.train_index))
     return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)

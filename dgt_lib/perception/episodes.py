@@ -26,6 +26,7 @@ from dgt_lib.core.config import VEHICLES, CollectConfig
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.perception.bev import BEVAccumulator, bev_grid
+from dgt_lib.perception.pose_noise import Localiser
 from dgt_lib.world.rendering import onboard_camera_pose, simulator, terrain_renderer
 from dgt_lib.world.simulator import CONTROL_DT_S, VehicleState
 from dgt_lib.world.worlds import World
@@ -230,12 +231,15 @@ def run_episode(
     index: int = 0,
     render: bool = True,
     stop: Callable[[VehicleState], bool] | None = None,
+    localise: Localiser | None = None,
 ) -> Episode:
     """Drive one episode and record it (see the module docstring); deterministic in
     ``seed`` (spawn pose, steering noise). ``start_pose`` (x, y, yaw) replaces the random
     spawn, ``steer(state) -> [−1, 1]`` the OU steering; ``render`` adds an onboard frame
     every ``frame_spacing_m`` driven to the episode's BEV; ``stop(state)`` ends it early
-    (reason ``"stopped"``: the ground-truth drives stop a few metres past their cell)."""
+    (reason ``"stopped"``: the ground-truth drives stop a few metres past their cell);
+    ``localise`` places each frame at an estimated pose before it is mapped
+    (:mod:`~dgt_lib.perception.pose_noise`; the physics does not change)."""
     cfg = config or CollectConfig()
     spec = get_vehicle(vehicle)
     rng = np.random.default_rng(seed)
@@ -264,6 +268,8 @@ def run_episode(
         last_xy = st.position[:2].copy()
         if render and travelled >= next_frame_m and rate <= cfg.max_angular_rate_dps:
             frame = renderer.render(onboard_camera_pose(sim))
+            if localise is not None:
+                frame = localise(frame)
             acc.add_frame(frame, max_depth_m=cfg.frame_max_depth_m)
             n_frames += 1  # (no frames during glitches)
             next_frame_m = travelled + cfg.frame_spacing_m

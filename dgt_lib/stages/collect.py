@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import warnings
+import zlib
 from collections.abc import Callable
 from concurrent.futures import Executor
 from pathlib import Path
@@ -34,10 +35,11 @@ from pathlib import Path
 import numpy as np
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
+from dgt_lib.core.config import VEHICLES, BEVConfig, CollectConfig, Profile, as_profile
 from dgt_lib.core.executors import SerialExecutor, current_executor, limit_threads, run_jobs
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
+from dgt_lib.perception.colour_shuffle import shuffled_colours
 from dgt_lib.perception.episodes import (
     Episode,
     episode_seed,
@@ -45,6 +47,7 @@ from dgt_lib.perception.episodes import (
     load_episode,
     run_episode,
 )
+from dgt_lib.perception.pose_noise import Localiser, pose_noise
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.world.mujoco_model import CAMERA, LIGHTING, MAX_DEPTH_M, PHYSICS
@@ -82,27 +85,34 @@ def episode_relpath(vehicle: str, index: int) -> str:
 
 
 def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, object]:
-    """What one episode depends on (its artifact's cache key)."""
-    return {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
-            "episode": _fields(profile.collect, EPISODE_FIELDS),
-            "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
-            "index": int(index), "camera": CAMERA, "lighting": LIGHTING, "physics": PHYSICS}
+    """What one episode depends on (its artifact's cache key); the pose noise only when
+    there is any, so the episodes of true poses keep their keys."""
+    cfg = {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
+           "episode": _fields(profile.collect, EPISODE_FIELDS),
+           "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
+           "index": int(index), "camera": CAMERA, "lighting": LIGHTING, "physics": PHYSICS}
+    noise = pose_noise(profile.bev).key()
+    return cfg if noise is None else {**cfg, "pose_noise": noise}
+
+
+def _run_training_episode(profile: Profile, vehicle: str, index: int) -> Episode:
+    """One collection run on the training world, its frames mapped at the poses the
+    profile's localisation gives (``bev`` settings)."""
+    seed = episode_seed(profile.seed, vehicle, index)
+    noise = pose_noise(profile.bev)
+    return run_episode(get_world("training", profile), vehicle, seed, profile.collect,
+                       index=index, localise=noise.localiser(seed) if noise.active else None)
 
 
 def _episode_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:
     """Worker entry point: run one episode of the training world, return its arrays."""
     limit_threads()  # a Dask/Ray worker has no initializer of ours
-    world = get_world("training", profile)
-    ep = run_episode(world, vehicle, episode_seed(profile.seed, vehicle, index),
-                     profile.collect, index=index)
-    return ep.to_arrays()
+    return _run_training_episode(profile, vehicle, index).to_arrays()
 
 
 def _serial_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:
     """:func:`_episode_job` in this process (its thread settings stay as they are)."""
-    world = get_world("training", profile)
-    return run_episode(world, vehicle, episode_seed(profile.seed, vehicle, index),
-                       profile.collect, index=index).to_arrays()
+    return _run_training_episode(profile, vehicle, index).to_arrays()
 
 
 def collect_episodes(
@@ -176,6 +186,8 @@ def bev_config(world_name: str, profile: Profile) -> dict[str, object]:
                               "worlds": profile.worlds, "seed": profile.seed, "camera": CAMERA,
                               "lighting": LIGHTING,
                               "survey": _fields(profile.collect, SURVEY_FIELDS)}
+    if profile.bev != BEVConfig():  # only when set: the maps of true poses keep their keys
+        cfg["bev_settings"] = profile.bev
     if world_name == "training":  # one digest, not 1,300 configurations in the metadata
         cfg["episodes"] = _episodes_digest(profile)
     return cfg
@@ -191,13 +203,17 @@ def _episodes_digest(profile: Profile) -> str:
 
 
 def build_world_bev(world: World, config: CollectConfig | None = None,
-                    episode_paths: list[Path] = (), progress: bool = False
-                    ) -> tuple[BEVMap, int, int]:
-    """The BEV map of ``world`` from its survey plus the stored frames of episodes.
+                    episode_paths: list[Path] = (), progress: bool = False,
+                    localise: Localiser | None = None) -> tuple[BEVMap, int, int]:
+    """The BEV map of ``world`` from its survey plus the stored frames of episodes;
+    ``localise`` places each survey frame at an estimated pose
+    (:mod:`~dgt_lib.perception.pose_noise`).
 
     Returns the map, the number of survey frames and of episode frames."""
     acc = BEVAccumulator(bev_grid(world.grid.extent))
     frames = survey_frames(world, config)
+    if localise is not None:
+        frames = map(localise, frames)
     if progress:
         from tqdm.auto import tqdm
 
@@ -256,6 +272,26 @@ def warn_if_unobserved(bev: BEVMap, world: World, config: CollectConfig | None =
     return unobserved
 
 
+def world_seed(world_name: str, run_seed: int) -> int:
+    """A random stream's seed for one world in one run (the survey's localisation error,
+    the colour shuffle): each world and run seed its own."""
+    return zlib.crc32(f"{world_name}/{run_seed}".encode())
+
+
+def mapped_world_bev(world: World, prof: Profile, episode_paths: list[Path] = (),
+                     progress: bool = False) -> tuple[BEVMap, int, int]:
+    """:func:`build_world_bev` under the profile's ``bev`` settings: survey frames at the
+    poses its localisation gives, colours shuffled when ``bev.colour`` says so."""
+    noise = pose_noise(prof.bev)
+    seed = world_seed(world.name, prof.seed)
+    bev, n_survey, n_episode = build_world_bev(
+        world, prof.collect, episode_paths, progress=progress,
+        localise=noise.localiser(seed) if noise.active else None)
+    if prof.bev.colour == "shuffled":
+        bev = shuffled_colours(bev, seed)
+    return bev, n_survey, n_episode
+
+
 def ensure_bev(world_name: str, profile: Profile | str | None = None, *,
                executor: Executor | None = None, progress: bool = True) -> BEVMap:
     """The global BEV map of a world, cached as ``bev/<world>.npz``.
@@ -282,7 +318,7 @@ def _ensure_bev_arrays(world_name: str, profile: Profile | str | None,
             paths = [data_dir(prof) / episode_relpath(v, i)
                      for v, n in zip(VEHICLES, prof.collect.episodes, strict=True)
                      for i in range(n)]
-        bev, n_survey, n_episode = build_world_bev(world, prof.collect, paths, progress=progress)
+        bev, n_survey, n_episode = mapped_world_bev(world, prof, paths, progress)
         return {**bev.to_arrays(), "survey_frames": np.array(n_survey),
                 "episode_frames": np.array(n_episode)}
 

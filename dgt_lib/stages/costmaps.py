@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import VEHICLES, Profile, as_profile
+from dgt_lib.core.config import VEHICLES, BEVConfig, Profile, as_profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.mapping.baselines import (
     SlopeModel,
@@ -42,8 +42,8 @@ from dgt_lib.perception.bev import BEV_FORMAT, BEVMap
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.stages.collect import (
     bev_relpath,
-    build_world_bev,
     ensure_bev,
+    mapped_world_bev,
     warn_if_unobserved,
 )
 from dgt_lib.stages.dataset import dataset_digest, dataset_fingerprint, ensure_dataset
@@ -76,9 +76,11 @@ def world_bev(world: World | str, profile: Profile | str | None = None, *,
     config = {"stage": "bev", "bev_format": BEV_FORMAT, "heights": world.heights,
               "colors": world.colors, "trees": world.trees, "grid": world.grid,
               "collect": prof.collect}
+    if prof.bev != BEVConfig():  # only when set: the maps of true poses keep their keys
+        config["bev_settings"] = prof.bev
     relpath = f"bev/custom/{world.name}_{artifacts.config_hash(config)[:10]}.npz"
     arrays = artifacts.ensure(relpath, config,
-                              lambda: build_world_bev(world, prof.collect, progress=progress)[0]
+                              lambda: mapped_world_bev(world, prof, progress=progress)[0]
                               .to_arrays(), profile=cache_dir(prof))
     bev = BEVMap.from_arrays(arrays)
     warn_if_unobserved(bev, world, prof.collect)  # built now or cached: say why, every time

@@ -1,0 +1,260 @@
+"""What does the network look at, and what does a noisy localisation cost? Per variant and
+run seed, the multi-task model's accuracy against the measured ground truth and its plans
+in Experiments 1 and 2.
+
+    .venv/bin/python studies/map_inputs.py --profile demo --seeds 0 1 2 \\
+        --variants rgbd geometry rgb shuffled            # input attribution
+    .venv/bin/python studies/map_inputs.py --profile demo --seeds 0 1 2 \\
+        --variants rgbd pose_low pose_mid pose_high      # pose noise
+
+Variants (:data:`VARIANTS`, each a set of ``--set`` settings, fixed before any was run):
+``rgbd`` the paper (every channel, true poses); ``geometry`` / ``rgb`` the network sees only
+H̄, σ_H, ‖∇H̄‖ / only the colours; ``shuffled`` every world's colour layer tile-permuted, so
+rock colour no longer marks steep or sharp ground; ``pose_*`` the frames of the training
+data and of the evaluation maps placed with per-frame position and heading noise and a
+drifting bias (``BEVConfig``).
+
+Each variant runs in its own data directory ``<out>/<variant>/`` (``rgbd``: the profile's
+own, ``$DGT_DATA_DIR`` or ``data/``). Variants that keep the poses share the profile's
+collection episodes and every variant its ground truth (symbolic links), so only what
+differs is built: the BEV maps, dataset, multi-task model, its costmaps. Everything is
+cached and resumable like the pipeline's stages. Per (variant, seed) the script stores
+``<out>/scores/<variant>_seed<S>.json``: MAE, Spearman ρ and directional contrast per
+(world, vehicle) of the ``dgt`` costmap, the routes of its plans for Experiment 1's
+(carla_cola, hill) and Experiment 2's (mercedes_van, ridge) queries — the paper's counts, 20
+and 50, planned only, not driven — and each head's cost at the ridge's two crossings. Then it
+prints the tables over seeds and draws ``<out>/map_inputs.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+VARIANTS: dict[str, dict[str, object]] = {
+    "rgbd": {},
+    "geometry": {"train.inputs": "geometry"},
+    "rgb": {"train.inputs": "rgb"},
+    "shuffled": {"bev.colour": "shuffled"},
+    "pose_low": {"bev.pose_sigma_xy_m": 0.1, "bev.pose_sigma_yaw_deg": 0.5,
+                 "bev.pose_drift_m": 0.01},
+    "pose_mid": {"bev.pose_sigma_xy_m": 0.3, "bev.pose_sigma_yaw_deg": 2.0,
+                 "bev.pose_drift_m": 0.02},
+    "pose_high": {"bev.pose_sigma_xy_m": 1.0, "bev.pose_sigma_yaw_deg": 2.0,
+                  "bev.pose_drift_m": 0.05},
+}
+"""Each variant's settings (``dgt reproduce --set`` names)."""
+
+PLANNED = {"experiment1": ("hill", "carla_cola", 20), "experiment2": ("ridge", "mercedes_van", 50)}
+"""Experiments whose plans are scored: world, vehicle, queries (the paper's n)."""
+RIDGE_LANDMARKS = ("sharp_crossing", "smooth_crossing")
+NORTH = 2  # heading layer θ = π/2 of K = 8: across the ridge
+
+
+def _link(target: Path, link: Path) -> None:
+    """``link`` → ``target`` (a directory of the profile's run), made once."""
+    if link.is_symlink() or not target.exists():
+        return
+    link.parent.mkdir(parents=True, exist_ok=True)
+    link.symlink_to(target.resolve(), target_is_directory=True)
+
+
+def variant_root(variant: str, base: Path, out: Path) -> Path:
+    """The data directory a variant's artifacts go to."""
+    return base if not VARIANTS[variant] else out / variant
+
+
+def prepare(variant: str, profile: str, seed: int, base: Path, out: Path) -> Path:
+    """The variant's data directory, with the links to what it shares with the base run."""
+    root = variant_root(variant, base, out)
+    if root == base:
+        return root
+    _link(base / profile / "ground_truth", root / profile / "ground_truth")
+    if not any(k.startswith("bev.pose") for k in VARIANTS[variant]):
+        _link(base / profile / f"seed-{seed}" / "episodes",
+              root / profile / f"seed-{seed}" / "episodes")
+    return root
+
+
+def _plans(prof, name: str) -> dict[str, dict[str, int]]:
+    """{query label: {route: plans}} of the ``dgt`` costmap for one experiment."""
+    from dgt_lib.evaluation.experiments import experiment_queries
+    from dgt_lib.evaluation.queries import classify_route
+    from dgt_lib.navigation.planner.hybrid_astar import HybridAStar
+    from dgt_lib.stages.experiments import trial_maps
+    from dgt_lib.world.terrain import get_world
+
+    world_name, vehicle, _ = PLANNED[name]
+    world = get_world(world_name, prof)
+    queries = experiment_queries(name, prof, trial_maps)[vehicle]
+    maps = trial_maps(world_name, "dgt", vehicle, prof)
+    planner = HybridAStar.for_vehicle(maps.costmap("dgt", vehicle), maps.occupancy, maps.grid,
+                                      vehicle, prof.planner)
+    routes: dict[str, dict[str, int]] = {}
+    for q in queries:
+        plan = planner.plan(q.start, q.goal)
+        route = classify_route(world, plan.path) if plan.success else "no path"
+        label = routes.setdefault(q.label or "all", {})
+        label[route] = label.get(route, 0) + 1
+    return routes
+
+
+def _ridge_costs(prof) -> dict[str, dict[str, float]]:
+    """Each ridge head's mean cost heading north over 5 × 5 cells at the two crossings."""
+    from dgt_lib.stages.experiments import trial_maps
+    from dgt_lib.world.terrain import get_world
+
+    ridge = get_world("ridge", prof)
+    out = {}
+    for v in ("jeep", "mercedes_van"):
+        maps = trial_maps("ridge", "dgt", v, prof)
+        cost = maps.costmap("dgt", v)
+        out[v] = {}
+        for key in RIDGE_LANDMARKS:
+            r, c = maps.grid.xy_to_cell(*ridge.landmarks[key])
+            out[v][key] = float(cost[NORTH, r - 2:r + 3, c - 2:c + 3].mean())
+    return out
+
+
+def score(variant: str, profile: str, seed: int) -> dict:
+    """Build (through the cache) and score one variant in one seed; runs in the variant's
+    own process (its ``DGT_DATA_DIR``)."""
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES
+    from dgt_lib.stages.ground_truth import GROUND_TRUTH_WORLDS, ensure_ground_truths, score_world
+
+    prof = get_profile(profile).with_(seed=seed)
+    if VARIANTS[variant]:
+        prof = prof.with_overrides(VARIANTS[variant])
+    plan_prof = prof.with_overrides({f"experiments.n_{w}": n for w, _, n in PLANNED.values()})
+    pairs = [(w, v) for w in GROUND_TRUTH_WORLDS for v in EXPERIMENT_VEHICLES[w]]
+    truths = ensure_ground_truths(pairs, prof)
+    rows = []
+    for w in GROUND_TRUTH_WORLDS:
+        rows += score_world(w, truths, prof, methods=("dgt",))[0]
+    return {"variant": variant, "seed": seed, "settings": VARIANTS[variant],
+            "accuracy": [{k: r[k] for k in ("world", "vehicle", "mae", "spearman", "contrast")}
+                         for r in rows],
+            "plans": {name: _plans(plan_prof, name) for name in PLANNED},
+            "ridge_costs": _ridge_costs(prof)}
+
+
+def run_one(variant: str, profile: str, seed: int, base: Path, out: Path) -> dict:
+    """The stored scores of (variant, seed), computed in a subprocess if missing."""
+    path = out / "scores" / f"{variant}_seed{seed}.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    root = prepare(variant, profile, seed, base, out)
+    env = {**os.environ, "DGT_DATA_DIR": str(root)}
+    print(f"[map_inputs] {variant} seed {seed} in {root}", flush=True)
+    subprocess.run([sys.executable, __file__, "--one", variant, str(seed), "--profile", profile,
+                    "--out", str(out)], env=env, check=True)
+    return json.loads(path.read_text())
+
+
+def _share(routes: dict[str, dict[str, int]], label: str | None, route: str) -> tuple[int, int]:
+    labels = [label] if label else list(routes)
+    return (sum(routes.get(lab, {}).get(route, 0) for lab in labels),
+            sum(sum(routes.get(lab, {}).values()) for lab in labels))
+
+
+def tables(scores: list[dict]) -> str:
+    """Markdown: MAE per (world, vehicle) as mean ± std over seeds, and the plan claims."""
+    variants = list(dict.fromkeys(s["variant"] for s in scores))
+    pairs = list(dict.fromkeys((r["world"], r["vehicle"]) for r in scores[0]["accuracy"]))
+    seeds = sorted({s["seed"] for s in scores})
+    head = "| variant | " + " | ".join(f"{w} {v}" for w, v in pairs) + " | mean |"
+    lines = [f"MAE against the ground truth (mean ± std over seeds {seeds}):", "", head,
+             "|---" * (len(pairs) + 2) + "|"]
+    for var in variants:
+        mine = [s for s in scores if s["variant"] == var]
+        per_pair = [[next(r["mae"] for r in s["accuracy"] if (r["world"], r["vehicle"]) == p)
+                     for s in mine] for p in pairs]
+        cells = [f"{np.mean(x):.3f} ± {np.std(x):.3f}" for x in per_pair]
+        lines.append(f"| {var} | " + " | ".join(cells) + f" | {np.mean(per_pair):.3f} |")
+    lines += ["", "Plans (planned, not driven; per seed):", "",
+              "| variant | hill ascents by Route A | hill descents by Route B | "
+              "ridge crossings at the smoothed section | van cost sharp / smooth (N) |",
+              "|---|---|---|---|---|"]
+    for var in variants:
+        mine = sorted((s for s in scores if s["variant"] == var), key=lambda s: s["seed"])
+        cols = []
+        for exp, label, route in (("experiment1", "ascent", "A"), ("experiment1", "descent", "B"),
+                                  ("experiment2", None, "smooth")):
+            cols.append(", ".join("{}/{}".format(*_share(s["plans"][exp], label, route))
+                                  for s in mine))
+        costs = ", ".join(f"{s['ridge_costs']['mercedes_van']['sharp_crossing']:.2f} / "
+                          f"{s['ridge_costs']['mercedes_van']['smooth_crossing']:.2f}"
+                          for s in mine)
+        lines.append(f"| {var} | " + " | ".join(cols) + f" | {costs} |")
+    return "\n".join(lines) + "\n"
+
+
+def figure(scores: list[dict], path: Path) -> None:
+    """MAE per variant (mean over pairs, each seed a dot) and the ridge plans' share at the
+    smoothed section."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    variants = list(dict.fromkeys(s["variant"] for s in scores))
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.2), constrained_layout=True)
+    for i, var in enumerate(variants):
+        mine = [s for s in scores if s["variant"] == var]
+        mae = [np.mean([r["mae"] for r in s["accuracy"]]) for s in mine]
+        smooth = [np.divide(*_share(s["plans"]["experiment2"], None, "smooth")) for s in mine]
+        ascent = [np.divide(*_share(s["plans"]["experiment1"], "ascent", "A")) for s in mine]
+        axes[0].plot([i] * len(mae), mae, "o", color="C0")
+        axes[0].bar(i, np.mean(mae), color="C0", alpha=0.3)
+        axes[1].plot(np.full(len(smooth), i - 0.12), smooth, "o", color="C1",
+                     label="ridge: smoothed crossing" if i == 0 else None)
+        axes[1].plot(np.full(len(ascent), i + 0.12), ascent, "s", color="C2",
+                     label="hill: ascent by Route A" if i == 0 else None)
+    for ax in axes:
+        ax.set_xticks(range(len(variants)), variants)
+    axes[0].set_ylabel("MAE vs measured ground truth")
+    axes[0].set_title("costmap error (mean over world × vehicle)")
+    axes[1].set_ylabel("share of plans as claimed")
+    axes[1].set_ylim(-0.05, 1.05)
+    axes[1].set_title("Experiments 1–2 plans (each seed a marker)")
+    axes[1].legend(loc="lower left", fontsize=8)
+    fig.savefig(path, dpi=110)
+    print(f"[map_inputs] wrote {path}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--profile", default="demo")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--variants", nargs="+", default=["rgbd", "geometry", "rgb", "shuffled"],
+                        choices=list(VARIANTS))
+    parser.add_argument("--out", type=Path, default=None,
+                        help="where the variants' data and scores go (default: "
+                             "<data>/studies/map_inputs)")
+    parser.add_argument("--figure", type=Path, default=None, help="figure path (default: in --out)")
+    parser.add_argument("--one", nargs=2, metavar=("VARIANT", "SEED"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    from dgt_lib.core import artifacts
+
+    base = artifacts.data_root()
+    out = (args.out or base / "studies" / "map_inputs").resolve()
+    if args.one:
+        result = score(args.one[0], args.profile, int(args.one[1]))
+        path = out / "scores" / f"{args.one[0]}_seed{args.one[1]}.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(result, indent=1))
+        return
+    scores = [run_one(v, args.profile, s, base, out) for v in args.variants for s in args.seeds]
+    print(tables(scores))
+    figure(scores, args.figure or out / "map_inputs.png")
+
+
+if __name__ == "__main__":
+    main()
