@@ -7,7 +7,10 @@ logarithms of its lengths, mass and motor torque, its steering angle, its brakin
 deceleration and its drag coefficient. Weights w (Σ w = 1) are drawn from a Dirichlet
 distribution and pushed away from the centre by a factor 1 + e, e ~ U(0, 0.25), so
 some weights are negative (a mild extrapolation); every feature then gets an independent
-log-normal jitter (σ = 5 %), so the mix is not a line between two vehicles. Derived
+log-normal jitter (σ = 5 %), so the mix is not a line between two vehicles. The drive
+is all-wheel with the jeep's weight as probability, at least 1/3: with the jeep the only
+all-wheel drive among the named vehicles, climbing ability would otherwise always come
+with the jeep's other features, and a network could not tell them apart. Derived
 fields follow physics, not the mix: the brake torque from the braking deceleration, mass
 and wheel radius, the drag area from the drag coefficient and the frontal area, the
 camera mount from the geometry (:func:`~dgt_lib.core.vehicle_rules.default_camera`). A
@@ -42,6 +45,7 @@ LOG_FIELDS: tuple[str, ...] = (
     "wheelbase_m", "track_m", "length_m", "width_m", "height_m", "ground_clearance_m",
     "wheel_radius_m", "mass_kg", "drive_torque_nm")
 """Fields mixed as logarithms (so a ratio such as track/width mixes as a ratio)."""
+AWD_SHARE_MIN = 1 / 3  # chance of all-wheel drive at least this, whatever the mix
 MAX_DRAWS = 1000  # per vehicle; a generator that needs more has a broken rule
 
 
@@ -74,7 +78,7 @@ def _draw(rng: np.random.Generator, name: str, table: np.ndarray) -> VehicleSpec
     g["mass_kg"] = round(g["mass_kg"], -1)
     g["drive_torque_nm"] = round(g["drive_torque_nm"], -1)
     steer_deg, decel_g, cd = (float(x) for x in f[len(LOG_FIELDS):])
-    awd_share = float(np.clip(w[list(VEHICLE_SPECS).index("jeep")], 0, 1))
+    awd_share = float(np.clip(w[list(VEHICLE_SPECS).index("jeep")], AWD_SHARE_MIN, 1))
     brake = round(decel_g * g["mass_kg"] * GRAVITY_MPS2 * g["wheel_radius_m"] / 4, -1)
     return VehicleSpec(
         name=name, **g, drive="awd" if rng.random() < awd_share else "rwd",
