@@ -24,7 +24,9 @@ from dgt_lib.core.vehicles import CameraMount, VehicleSpec
 BELLY_HEIGHT_M = 0.25
 """Thickness of the belly box under the body [m] (``mujoco_model._add_vehicle``)."""
 MAX_STEER_LIMIT_DEG = 60.0
-"""A road-wheel angle must be in (0°, 60°): the steering servos' hinge range is ±57°."""
+"""The virtual centre wheel's angle must be in (0°, 60°)."""
+STEER_HINGE_RAD = 1.0
+"""Range ± of each front wheel's steering hinge [rad] (``mujoco_model._add_wheel``)."""
 DRIVES: tuple[str, ...] = ("awd", "rwd")
 
 CAMERA_BEHIND_FRONT_M = 0.6  # default camera: this far behind the body's front [m]
@@ -81,6 +83,14 @@ may be left out too (:func:`default_camera`)."""
 CAMERA_FIELDS: tuple[str, ...] = ("forward_m", "up_m", "pitch_down_deg")
 
 
+def inner_wheel_angle_rad(f: Mapping[str, object]) -> float:
+    """The inner front wheel's angle [rad] at full steer: atan(L / (R − T/2)), R = L / tan δ
+    (``simulator.ackermann_angles``); above π/2 when the turn's centre lies inside the track."""
+    wheelbase, track = float(f["wheelbase_m"]), float(f["track_m"])
+    radius = wheelbase / math.tan(math.radians(float(f["max_steer_deg"])))
+    return math.atan2(wheelbase, radius - track / 2)
+
+
 CROSS_RULES: tuple[CrossRule, ...] = (
     CrossRule(("wheelbase_m", "length_m"), lambda f: f["wheelbase_m"] < f["length_m"],
               "the axles lie inside the body (wheelbase_m < length_m)",
@@ -104,6 +114,10 @@ CROSS_RULES: tuple[CrossRule, ...] = (
               f"the body above the {BELLY_HEIGHT_M:g} m belly has a height "
               f"(height_m > ground_clearance_m + {BELLY_HEIGHT_M:g})",
               {"height_m": 0.5, "ground_clearance_m": 0.3}),
+    CrossRule(("max_steer_deg", "wheelbase_m", "track_m"),
+              lambda f: inner_wheel_angle_rad(f) < STEER_HINGE_RAD,
+              f"at full steer the inner front wheel's Ackermann angle stays inside its "
+              f"hinge's ±{STEER_HINGE_RAD:g} rad", {"max_steer_deg": 55.0}),
     CrossRule(("camera.forward_m", "length_m"),
               lambda f: abs(f["camera.forward_m"]) <= f["length_m"] / 2,
               "the camera sits along the body (|camera.forward_m| ≤ length_m / 2)",
