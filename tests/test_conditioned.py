@@ -3,6 +3,7 @@ training loop, a spec normalisation carried by the state dict, and a never-seen 
 between two trained ones predicted from its properties alone."""
 
 import math
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -20,6 +21,7 @@ from dgt_lib.core.config import VEHICLES, TrainConfig
 from dgt_lib.core.vehicle_generator import generated_vehicles
 from dgt_lib.core.vehicles import GRAVITY_MPS2, get_vehicle
 from dgt_lib.learning.model import DGTNet
+from dgt_lib.learning.run import train_network
 from dgt_lib.learning.synthetic import plane_patches, synthetic_dataset
 from dgt_lib.learning.training import TrainingSet, channel_statistics, fit
 from dgt_lib.perception.dataset import TRAIN, VAL, PatchDataset
@@ -42,6 +44,17 @@ def test_for_the_named_vehicles_it_answers_in_dgtnets_shape_and_order():
     assert net.architecture()["name"] == "ConditionedNet"
     # the FiLM generator starts at zero: every vehicle starts with the same head
     assert torch.allclose(out, out[:, :1].expand_as(out))
+
+
+def test_init_heads_starts_every_vehicle_at_its_own_prior():
+    torch.manual_seed(0)
+    net = ConditionedNet([*VEHICLES, *generated_vehicles(3)], **TINY).eval()
+    x = torch.from_numpy(synthetic_dataset((3, 3, 3, 3)).patches.astype(np.float32))
+    priors = [0.97, 0.6, 0.3, 0.1, 0.5, 0.8, 0.2]
+    net.init_heads(priors)
+    assert torch.allclose(net(x), torch.tensor(priors).expand(12, 7), atol=0.01)
+    with pytest.raises(ValueError, match="one mean label in"):
+        net.init_heads([0.5] * 6)
 
 
 def test_spec_vectors_normalise_and_come_back_and_the_state_dict_carries_them():
@@ -138,6 +151,13 @@ def test_the_kits_training_set_trains_it_for_the_named_vehicles():
     state = fit(net, torch.optim.Adam(net.parameters(), lr=3e-3), ts, cfg,
                 np.random.default_rng(0), torch.device("cpu"))
     assert state.best_val < before
+    # and the run around fit (priors, test metrics) takes it as it takes a DGTNet
+    other = ConditionedNet(**TINY)
+    other.set_normalization(*channel_statistics(data.patches, ts.train_index))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # one epoch: heads flagged as collapsed, rightly
+        result = train_network(other, ts, replace(cfg, epochs=1), progress=False)
+    assert isinstance(result.model, ConditionedNet) and set(result.metrics) == set(VEHICLES)
 
 
 def test_a_training_set_of_any_vehicles_checks_its_columns():

@@ -9,16 +9,19 @@ one head modulated by the vehicle's properties, FiLM-style (Perez et al. 2018)::
 
     z = DGTNet.embed(P)                                    (B, F)   shared embedding
     c_v = (s(v) − μ_s) / σ_s                               (V, D)   normalised spec vector
-    [γ_v, β_v] = W₂ ReLU(W₁ c_v + b₁) + b₂                 (V, 2F)  FiLM parameters
-    L̂_v(P) = σ(w · ReLU((1 + γ_v) ⊙ z + β_v) + b)          (B, V)
+    [γ_v, β_v, δ_v] = W₂ ReLU(W₁ c_v + b₁) + b₂            (V, 2F+1) FiLM parameters
+    L̂_v(P) = σ(w · ReLU((1 + γ_v) ⊙ z + β_v) + b + δ_v)    (B, V)
 
 s(v) is :func:`spec_vector` (:data:`FEATURES`: geometry, mass, torques, driven wheels,
 steering, the torque-limited climb), μ_s and σ_s its mean and spread over the training
-vehicles, kept as buffers so a checkpoint carries them, and W₂, b₂ start at zero, so every
-vehicle starts with the same head. Given the same :class:`~dgt_lib.learning.training.
-TrainingSet` it trains with the kit's own loop (:func:`~dgt_lib.learning.training.fit`:
-the masked loss picks each sample's vehicle column); :func:`spec_training_set` builds one
-for vehicles beyond the four named ones. :meth:`ConditionedNet.heads_for` evaluates any
+vehicles, kept as buffers so a checkpoint carries them. W₂, b₂ start at zero, so every
+vehicle starts with the same head, except that :meth:`ConditionedNet.init_heads` sets
+the offsets δ_v to start each vehicle at its own prior, as DGTNet's heads start.
+
+It trains with the kit's own loop (:func:`~dgt_lib.learning.training.fit`, also inside
+:func:`~dgt_lib.learning.run.train_network`: the masked loss picks each sample's vehicle
+column) on a ``TrainingSet.select`` of the named vehicles, or on
+:func:`spec_training_set` for any vehicles. :meth:`ConditionedNet.heads_for` evaluates any
 spec, e.g. one read by :func:`~dgt_lib.core.vehicle_file.load_vehicle`.
 """
 
@@ -108,9 +111,9 @@ class ConditionedNet(DGTNet):
         self.register_buffer("spec_std", torch.as_tensor(std, dtype=torch.float32))
         self.register_buffer("spec_raw", self._raw(specs))
         self.film = nn.Sequential(nn.Linear(d, self.film_hidden), nn.ReLU(inplace=True),
-                                  nn.Linear(self.film_hidden, 2 * self.fc_hidden))
+                                  nn.Linear(self.film_hidden, 2 * self.fc_hidden + 1))
         nn.init.zeros_(self.film[2].weight)
-        nn.init.zeros_(self.film[2].bias)  # γ = 0, β = 0: every vehicle starts alike
+        nn.init.zeros_(self.film[2].bias)  # γ = β = δ = 0: every vehicle starts alike
         self.head = nn.Linear(self.fc_hidden, 1)
 
     @staticmethod
@@ -133,10 +136,11 @@ class ConditionedNet(DGTNet):
 
     def _conditioned(self, z: torch.Tensor, raw: torch.Tensor) -> torch.Tensor:
         """L̂ (B, V) for embeddings z (B, F) and raw spec vectors (V, D)."""
-        gb = self.film(self.normalise(raw))  # (V, 2F)
-        gamma, beta = gb[:, : self.fc_hidden], gb[:, self.fc_hidden :]
+        f = self.fc_hidden
+        film = self.film(self.normalise(raw))  # (V, 2F + 1)
+        gamma, beta, delta = film[:, :f], film[:, f : 2 * f], film[:, 2 * f]
         h = torch.relu(z[:, None, :] * (1.0 + gamma[None]) + beta[None])  # (B, V, F)
-        return torch.sigmoid(self.head(h).squeeze(-1))  # (B, V)
+        return torch.sigmoid(self.head(h).squeeze(-1) + delta[None])  # (B, V)
 
     def heads(self, z: torch.Tensor) -> torch.Tensor:
         """Every head's locomotion from the embedding: (B, fc_hidden) → (B, V)."""
@@ -149,19 +153,27 @@ class ConditionedNet(DGTNet):
 
     @torch.no_grad()
     def init_heads(self, mean_labels: Sequence[float], weight_scale: float = 0.1) -> None:
-        """Start the shared head at the vehicles' mean prior: b ← logit(clip(mean of
-        ``mean_labels``)), w ← weight_scale · w (as DGTNet's heads; one bias serves every
-        vehicle, so each starts at the average of the priors)."""
+        """Start every vehicle at its prior, as :meth:`DGTNet.init_heads` does: L̂_v ≈ m_v,
+        the mean training label of ``mean_labels`` (one per head, in [0, 1]), for every
+        patch. The shared head gets w ← weight_scale · w and b ← 0; the row of W₂, b₂ that
+        makes δ_v is the least-norm solution of δ_v = logit(clip(m_v, 0.01, 0.99)) over the
+        heads' vehicles (exact while they are at most ``film_hidden`` + 1 and their hidden
+        FiLM activations are independent)."""
         means = np.asarray(mean_labels, dtype=np.float64)
         if means.shape != (len(self.vehicles),) or not np.all((means >= 0) & (means <= 1)):
             raise ValueError(f"need one mean label in [0, 1] per head ({self.vehicles}), "
                              f"got {means.tolist()}")
         if not (math.isfinite(weight_scale) and weight_scale >= 0):
             raise ValueError(f"weight_scale must be finite and ≥ 0, got {weight_scale}")
-        m = float(np.clip(means.mean(), *HEAD_PRIOR_CLIP))
+        prior = np.clip(means, *HEAD_PRIOR_CLIP)
+        logits = torch.as_tensor(np.log(prior / (1.0 - prior)), dtype=torch.float32)
         self.head.weight.mul_(weight_scale)
-        self.head.bias.fill_(math.log(m / (1.0 - m)))
-
+        self.head.bias.zero_()
+        hidden = torch.relu(self.film[0](self.normalise(self.spec_raw)))  # (V, H)
+        a = torch.cat([hidden, torch.ones(len(hidden), 1)], dim=1)  # (V, H + 1)
+        row = torch.linalg.pinv(a.double()) @ logits.double()  # least-norm δ row
+        self.film[2].weight[-1] = row[:-1].float()
+        self.film[2].bias[-1] = float(row[-1])
 
 def spec_training_set(dataset: PatchDataset, vehicles: Sequence[str],
                       cfg: TrainConfig) -> TrainingSet:
