@@ -1,0 +1,153 @@
+"""A vehicle from a TOML file: :func:`load_vehicle` reads it into a
+:class:`~dgt_lib.core.vehicles.VehicleSpec`, checked before anything runs
+(docs/vehicles.md has the format, ``examples/my_truck.toml`` an example).
+
+The file holds the ``VehicleSpec`` fields with their units in their names, angles in
+degrees (``max_steer_deg``), and an optional ``[camera]`` table (``forward_m``, ``up_m``,
+``pitch_down_deg``); without it the camera is mounted by
+:func:`~dgt_lib.core.vehicle_rules.default_camera`. ``rolling_resistance``,
+``drag_area_m2`` and ``color`` may be left out (``VehicleSpec``'s defaults). An unknown,
+missing, mistyped or impossible field stops with one line naming it
+(:class:`~dgt_lib.core.vehicle_rules.InvalidVehicleError`; the rules are
+:mod:`dgt_lib.core.vehicle_rules`' tables). A vehicle outside the range of the vehicles
+the kit trains on (the four named and :func:`~dgt_lib.core.vehicle_generator.
+generated_vehicles`) loads with a :class:`VehicleRangeWarning` naming each field outside
+and its range: a network has never seen such a vehicle.
+
+Example::
+
+    from dgt_lib.core.vehicle_file import load_vehicle
+    truck = load_vehicle("examples/my_truck.toml")
+    truck.max_climb_deg
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping
+from functools import cache
+from pathlib import Path
+
+from dgt_lib.core.vehicle_generator import generated_vehicles
+from dgt_lib.core.vehicle_rules import (
+    CAMERA_FIELDS,
+    FIELD_RULES,
+    OPTIONAL_FIELDS,
+    InvalidVehicleError,
+    check_fields,
+    default_camera,
+    fields_to_spec,
+    spec_fields,
+)
+from dgt_lib.core.vehicles import VEHICLE_SPECS, VehicleSpec
+
+RANGE_FIELDS: tuple[str, ...] = tuple(
+    name for name in FIELD_RULES if name not in ("name", "drive", "color")
+    and not name.startswith("camera."))
+"""The fields compared with the training vehicles' range (the camera mount is not: the
+network sees BEV patches, not camera images)."""
+
+
+class VehicleRangeWarning(UserWarning):
+    """A vehicle with a field outside the range of the vehicles the kit trains on."""
+
+
+@cache
+def training_ranges() -> dict[str, tuple[float, float]]:
+    """(lowest, highest) of each :data:`RANGE_FIELDS` field over the training vehicles:
+    the four named ones and ``generated_vehicles()`` (12, seed 0)."""
+    rows = [spec_fields(s) for s in [*VEHICLE_SPECS.values(), *generated_vehicles()]]
+    return {f: (min(r[f] for r in rows), max(r[f] for r in rows)) for f in RANGE_FIELDS}
+
+
+def out_of_range(spec: VehicleSpec) -> dict[str, tuple[float, float, float]]:
+    """``{field: (value, lowest, highest)}`` for each field of ``spec`` outside
+    :func:`training_ranges` (empty when every field is inside)."""
+    values = spec_fields(spec)
+    return {f: (values[f], lo, hi) for f, (lo, hi) in training_ranges().items()
+            if not lo <= values[f] <= hi}
+
+
+def warn_out_of_range(spec: VehicleSpec, where: str) -> None:
+    """Warn (:class:`VehicleRangeWarning`) when :func:`out_of_range` finds a field."""
+    outside = out_of_range(spec)
+    if outside:
+        items = "; ".join(f"{f} = {v:g} (trained on {lo:g} … {hi:g})"
+                          for f, (v, lo, hi) in outside.items())
+        warnings.warn(f"{where}: outside the vehicles the kit trains on: {items}",
+                      VehicleRangeWarning, stacklevel=3)
+
+
+def _flatten(data: Mapping[str, object], where: str) -> dict[str, object]:
+    """The file's tables → flat fields (``camera.forward_m`` …), defaults filled in."""
+    flat = {k: v for k, v in data.items() if k != "camera"}
+    camera = data.get("camera")
+    if camera is not None:
+        if not isinstance(camera, Mapping):
+            raise InvalidVehicleError(f"{where}: camera = {camera!r} has the wrong type: "
+                                      f"camera must be a table ({', '.join(CAMERA_FIELDS)})")
+        flat.update({f"camera.{k}": v for k, v in camera.items()})
+    for name, value in OPTIONAL_FIELDS.items():
+        flat.setdefault(name, value)
+    geometry = ("length_m", "height_m", "ground_clearance_m", "wheel_radius_m")
+    if camera is None and all(isinstance(flat.get(g), (int, float))
+                              and not isinstance(flat.get(g), bool) for g in geometry):
+        mount = default_camera(*(float(flat[g]) for g in geometry))
+        flat.update({"camera.forward_m": mount.forward_m, "camera.up_m": mount.up_m,
+                     "camera.pitch_down_deg": math.degrees(mount.pitch_down_rad)})
+    return flat
+
+
+def parse_vehicle(data: Mapping[str, object], where: str = "vehicle") -> VehicleSpec:
+    """A checked :class:`VehicleSpec` from a file's parsed TOML ``data``; ``where``
+    names the file in messages."""
+    spec = fields_to_spec(check_fields(_flatten(data, where), where))
+    warn_out_of_range(spec, where)
+    return spec
+
+
+def _toml_reader():
+    """``tomllib`` (Python ≥ 3.11), else the ``tomli`` package it came from."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        try:
+            import tomli as tomllib
+        except ModuleNotFoundError:
+            raise InvalidVehicleError("reading a vehicle file needs Python ≥ 3.11 (tomllib) "
+                                      "or the tomli package") from None
+    return tomllib
+
+
+def load_vehicle(path: str | Path) -> VehicleSpec:
+    """The vehicle of the TOML file ``path`` (see the module docstring), or
+    :class:`~dgt_lib.core.vehicle_rules.InvalidVehicleError` naming the file and field."""
+    path = Path(path)
+    toml = _toml_reader()
+    try:
+        data = toml.loads(path.read_text(encoding="utf-8"))
+    except toml.TOMLDecodeError as e:
+        raise InvalidVehicleError(f"{path}: not valid TOML: {e}") from None
+    except OSError as e:
+        raise InvalidVehicleError(f"{path}: cannot read it: {e.strerror}") from None
+    return parse_vehicle(data, str(path))
+
+
+def _toml_value(value: object) -> str:
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, tuple):
+        return "[" + ", ".join(_toml_value(x) for x in value) + "]"
+    return repr(float(value))
+
+
+def vehicle_toml(spec: VehicleSpec) -> str:
+    """``spec`` as the text of a vehicle file. :func:`load_vehicle` reads it back; the
+    angles pass through degrees, so a read-back angle may differ in its last bit (the
+    named vehicles' read back exactly)."""
+    fields = spec_fields(spec)
+    top = [f"{k} = {_toml_value(v)}" for k, v in fields.items() if not k.startswith("camera.")]
+    cam = [f"{k.removeprefix('camera.')} = {_toml_value(v)}" for k, v in fields.items()
+           if k.startswith("camera.")]
+    return "\n".join([*top, "", "[camera]", *cam]) + "\n"
