@@ -8,7 +8,8 @@ footprints and feasibility, which need the mapped occupancy, are not checked her
 ``dgt reproduce`` run's draw reports those (``QueryDraw.rejected``). Each profile gets a row
 for ``eval`` (the paper's setup) and one for ``eval_hazard`` (``experiments.eval_hazard_world``):
 there also the jeep's hazards with its bumper (``vehicle_hazards(..., bumpers=True)``, the
-ditches) and the share of kept lines that cross one.
+ditches) and the share of kept lines that cross one; and a row for the training world's
+jeep hazards, the terrain its costmap learns from.
 
     .venv/bin/python studies/query_rule.py [PROFILE ...] [--candidates N]
 """
@@ -49,6 +50,10 @@ def main() -> None:
                   f"(≥ {ex.eval_min_hazard_m:g} m of hazard) keeps {100 * st.kept.mean():.0f} %; "
                   f"median hazard on the line {np.median(st.lengths):.1f} m; "
                   f"{100 * st.kept_crossing:.0f} % of the kept cross a jeep hazard")
+        train = get_world("training", prof)
+        print(f"{name}: training {train.grid.extent[1]:.0f} m, jeep hazard cells "
+              f"{100 * vehicle_hazards(train, 'jeep').mean():.2f} % (with its bumper "
+              f"{100 * vehicle_hazards(train, 'jeep', bumpers=True).mean():.2f} %)")
 
 
 if __name__ == "__main__":
