@@ -63,7 +63,12 @@ def end_y(tr):
 
 def paid(tr, costmap):
     """Mean cost C of the driven poses' body centres in the layer of their heading."""
-    x, y, yaw = tr["pose"].T
+    return paid_along(tr["pose"], costmap)
+
+
+def paid_along(poses, costmap):
+    """Mean cost C of (N, 3) rear-axle poses' body centres in their heading's layer."""
+    x, y, yaw = np.asarray(poses, float).T
     cx, cy = x + 0.5 * WHEELBASE * np.cos(yaw), y + 0.5 * WHEELBASE * np.sin(yaw)
     r, c = GRID.xy_to_cell(cx, cy)
     return float(costmap[nearest_heading_bin(yaw, 8), r, c].mean())
@@ -89,6 +94,20 @@ def test_the_critic_steers_a_disturbed_car_to_the_cheap_side_of_a_slope(backend)
     assert paid(on, cost) < 0.5 * paid(off, cost)
     assert on["pose"][:, 0].max() > 35.0  # it still drives on along the path,
     assert end_y(on) < -0.8 < end_y(off)  # and ends the stretch on the cheap side
+
+
+def test_the_chosen_sequence_pays_less_of_the_costmap():
+    # called from a disturbed pose on the costly side (the warm start settling over ten
+    # calls), the sequence MPPI chooses is predicted to cross to the cheap side
+    cost, occ = side_slope(), np.zeros(GRID.shape, np.uint8)
+    chosen = {}
+    for cfg in (FAST, ON):
+        ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
+        ctrl.set_path(straight())
+        for _ in range(10):
+            ctrl.compute((5.0, 0.5, 0.0), 4.0, occ, GRID, cost)
+        chosen[cfg.terrain_weight] = paid_along(ctrl.optimal_trajectory, cost)
+    assert chosen[ON.terrain_weight] < 0.5 * chosen[0.0]
 
 
 def test_the_critic_reads_the_layer_of_the_heading():
