@@ -5,6 +5,12 @@ Prints the time per ``compute`` of both backends (``compiled``, the default, and
 reference) without and with an occupancy grid — with one footprint circle and with the
 three of the mercedes_van that closed-loop trials use — checks that both return the same
 commands, and the closed-loop tracking error on the kinematic bicycle.
+
+``--terrain-weight W`` adds the terrain critic (``MPPIConfig.terrain_weight`` W, a random
+8-heading costmap on the grid) to the trials' case, times it on and off in the same run
+and prints the ratio: ``python benchmarks/bench_control.py --terrain-weight 0.05``.
+``--cpu-time`` times each call by this thread's CPU time instead of the wall clock: on
+cores shared with other work, the compute without the waits for a core.
 """
 
 import os
@@ -12,6 +18,7 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"  # one core: set before numpy loads its BLAS
 
+import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
@@ -29,6 +36,7 @@ from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E4
 from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
+CLOCK = {"now": time.perf_counter}  # ``--cpu-time``: time.thread_time
 
 
 def s_curve(length_m: float = 120.0, amplitude_m: float = 4.0, wavelength_m: float = 40.0):
@@ -38,7 +46,7 @@ def s_curve(length_m: float = 120.0, amplitude_m: float = 4.0, wavelength_m: flo
 
 
 def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200,
-                 backend: str = "compiled") -> tuple[np.ndarray, np.ndarray]:
+                 backend: str = "compiled", costmap=None) -> tuple[np.ndarray, np.ndarray]:
     """Seconds per compute() call while driving along the path (pose advanced by the
     commands, so the path window and warm start behave as in a loop), and the commands."""
     ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0,
@@ -47,9 +55,9 @@ def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200,
     x, y, yaw, v = 0.0, 0.0, 0.3, 4.0
     times, commands = [], []
     for _ in range(calls):
-        t0 = time.perf_counter()
-        v_cmd, w_cmd = ctrl.compute((x, y, yaw), v, occupancy, grid)
-        times.append(time.perf_counter() - t0)
+        t0 = CLOCK["now"]()
+        v_cmd, w_cmd = ctrl.compute((x, y, yaw), v, occupancy, grid, costmap)
+        times.append(CLOCK["now"]() - t0)
         commands.append((v_cmd, w_cmd))
         x += v_cmd * math.cos(yaw) * cfg.model_dt
         y += v_cmd * math.sin(yaw) * cfg.model_dt
@@ -63,9 +71,9 @@ def time_noise(cfg: MPPIConfig, calls: int = 200) -> float:
     ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)
     times = []
     for _ in range(calls):
-        t0 = time.perf_counter()
+        t0 = CLOCK["now"]()
         ctrl._noise()
-        times.append(time.perf_counter() - t0)
+        times.append(CLOCK["now"]() - t0)
     return 1e3 * float(np.median(times[10:]))
 
 
@@ -77,10 +85,37 @@ def report(label: str, t: np.ndarray) -> None:
     )
 
 
+def terrain_case(van: MPPIConfig, occ, grid, weight: float, rounds: int = 4) -> None:
+    """The trials' case with the terrain critic off and on (compiled), timed in rounds
+    that alternate the two so that a change of load hits both; and whether both backends
+    give the same commands with it on."""
+    costmap = np.random.default_rng(1).random((8, *grid.shape), np.float32)
+    cases = {"off": van, f"on (w {weight:g})": dataclasses.replace(van, terrain_weight=weight)}
+    on = list(cases.values())[1]
+    same = np.array_equal(*(time_compute(on, occ, grid, 60, b, costmap)[1] for b in BACKENDS))
+    times: dict[str, list[np.ndarray]] = {k: [] for k in cases}
+    for _ in range(rounds):
+        for label, c in cases.items():
+            times[label].append(time_compute(c, occ, grid, costmap=costmap)[0])
+    for label, t in times.items():
+        report(f"compiled trials + terrain critic {label}", np.concatenate(t))
+    off_med, on_med = (float(np.median(np.concatenate(t))) for t in times.values())
+    print(f"{'':<9}critic on / off = {on_med / off_med:.2f} ({rounds} × 190 calls each); "
+          f"numpy and compiled give the same commands with it on: {same}")
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--terrain-weight", type=float, default=None,
+                    help="also time the terrain critic with this weight (on against off)")
+    ap.add_argument("--cpu-time", action="store_true",
+                    help="time calls by the thread's CPU time (on busy cores)")
+    args = ap.parse_args()
+    if args.cpu_time:
+        CLOCK["now"] = time.thread_time
     cfg = MPPIConfig()
     print(f"MPPI {cfg.batch_size} samples × {cfg.time_steps} steps, model_dt {cfg.model_dt} s,"
-          " one thread")
+          f" one thread, {'CPU time' if args.cpu_time else 'wall clock'}")
     grid = GridSpec((-20.0, -40.0), 0.4, (200, 400))  # 160 m × 80 m at 0.4 m
     occ = np.zeros(grid.shape, np.uint8)
     rng = np.random.default_rng(0)
@@ -100,6 +135,9 @@ def main() -> None:
         same = np.array_equal(runs["compiled"][1], runs["numpy"][1])
         ratio = np.median(runs["numpy"][0]) / np.median(runs["compiled"][0])
         print(f"{'':<9}compiled {ratio:.1f}× faster; the same commands: {same}")
+
+    if args.terrain_weight is not None:
+        terrain_case(van, occ, grid, args.terrain_weight)
 
     noise_ms = time_noise(van)
     print(f"{'':<9}of which the noise draw (numpy's float32 normals, 2 × "

@@ -31,19 +31,28 @@ def trees(path, clearance_m=3.0, n=300):
     return occ, grid
 
 
-def lockstep(cfg, calls, vehicle="mercedes_van", path=None, with_occupancy=True, speed=2.0):
+def costs(grid, n_headings=8, seed=1):
+    """A directional costmap (K, H, W) of random costs in [0, 1): every cell and layer
+    different, so a wrong cell or heading shows in the costs."""
+    return np.random.default_rng(seed).random((n_headings, *grid.shape), np.float32)
+
+
+def lockstep(cfg, calls, vehicle="mercedes_van", path=None, with_occupancy=True, speed=2.0,
+             with_costmap=False):
     """Drive both backends side by side on a point-mass plant from the same states;
-    yield (call, numpy controller, compiled controller, their two commands)."""
+    yield (call, numpy controller, compiled controller, their two commands). With
+    ``with_costmap`` the calls with an occupancy grid get a directional costmap too."""
     spec = get_vehicle(vehicle)
     path = s_curve() if path is None else path
     occ, grid = trees(path)
+    cost = costs(grid) if with_costmap else None
     ctrls = [MPPIController.from_vehicle(spec, cfg, seed=3, backend=b)
              for b in ("numpy", "compiled")]
     for c in ctrls:
         c.set_path(path)
     x, y, yaw, v = float(path[0, 0]), float(path[0, 1]) + 0.5, float(path[0, 2]), speed
     for i in range(calls):
-        o = (occ, grid) if with_occupancy and i % 3 != 2 else (None, None)
+        o = (occ, grid, cost) if with_occupancy and i % 3 != 2 else (None, None, None)
         ref, fast = (c.compute((x, y, yaw), v, *o) for c in ctrls)
         yield i, *ctrls, ref, fast
         v_cmd, w_cmd = ref
@@ -99,3 +108,21 @@ def test_compiled_backend_matches_the_reference_when_a_sample_leaves_the_map():
 def test_an_unknown_backend_is_refused():
     with pytest.raises(ValueError, match="backend"):
         MPPIController(MPPIConfig(), wheelbase_m=2.5, max_steer_rad=0.6, backend="cuda")
+
+
+@pytest.mark.parametrize("changes", [
+    dict(terrain_weight=0.05),  # the planner's β = 150: costs up to 151 × 0.05
+    dict(terrain_weight=4.0, terrain_beta=0.0, batch_size=257, time_steps=31,
+         footprint_offsets_m=(0.0,)),
+])
+def test_compiled_backend_matches_the_reference_with_the_terrain_critic(changes):
+    cfg = dataclasses.replace(with_footprint(MPPIConfig(batch_size=400)), **changes)
+    assert_same_calls(cfg, 90, with_costmap=True)
+
+
+def test_compiled_terrain_critic_matches_when_a_sample_leaves_the_map():
+    # a path along the grid's edge: body centres off the map read the edge cells
+    x = np.linspace(-18.0, 30.0, 200)
+    edge = np.stack([x, np.full_like(x, -39.0), np.zeros_like(x)], 1)
+    cfg = dataclasses.replace(with_footprint(MPPIConfig(batch_size=200)), terrain_weight=0.05)
+    assert_same_calls(cfg, 40, path=edge, with_costmap=True)

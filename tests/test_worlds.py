@@ -6,7 +6,7 @@ import pytest
 
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.world.terrain import WORLD_NAMES, get_world, make_training
+from dgt_lib.world.terrain import EXTRA_WORLD_NAMES, WORLD_NAMES, get_world, make_training
 from dgt_lib.world.worlds import (
     DIRT,
     ROCK,
@@ -20,7 +20,7 @@ from dgt_lib.world.worlds import (
 SMOKE = get_profile("smoke")
 
 
-@pytest.mark.parametrize("name", WORLD_NAMES)
+@pytest.mark.parametrize("name", WORLD_NAMES + EXTRA_WORLD_NAMES)
 def test_world_arrays_follow_the_contract(name):
     w = get_world(name, SMOKE)
     H, W = w.grid.shape

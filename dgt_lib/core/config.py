@@ -234,6 +234,9 @@ class ExperimentsConfig:
     eval_min_hazard_m: float = 4.0
     time_limit_base_s: float = 30.0  # time limit = base + factor × planned length / 5 m/s
     time_limit_factor: float = 2.0
+    # Experiment 3 on ``eval_hazard`` (the eval world plus V-ditches sized by the jeep's spec,
+    # dgt_lib/world/terrain.py, docs/worlds.md) instead of ``eval``; False = the paper's setup
+    eval_hazard_world: bool = False
 
 
 EXECUTORS: tuple[str, ...] = ("process", "dask", "ray")

@@ -113,11 +113,19 @@ EXPERIMENTS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
 """Each experiment's world, vehicles and default methods (paper: Experiments 1–3)."""
 
 
+def experiment_world(name: str, profile: Profile) -> str:
+    """The world experiment ``name`` runs on: :data:`EXPERIMENTS`' own, except that
+    Experiment 3 runs on ``eval_hazard`` with ``ExperimentsConfig.eval_hazard_world``."""
+    if name == "experiment3" and profile.experiments.eval_hazard_world:
+        return "eval_hazard"
+    return EXPERIMENTS[name][0]
+
+
 def experiment_queries(name: str, profile: Profile, load_maps: MapsLoader
                        ) -> dict[str, list[Query]]:
     """The queries of an experiment per vehicle, at the profile's n, from its seed."""
     prof, ex = profile, profile.experiments
-    world = EXPERIMENTS[name][0]
+    world = experiment_world(name, prof)
     if name == "experiment1":
         return {"carla_cola": hill_queries(get_world(world, prof), ex.n_hill, ex, prof.seed)}
     if name == "experiment2":
@@ -143,7 +151,8 @@ def run_experiment(name: str, profile: Profile | str | None = None, *,
     if name not in EXPERIMENTS:
         raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(EXPERIMENTS)}")
     prof = as_profile(profile)
-    world, vehicles, default_methods = EXPERIMENTS[name]
+    _, vehicles, default_methods = EXPERIMENTS[name]
+    world = experiment_world(name, prof)
     methods = tuple(methods or default_methods)
     queries = experiment_queries(name, prof, load_maps)
     for v in vehicles:  # build every costmap here first, so that workers only load them

@@ -11,7 +11,11 @@ A cell is a **hazard** for a vehicle when either
   points half a wheelbase before and after it (:func:`belly_relief`) — a ridge or bump
   that high-centres the vehicle between its axles.
 
-Both are computed from the world generator's heights and the vehicle's specification only:
+A third test, :func:`bumper_sag`, is the front bumper digging into the far wall of a
+ditch (the approach angle); the query rule does not apply it (``vehicle_hazards(...,
+bumpers=True)`` does: docs/worlds.md, the ``eval_hazard`` world).
+
+All are computed from the world generator's heights and the vehicle's specification only:
 never from a learned costmap, the BEV, or any method's outcome. Experiment 3 marks the
 cells that are a hazard for *any* of its vehicles (:func:`hazard_map`) and keeps a random
 query only when the straight segment start → goal crosses at least
@@ -28,6 +32,7 @@ import numpy as np
 
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.world.terrain import BUMPER_RAISE_M
 from dgt_lib.world.worlds import World
 
 _DIRECTIONS = ((0, 1), (1, 0), (1, 1), (1, -1))  # (row, col) steps: x, y, both diagonals
@@ -51,15 +56,47 @@ def belly_relief(heights: np.ndarray, resolution_m: float, half_span_m: float) -
     return out
 
 
-def vehicle_hazards(world: World, vehicle: str) -> np.ndarray:
+_HEADINGS = tuple((s * dr, s * dc) for dr, dc in _DIRECTIONS for s in (1, -1))
+
+
+def bumper_sag(heights: np.ndarray, resolution_m: float, wheelbase_m: float,
+               overhang_m: float) -> np.ndarray:
+    """(H, W) [m]: with the front wheels on a cell and the rear wheels ``wheelbase_m``
+    behind, how far the ground ``overhang_m`` ahead rises above the line through the two
+    wheel contacts, extended forward — the most over eight headings (x, y, diagonals,
+    both ways; lengths rounded to whole cells, at least one). Zero on any plane, > 0 in a
+    sag: above the bumper's height, the bumper digs into the far wall of a ditch.
+    Heights beyond the map edge repeat the edge."""
+    h = np.asarray(heights, np.float64)
+    rows, cols = h.shape
+    out = np.full(h.shape, -np.inf)
+    for dr, dc in _HEADINGS:
+        step = resolution_m * np.hypot(dr, dc)
+        nl = max(1, int(round(wheelbase_m / step)))
+        no = max(1, int(round(overhang_m / step)))
+        p = max(nl, no)
+        padded = np.pad(h, p, mode="edge")
+        ahead = padded[p + no * dr:p + no * dr + rows, p + no * dc:p + no * dc + cols]
+        rear = padded[p - nl * dr:p - nl * dr + rows, p - nl * dc:p - nl * dc + cols]
+        out = np.maximum(out, ahead - (h + (h - rear) * (no / nl)))
+    return out
+
+
+def vehicle_hazards(world: World, vehicle: str, *, bumpers: bool = False) -> np.ndarray:
     """(H, W) bool on ``world.grid``: the cells ``vehicle`` cannot cross (the module's
     rule: slope above its max climb, or a crest higher than its ground clearance above
-    the chord of half its wheelbase each way)."""
+    the chord of half its wheelbase each way; with ``bumpers``, also a sag where the
+    ground ahead rises above its front bumper, :func:`bumper_sag`)."""
     spec = get_vehicle(vehicle)
     too_steep = world.slope_deg() > spec.max_climb_deg
     crest = belly_relief(world.heights, world.grid.resolution,
                          0.5 * spec.wheelbase_m) > spec.ground_clearance_m
-    return too_steep | crest
+    if not bumpers:
+        return too_steep | crest
+    overhang = 0.5 * (spec.length_m - spec.wheelbase_m)
+    sag = bumper_sag(world.heights, world.grid.resolution, spec.wheelbase_m,
+                     overhang) > spec.ground_clearance_m + BUMPER_RAISE_M
+    return too_steep | crest | sag
 
 
 def segment_hazard_m(mask: np.ndarray, origin_xy, resolution_m: float, start_xy,
@@ -110,3 +147,42 @@ def hazard_map(world: World, vehicles: Iterable[str]) -> HazardMap:
     for v in vehicles:
         mask |= vehicle_hazards(world, v)
     return HazardMap(world.grid, mask)
+
+
+@dataclass(frozen=True)
+class LineStats:
+    """What Experiment 3's query rule sees on a world, from straight lines drawn as
+    :func:`~dgt_lib.evaluation.queries.draw_random_queries` draws candidates (footprints
+    and feasibility not checked): ``lengths`` (N,) metres of each on-map candidate's line
+    on the rule's hazard cells, ``kept`` (N,) whether the rule keeps it, ``crosses`` (N,)
+    whether it crosses a cell of ``mask`` (any hazard map given, e.g. one vehicle's)."""
+
+    lengths: np.ndarray
+    kept: np.ndarray
+    crosses: np.ndarray
+
+    @property
+    def kept_crossing(self) -> float:
+        """Share of the kept lines that cross a cell of the given mask."""
+        return float(self.crosses[self.kept].mean()) if self.kept.any() else float("nan")
+
+
+def line_stats(rule: HazardMap, mask: HazardMap, distance_m: tuple[float, float],
+               min_hazard_m: float, seed: int, candidates: int = 5000,
+               margin_m: float = 10.0) -> LineStats:
+    """:class:`LineStats` of ``candidates`` lines: start uniform ``margin_m`` inside the
+    map, a distance uniform in ``distance_m``, a uniform direction, the goal ``margin_m``
+    inside the map (others dropped); kept when ``rule`` finds ≥ ``min_hazard_m`` on it."""
+    rng = np.random.default_rng(seed)
+    x0, x1, y0, y1 = rule.grid.extent
+    rows = []
+    for _ in range(candidates):
+        sx, sy = rng.uniform(x0 + margin_m, x1 - margin_m), rng.uniform(y0 + margin_m,
+                                                                         y1 - margin_m)
+        ang, dist = rng.uniform(0, 2 * np.pi), rng.uniform(*distance_m)
+        gx, gy = sx + dist * np.cos(ang), sy + dist * np.sin(ang)
+        if x0 + margin_m < gx < x1 - margin_m and y0 + margin_m < gy < y1 - margin_m:
+            rows.append((rule.length_m((sx, sy), (gx, gy)),
+                         mask.length_m((sx, sy), (gx, gy)) > 0.0))
+    lengths = np.array([r[0] for r in rows], float)
+    return LineStats(lengths, lengths >= min_hazard_m, np.array([r[1] for r in rows], bool))

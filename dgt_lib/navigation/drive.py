@@ -89,12 +89,15 @@ class MPPIPolicy:
     its twist (v_x, ω_z) turned into a steering command by the bicycle relation
     δ = atan(ℓ ω_z / v_x), normalised by δ_max (paper: Controller Integration).
     ``controller`` is the :class:`MPPIController` (its ``optimal_trajectory`` the plan
-    of the last call); ``on_command(state, v_x, steer)`` sees every command."""
+    of the last call); ``on_command(state, v_x, steer)`` sees every command. A directional
+    ``costmap`` (K, H, W) on ``grid`` feeds the terrain critic (``cfg.terrain_weight``)."""
 
     def __init__(self, spec: VehicleSpec, path: np.ndarray, cfg: MPPIConfig, *, seed: int = 0,
                  occupancy=None, grid=None,
-                 on_command: Callable[[VehicleState, float, float], None] | None = None):
+                 on_command: Callable[[VehicleState, float, float], None] | None = None,
+                 costmap=None):
         self.spec, self.occupancy, self.grid, self.on_command = spec, occupancy, grid, on_command
+        self.costmap = costmap
         self.controller = MPPIController.from_vehicle(spec, cfg, seed=seed)
         # the controller works on the rear-axle centre, the planner on the body centre
         self.controller.set_path(rear_axle_pose(path[:, :2], path[:, 2], spec.wheelbase_m))
@@ -102,7 +105,8 @@ class MPPIPolicy:
     def __call__(self, state: VehicleState) -> tuple[float, float]:
         spec = self.spec
         pose = rear_axle_pose(state.position, state.yaw, spec.wheelbase_m)
-        v_x, w_z = self.controller.compute(pose, state.speed_mps, self.occupancy, self.grid)
+        v_x, w_z = self.controller.compute(pose, state.speed_mps, self.occupancy, self.grid,
+                                           self.costmap)
         steer = steering_from_twist(v_x, w_z, spec.wheelbase_m, spec.max_steer_rad)
         if self.on_command is not None:
             self.on_command(state, v_x, steer)
@@ -120,10 +124,10 @@ def trial_mppi_config(spec: VehicleSpec, mppi_batch_size: int = 1000,
 def start_trial(sim: Simulator, path: np.ndarray, *, occupancy=None, grid=None,
                 mppi_batch_size: int = 1000, seed: int = 0,
                 on_command: Callable[[VehicleState, float, float], None] | None = None,
-                mppi_settings: Mapping[str, object] | None = None) -> Policy:
+                mppi_settings: Mapping[str, object] | None = None, costmap=None) -> Policy:
     """Put the simulated vehicle on ``path``'s first pose and return the trial's policy:
-    :class:`MPPIPolicy` tracking the path, or holding still when the path is one pose
-    (nothing to track)."""
+    :class:`MPPIPolicy` tracking the path (``costmap``: for the terrain critic), or
+    holding still when the path is one pose (nothing to track)."""
     path = np.asarray(path, float)
     x, y, yaw = (float(v) for v in path[0])
     sim.reset(x, y, yaw)
@@ -131,13 +135,13 @@ def start_trial(sim: Simulator, path: np.ndarray, *, occupancy=None, grid=None,
         return lambda state: (0.0, 0.0)  # hold still: nothing to track
     cfg = trial_mppi_config(sim.vehicle, mppi_batch_size, mppi_settings)
     return MPPIPolicy(sim.vehicle, path, cfg, seed=seed, occupancy=occupancy, grid=grid,
-                      on_command=on_command)
+                      on_command=on_command, costmap=costmap)
 
 
 def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None, grid=None,
           time_limit_s: float, mppi_batch_size: int = 1000, seed: int = 0,
           on_command: Callable[[VehicleState, float, float], None] | None = None,
-          mppi_settings: Mapping[str, object] | None = None
+          mppi_settings: Mapping[str, object] | None = None, costmap=None
           ) -> tuple[TrialOutcome, np.ndarray, np.ndarray]:
     """Track ``path`` (N, 3) in MuJoCo with MPPI at 20 Hz from its first pose.
 
@@ -150,13 +154,17 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     command MPPI gives, with the state it answered (``studies/replay_trial.py`` prints
     them). ``mppi_settings``: :class:`MPPIConfig` fields to change for this drive, e.g.
     ``{"lateral_accel_max": 2.0}`` (``studies/controller_variants.py``); the experiments
-    use the defaults. The same as :func:`start_trial` then :func:`drive_steps` to the end.
+    use the defaults. ``costmap``: the plan's directional costmap (K, H, W) on ``grid``,
+    paid by every rollout when ``mppi_settings`` sets ``terrain_weight`` > 0 (the terrain
+    critic, docs/controller.md; the experiments pass none). The same as
+    :func:`start_trial` then :func:`drive_steps` to the end.
     """
     sim = Simulator(world, get_vehicle(vehicle))
     try:
         policy = start_trial(sim, path, occupancy=occupancy, grid=grid,
                              mppi_batch_size=mppi_batch_size, seed=seed,
-                             on_command=on_command, mppi_settings=mppi_settings)
+                             on_command=on_command, mppi_settings=mppi_settings,
+                             costmap=costmap)
         rows, speeds = [], []
         next_log = 0.0
         for step in drive_steps(sim, policy, OutcomeRule(time_limit_s=time_limit_s),

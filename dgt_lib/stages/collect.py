@@ -52,7 +52,7 @@ from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.world.mujoco_model import CAMERA, LIGHTING, MAX_DEPTH_M, PHYSICS
 from dgt_lib.world.rendering import survey_frames, survey_poses
-from dgt_lib.world.terrain import WORLD_NAMES, get_world
+from dgt_lib.world.terrain import EXTRA_WORLD_NAMES, WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
 EPISODE_FIELDS: tuple[str, ...] = (
@@ -306,8 +306,9 @@ def ensure_bev(world_name: str, profile: Profile | str | None = None, *,
 def _ensure_bev_arrays(world_name: str, profile: Profile | str | None,
                        executor: Executor | None, progress: bool) -> dict[str, np.ndarray]:
     """The BEV artifact's arrays (the map plus ``survey_frames``, ``episode_frames``)."""
-    if world_name not in WORLD_NAMES:
-        raise ValueError(f"unknown world {world_name!r}; valid worlds: {', '.join(WORLD_NAMES)}")
+    if world_name not in WORLD_NAMES + EXTRA_WORLD_NAMES:
+        raise ValueError(f"unknown world {world_name!r}; valid worlds: "
+                         f"{', '.join(WORLD_NAMES + EXTRA_WORLD_NAMES)}")
     prof = as_profile(profile)
 
     def build() -> dict[str, np.ndarray]:

@@ -10,6 +10,13 @@
   map width, with one smoothed section. The jeep crosses the sharp ridge, the
   mercedes_van high-centres on it but crosses the smooth section.
 - ``eval`` (Experiment 3): like ``training`` from a different seed.
+
+One more world is generated on request but built by no default stage
+(:data:`EXTRA_WORLD_NAMES`):
+
+- ``eval_hazard`` (Experiment 3 with ``ExperimentsConfig.eval_hazard_world``): the ``eval``
+  world plus V-ditches the jeep's front bumper digs into (:func:`make_eval_hazard`,
+  docs/worlds.md).
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from scipy import ndimage
 from dgt_lib.core.config import Profile, WorldsConfig, as_profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.world.worlds import (
+    DIRT,
     UnknownWorldError,
     World,
     _colorize,
@@ -32,6 +40,10 @@ from dgt_lib.world.worlds import (
 )
 
 WORLD_NAMES: tuple[str, ...] = ("training", "hill", "ridge", "eval")
+"""The worlds every ``dgt reproduce`` builds (BEV, costmaps, trials)."""
+
+EXTRA_WORLD_NAMES: tuple[str, ...] = ("eval_hazard",)
+"""Worlds :func:`get_world` generates on request that no default stage builds."""
 
 
 def _point_at(polyline: np.ndarray, s: float) -> tuple[float, float]:
@@ -290,6 +302,86 @@ def make_ridge(resolution: float = 0.4, seed: int = 0) -> World:
     return World("ridge", grid, h, colors, trees, landmarks, {"A": route_a, "B": route_b}, seed)
 
 
+# Experiment 3's hazard world: written down before any method ran on it (docs/worlds.md).
+DITCH_VEHICLE = "jeep"  # the vehicle whose specification sizes the ditches
+DITCH_FLANK_X_APPROACH = (1.5, 1.8)  # tan φ, × the least that stops its bumper, b / 2o
+DITCH_DEPTH_X_CLEARANCE = (2.0, 3.0)  # depth, × the vehicle's ground clearance
+DITCH_LENGTH_M = (20.0, 40.0)  # several vehicle lengths: a detour to go round
+DITCH_QUERY_M = 65.0  # mean straight-line query length (Experiment 3's 40–90 m)
+DITCH_CROSSINGS_PER_QUERY = 1.0  # expected ditches on a random line of that length
+BUMPER_RAISE_M = 0.1  # bumpers' underside above the belly's (world/mujoco_model.py) [m]
+
+
+def ditch_parameters(vehicle: str = DITCH_VEHICLE) -> dict[str, tuple[float, float]]:
+    """The ditches' ranges from the vehicle's specification. A V-ditch of flank φ pitches
+    the vehicle down φ with its front wheels at the bottom while the far wall rises φ: the
+    ground an overhang o = (length − wheelbase)/2 ahead stands ≈ 2·o·tan φ above the
+    bumper's line, which clears the ground by b = clearance + 0.1 m — the bumper digs in
+    once tan φ > b / 2o. Flanks: tan φ = 1.5–1.8 × that, at most 25.5° (below Route B's
+    26°, the steepest terrain the occupancy rule keeps free) [deg]; depth 2–3 × the
+    clearance [m]; length [m]."""
+    from dgt_lib.core.vehicles import get_vehicle
+
+    spec = get_vehicle(vehicle)
+    overhang = 0.5 * (spec.length_m - spec.wheelbase_m)
+    least = (spec.ground_clearance_m + BUMPER_RAISE_M) / (2.0 * overhang)
+    flank = tuple(min(float(np.degrees(np.arctan(k * least))), HILL_STEEP_DEG - 0.5)
+                  for k in DITCH_FLANK_X_APPROACH)
+    depth = tuple(k * spec.ground_clearance_m for k in DITCH_DEPTH_X_CLEARANCE)
+    return {"flank_deg": flank, "depth_m": depth, "length_m": DITCH_LENGTH_M}
+
+
+def ditch_count(size_m: float) -> int:
+    """Ditches on a square map of side ``size_m`` [m]: by Buffon's needle, N segments of
+    mean length ℓ̄ in area A meet a random line of length L̄ 2·L̄·ℓ̄·N / (π·A) times on
+    average; N makes that :data:`DITCH_CROSSINGS_PER_QUERY` for L̄ = :data:`DITCH_QUERY_M`."""
+    mean_len = 0.5 * sum(DITCH_LENGTH_M)
+    n = DITCH_CROSSINGS_PER_QUERY * np.pi * size_m**2 / (2.0 * DITCH_QUERY_M * mean_len)
+    return max(1, int(round(n)))
+
+
+def add_ditches(base: World, count: int, seed: int, name: str,
+                vehicle: str = DITCH_VEHICLE) -> World:
+    """``base`` with ``count`` straight V-ditches (ends shallowing over 2 m) sized by
+    :func:`ditch_parameters`, at uniform centres 5 % inside the map and uniform
+    orientations, dirt-coloured where deeper than ~0.3 m. Trees, routes and landmarks
+    are kept; the base's own random stream is untouched (the ditches draw from theirs)."""
+    rng = np.random.default_rng((seed, 7))
+    grid, res = base.grid, base.grid.resolution
+    (x0, x1, y0, y1) = grid.extent
+    par = ditch_parameters(vehicle)
+    X, Y = grid.cell_centers()
+    h = base.heights.astype(np.float64)
+    dirt = np.zeros(grid.shape)
+    for _ in range(count):
+        cx, cy = x0 + rng.uniform(0.05, 0.95) * (x1 - x0), y0 + rng.uniform(0.05, 0.95) * (y1 - y0)
+        ang = rng.uniform(0.0, np.pi)
+        length, depth = rng.uniform(*par["length_m"]), rng.uniform(*par["depth_m"])
+        flank = np.tan(np.radians(rng.uniform(*par["flank_deg"])))
+        w = _window(grid, cx, cy, length / 2 + depth / flank + res)
+        u = (X[w] - cx) * np.cos(ang) + (Y[w] - cy) * np.sin(ang)
+        v = -(X[w] - cx) * np.sin(ang) + (Y[w] - cy) * np.cos(ang)
+        cut = np.clip(depth - np.abs(v) * flank, 0.0, None) * _smoothstep(
+            length / 2 - np.abs(u), 0.0, 2.0)
+        h[w] -= cut
+        dirt[w] = np.maximum(dirt[w], _smoothstep(cut, 0.1, 0.3))
+    colors = base.colors * (1 - dirt[..., None]) + dirt[..., None] * DIRT
+    h -= h.min()
+    return World(name, grid, h.astype(np.float32), colors.astype(np.float32),
+                 base.trees.copy(), dict(base.landmarks),
+                 {k: r.copy() for k, r in base.routes.items()}, base.seed)
+
+
+def make_eval_hazard(size_m: float = 160.0, resolution: float = 0.4, seed: int = 1000,
+                     name: str = "eval_hazard") -> World:
+    """The ``eval`` world (:func:`make_training` from the same seed) plus V-ditches the
+    jeep's front bumper digs into (:func:`add_ditches`, :func:`ditch_count` of them):
+    flanks of 21.5–25.3° that the occupancy map leaves free, 0.76–1.14 m deep, 20–40 m
+    long. The rule and its numbers: docs/worlds.md."""
+    base = make_training(size_m, resolution, seed, name=name)
+    return add_ditches(base, ditch_count(size_m), seed, name)
+
+
 @lru_cache(maxsize=8)
 def _cached(name: str, config: WorldsConfig, seed: int) -> World:
     res = config.hfield_resolution_m
@@ -298,22 +390,27 @@ def _cached(name: str, config: WorldsConfig, seed: int) -> World:
     if name == "eval":
         world = make_training(config.eval_size_m, res, seed + config.eval_seed, name="eval")
         return world
+    if name == "eval_hazard":
+        return make_eval_hazard(config.eval_size_m, res, seed + config.eval_seed)
     if name == "hill":
         return make_hill(res, seed)
     return make_ridge(res, seed)
 
 
 def get_world(name: str, profile: Profile | str | None = None) -> World:
-    """The generated world ``name`` (one of :data:`WORLD_NAMES`) sized by ``profile``
-    (a :class:`Profile`, a profile name, or ``None`` for ``$DGT_PROFILE``).
+    """The generated world ``name`` (one of :data:`WORLD_NAMES` or
+    :data:`EXTRA_WORLD_NAMES`) sized by ``profile`` (a :class:`Profile`, a profile name,
+    or ``None`` for ``$DGT_PROFILE``).
 
-    ``training`` and ``eval`` take their sizes and terrain seeds from ``profile.worlds``;
+    ``training``, ``eval`` and ``eval_hazard`` take their sizes and terrain seeds from
+    ``profile.worlds``;
     ``hill`` and ``ridge`` are the same in every profile (their features are the
     experiments). The run seed (``profile.seed``) does not change any world. Worlds are
     cached in memory, per process; generating one takes at most ~0.6 s (`paper`'s 750²
     training world).
     """
-    if name not in WORLD_NAMES:
-        raise UnknownWorldError(f"unknown world {name!r}; valid worlds: {', '.join(WORLD_NAMES)}")
+    if name not in WORLD_NAMES + EXTRA_WORLD_NAMES:
+        raise UnknownWorldError(f"unknown world {name!r}; valid worlds: "
+                                f"{', '.join(WORLD_NAMES + EXTRA_WORLD_NAMES)}")
     prof = as_profile(profile)
     return _cached(name, prof.worlds, 0)

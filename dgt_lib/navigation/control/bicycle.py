@@ -20,7 +20,7 @@ class Tracker(Protocol):
 
     def set_path(self, path: np.ndarray) -> None: ...
 
-    def compute(self, pose, speed: float, occupancy=None, grid=None
+    def compute(self, pose, speed: float, occupancy=None, grid=None, costmap=None
                 ) -> tuple[float, float]: ...
 
 
@@ -117,9 +117,11 @@ def simulate_tracking(
     occupancy: np.ndarray | None = None,
     grid: GridSpec | None = None,
     stop_distance_m: float = 0.5,
+    costmap: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Closed loop on the kinematic plant: MPPI at 1/model_dt, steering by
-    :func:`steering_from_twist`, ``substeps`` plant steps per control step.
+    :func:`steering_from_twist`, ``substeps`` plant steps per control step (``costmap``
+    (K, H, W) on ``grid``: for the terrain critic).
     Stops after ``duration_s`` [s] or once the goal is within ``stop_distance_m``
     [m] and the car is nearly still.
 
@@ -132,7 +134,8 @@ def simulate_tracking(
     rows: list[tuple[float, ...]] = []
     for k in range(int(round(duration_s / dt))):
         pose, speed = plant.pose, plant.speed
-        v_cmd, w_cmd = controller.compute(pose, speed, occupancy, grid)
+        v_cmd, w_cmd = (controller.compute(pose, speed, occupancy, grid) if costmap is None
+                        else controller.compute(pose, speed, occupancy, grid, costmap))
         steer = steering_from_twist(v_cmd, w_cmd, plant.wheelbase_m, plant.max_steer_rad)
         rows.append((k * dt, *pose, speed, v_cmd, w_cmd, steer))
         if math.hypot(pose[0] - goal[0], pose[1] - goal[1]) < stop_distance_m and speed < 0.2:

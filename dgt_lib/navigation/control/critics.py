@@ -6,12 +6,13 @@ Each critic returns its weighted term ``(B,)``; a term averages over the scored 
 each is of order 1 and compares directly with the temperature λ::
 
     S_b = w_path·path + w_angle·path_angle + w_speed·speed [+ w_goal·goal]
-          [+ w_coll·collision + w_infl·inflation] + w_cons·constraint
+          [+ w_coll·collision + w_infl·inflation] [+ w_terr·terrain] + w_cons·constraint
 
 Rollout positions are relative to the robot (float32 keeps its precision there);
 ``window`` is the path near the robot, :meth:`ReferencePath.window
-<dgt_lib.navigation.control.reference_path.ReferencePath.window>`. The directional
-costmap is *not* a critic: the paper uses it for planning only.
+<dgt_lib.navigation.control.reference_path.ReferencePath.window>`. The paper uses the
+directional costmap for planning only; :func:`terrain_critic` (ours, off by default:
+``terrain_weight`` 0) makes every rollout pay it too (docs/controller.md).
 """
 
 from __future__ import annotations
@@ -149,3 +150,39 @@ def constraint_critic(v, w, cfg: MPPIConfig) -> np.ndarray:
     if cfg.v_min < 0:
         cost += np.maximum(-v, 0.0).mean(axis=0) * f32(1.0 / cfg.target_speed)
     return cfg.constraint_weight * cost
+
+
+def terrain_table(costmap: np.ndarray, cfg: MPPIConfig) -> np.ndarray:
+    """The terrain critic's per-cell term, float32 ``(K, H, W)``: C(1 + β_c·C) of the
+    directional costmap C ``(K, H, W)`` (layer k for heading θ_k = 2πk/K), the planner's
+    amplification with β_c = ``cfg.terrain_beta``."""
+    c = np.asarray(costmap, np.float32)
+    if c.ndim != 3:
+        raise ValueError(f"costmap must be (K, H, W), got shape {c.shape}")
+    return c * (f32(1.0) + f32(cfg.terrain_beta) * c)
+
+
+def heading_bins(yaw: np.ndarray, n_headings: int) -> np.ndarray:
+    """k = ⌊ψ·K/2π + ½⌋ mod K in float32: the nearest of K headings θ_k = 2πk/K (paper:
+    Directional Cost Lookup), for any yaw ψ [rad] (no wrapping needed)."""
+    scaled = np.floor(yaw * f32(n_headings / (2.0 * np.pi)) + f32(0.5))
+    return np.mod(scaled.astype(np.int64), n_headings)
+
+
+def terrain_critic(x, y, yaw, table: np.ndarray, offset_xy: tuple[float, float],
+                   resolution_m: float, ahead_m: float, cfg: MPPIConfig) -> np.ndarray:
+    """w_terr · mean_t C_k(t)(p_t)(1 + β_c C): the cost a rollout pays on the directional
+    costmap ``table`` (:func:`terrain_table`), read at its body centre p_t, ``ahead_m``
+    (half the wheelbase) ahead of the rear-axle pose, in the layer of its heading ψ_t
+    (:func:`heading_bins`); cells clamped to the grid as the planner's lookup. ``offset_xy``:
+    the robot's position relative to the grid origin [m]. Returns ``(B,)``."""
+    K, H, W = table.shape
+    inv = f32(1.0 / resolution_m)
+    cx = x + f32(offset_xy[0])
+    cy = y + f32(offset_xy[1])
+    cx += f32(ahead_m) * np.cos(yaw)
+    cy += f32(ahead_m) * np.sin(yaw)
+    col = np.clip(np.floor(cx * inv), 0, W - 1).astype(np.intp)
+    row = np.clip(np.floor(cy * inv), 0, H - 1).astype(np.intp)
+    cost = table.ravel()[(heading_bins(yaw, K) * H + row) * W + col]  # (T, B)
+    return cfg.terrain_weight * cost.mean(axis=0)

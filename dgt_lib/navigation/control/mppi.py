@@ -168,6 +168,8 @@ class MPPIController:
         self._ref: ReferencePath | None = None
         self._occ_key: tuple[np.ndarray, GridSpec] | None = None
         self._clearance: np.ndarray | None = None  # (H + 2, W + 2) [m], off-map ring = 0
+        self._cost_key: np.ndarray | None = None
+        self._terrain: np.ndarray | None = None  # (K, H, W) C(1 + β_c C), float32
         self.reset()
 
     @classmethod
@@ -232,6 +234,18 @@ class MPPIController:
         if self.backend == "compiled":
             self._cells = self._kernels.cell_terms(self._clearance, self.cfg)
 
+    def _set_costmap(self, costmap: np.ndarray) -> None:
+        """Cache the terrain critic's per-cell term (:func:`~dgt_lib.navigation.control.
+        critics.terrain_table`)."""
+        if self._cost_key is not None and np.array_equal(self._cost_key, costmap):
+            return
+        self._terrain = critics.terrain_table(costmap, self.cfg)
+        self._cost_key = np.asarray(costmap).copy()
+
+    def _terrain_on(self, costmap: np.ndarray | None) -> bool:
+        """Whether this call runs the terrain critic: a costmap given, a weight above 0."""
+        return costmap is not None and self.cfg.terrain_weight > 0
+
     def _noise(self) -> tuple[np.ndarray, np.ndarray]:
         """Standard normal noise ``(T, B)`` for speeds and yaw rates; sample 0 none."""
         return draw_noise(self._rng, self._eps_v, self._eps_w)
@@ -239,28 +253,36 @@ class MPPIController:
     # -- the controller --------------------------------------------------------
 
     def compute(self, pose, speed: float, occupancy: np.ndarray | None = None,
-                grid: GridSpec | None = None) -> tuple[float, float]:
+                grid: GridSpec | None = None, costmap: np.ndarray | None = None
+                ) -> tuple[float, float]:
         """One MPPI iteration: the twist (v_x [m/s], ω_z [rad/s]) to apply now.
 
         ``pose`` = (x, y, yaw) [m, m, rad] of the rear-axle centre, ``speed`` the measured
         forward speed [m/s] (the rollouts' speed lag starts from it). ``occupancy``
         ``(H, W)`` on ``grid`` (0 free, 1 occupied, 2 unobserved; outside the grid counts
-        as occupied) enables the occupancy critic. Steps 1–5 of the module docstring.
+        as occupied) enables the occupancy critic; a directional ``costmap`` ``(K, H, W)``
+        on the same grid, the terrain critic when ``cfg.terrain_weight`` > 0. Steps 1–5
+        of the module docstring.
         """
         cfg, ref = self.cfg, self._reference()
         if (occupancy is None) != (grid is None):
             raise ValueError("occupancy and grid must be given together")
+        if costmap is not None and (grid is None or np.shape(costmap)[1:] != grid.shape):
+            raise ValueError("a costmap needs the occupancy's grid and its (H, W)")
         x0, y0, yaw0 = (float(p) for p in pose)
         if not all(math.isfinite(p) for p in (x0, y0, yaw0, speed)):
             raise ValueError(f"pose and speed must be finite, got {pose}, {speed}")
         if occupancy is not None:
             self._set_occupancy(occupancy, grid)
+        terrain = self._terrain_on(costmap)
+        if terrain:
+            self._set_costmap(costmap)
         i_robot = ref.update_progress(x0, y0)
         if self._last_v is None:
             self._last_v = float(np.clip(speed, cfg.v_min, cfg.v_max))
         sampled_costs = (self._sampled_costs_compiled if self.backend == "compiled"
                          else self._sampled_costs)
-        v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid)  # steps 1–3
+        v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid, terrain)  # steps 1–3
         self.last_costs = cost
         weights = self.weighting(cost, cfg.temperature)  # step 4
         nominal = weighted_sequence(v, w, weights, self._nominal)
@@ -288,9 +310,11 @@ class MPPIController:
         return None
 
     def _sampled_costs(self, x0: float, y0: float, yaw0: float, speed: float, i_robot: int,
-                       grid: GridSpec | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                       grid: GridSpec | None, terrain: bool = False
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Steps 1–3 in numpy (the reference): sampled commands v, ω ``(T, B)`` and each
-        one's cost S ``(B,)``; the occupancy critic when ``grid`` is given."""
+        one's cost S ``(B,)``; the occupancy critic when ``grid`` is given, the terrain
+        critic with ``terrain``."""
         cfg = self.cfg
         ev, ew = self._noise()
         v, w = sample_controls(ev, ew, self._nominal, self._last_v, cfg,
@@ -305,6 +329,10 @@ class MPPIController:
             terms["occupancy"] = critics.occupancy_critic(
                 x, y, yaw, self._clearance, (x0 - grid.origin_xy[0], y0 - grid.origin_xy[1]),
                 grid.resolution, cfg)
+        if terrain:
+            terms["terrain"] = critics.terrain_critic(
+                x, y, yaw, self._terrain, (x0 - grid.origin_xy[0], y0 - grid.origin_xy[1]),
+                grid.resolution, 0.5 * self.wheelbase_m, cfg)
         terms["constraint"] = critics.constraint_critic(v_act, w_act, cfg)
         cost = critics.total_cost(terms)
         if self.keep_rollouts:
@@ -313,7 +341,7 @@ class MPPIController:
         return v, w, cost
 
     def _sampled_costs_compiled(self, x0: float, y0: float, yaw0: float, speed: float,
-                                i_robot: int, grid: GridSpec | None
+                                i_robot: int, grid: GridSpec | None, terrain: bool = False
                                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`_sampled_costs` with numba's kernels, the same float32 operations in the
         same order (:func:`~dgt_lib.navigation.control.mppi_compiled.sampled_costs`)."""
@@ -322,7 +350,8 @@ class MPPIController:
             ev, ew, self._nominal, self._last_v, speed, (x0, y0, yaw0),
             self._ref.window(i_robot, x0, y0), self._ref.length_m,
             self._goal_xy(i_robot, x0, y0), self.cfg, self.min_turn_radius_m, self._alpha,
-            None if grid is None else (self._cells, grid), self._v, self._w)
+            None if grid is None else (self._cells, grid), self._v, self._w,
+            (self._terrain, 0.5 * self.wheelbase_m) if terrain else None)
 
 
 def warm_start_trace(ctrl: MPPIController, pose, speed: float, calls: int, occupancy=None,

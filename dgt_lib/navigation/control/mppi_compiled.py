@@ -15,7 +15,9 @@ bit and return the same commands (``tests/test_mppi_compiled.py`` checks it call
   reference's ``einsum`` score |w|² − 2 p·w, then its first minimum);
 - :func:`occupancy_cost` — :func:`~dgt_lib.navigation.control.critics.occupancy_critic`
   with numpy's reductions along time: sums in order over the steps, the collision
-  fraction in float64.
+  fraction in float64;
+- :func:`terrain_cost` — :func:`~dgt_lib.navigation.control.critics.terrain_critic`, the
+  directional costmap read at each step's body centre and heading, summed in order.
 
 :func:`sampled_costs` strings them together as the reference's steps 1–3. What stays in
 numpy is what numpy does in SIMD and a scalar loop would do differently in the last bit:
@@ -191,6 +193,34 @@ def occupancy_cost(x, y, cos_yaw, sin_yaw, offsets, cell_hit, cell_near, ox, oy,
         out[b] = w_collide * collide[b] + w_inflate * inflate[b]
 
 
+@njit(cache=True)
+def terrain_cost(x, y, yaw, cos_yaw, sin_yaw, table, ox, oy, ahead, inv_res, bins_per_rad,
+                 weight, out):
+    """The terrain critic ``(B,)`` into ``out``, as the reference's
+    :func:`~dgt_lib.navigation.control.critics.terrain_critic`: per step, the per-cell
+    term ``table`` ``(K, H, W)`` (C(1 + β_c C), float32) at the body centre, ``ahead``
+    [m] along the heading from the pose (its cell clamped to the grid), in the layer
+    k = ⌊ψ·K/2π + ½⌋ mod K (``bins_per_rad`` = K/2π); summed over the steps in order,
+    divided by T, times ``weight``. ``ox``, ``oy``: the robot relative to the grid origin
+    [m]; scalars float32."""
+    T, B = x.shape
+    K, H, W = table.shape
+    zero, half = F32(0.0), F32(0.5)
+    acc = np.zeros(B, np.float32)
+    for t in range(T):
+        for b in range(B):
+            cx = x[t, b] + ox
+            cy = y[t, b] + oy
+            cx = cx + ahead * cos_yaw[t, b]
+            cy = cy + ahead * sin_yaw[t, b]
+            col = np.int64(min(max(np.floor(cx * inv_res), zero), F32(W - 1)))
+            row = np.int64(min(max(np.floor(cy * inv_res), zero), F32(H - 1)))
+            k = np.int64(np.floor(yaw[t, b] * bins_per_rad + half)) % K
+            acc[b] += table[k, row, col]
+    for b in range(B):
+        out[b] = weight * (acc[b] / F32(T))
+
+
 def cell_terms(clearance: np.ndarray, cfg: MPPIConfig) -> tuple[np.ndarray, np.ndarray]:
     """The occupancy critic's per-cell terms for :func:`occupancy_cost`, from the
     clearance field d [m]: float64 [d < r_c] and float32 clip((r_i − d)/(r_i − r_c), 0, 1)."""
@@ -205,13 +235,16 @@ def sampled_costs(ev: np.ndarray, ew: np.ndarray, nominal: np.ndarray, last_v: f
                   goal_xy: tuple[float, float] | None, cfg: MPPIConfig,
                   min_turn_radius_m: float, alpha: float,
                   cells: tuple[tuple[np.ndarray, np.ndarray], GridSpec] | None,
-                  v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  v: np.ndarray, w: np.ndarray,
+                  terrain: tuple[np.ndarray, float] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """MPPI's steps 1–3 with the kernels: the sampled commands ``v``, ``w`` ``(T, B)``
     (written in place) and their costs S ``(B,)``, as ``MPPIController._sampled_costs``.
     ``ev``, ``ew``: the noise; ``nominal`` ``(T, 2)`` the warm start; ``pose`` (x0, y0,
     yaw0); ``window`` and ``length_m`` the path near the robot; ``goal_xy`` the goal
     relative to the robot when the goal critic is on; ``cells`` (:func:`cell_terms`, grid)
-    when the occupancy critic is."""
+    when the occupancy critic is; ``terrain`` (the critic's table, the body centre's
+    distance ahead of the pose [m]) when the terrain critic is (on the same grid)."""
     x0, y0, yaw0 = pose
     v_act, w_act, yaw, mid = (np.empty_like(v) for _ in range(4))
     a = alpha
@@ -233,12 +266,20 @@ def sampled_costs(ev: np.ndarray, ew: np.ndarray, nominal: np.ndarray, last_v: f
     cost = total_cost(path_terms(cross, angle_err, speed_err, x[sel], y[sel], goal_xy, cfg))
     if cells is not None:
         (cell_hit, cell_near), grid = cells
+        cos_yaw, sin_yaw = np.cos(yaw), np.sin(yaw)
+        ox, oy = F32(x0 - grid.origin_xy[0]), F32(y0 - grid.origin_xy[1])
         occupancy = np.empty_like(cost)
         occupancy_cost(
-            x, y, np.cos(yaw), np.sin(yaw), np.array(cfg.footprint_offsets_m, F32), cell_hit,
-            cell_near, F32(x0 - grid.origin_xy[0]), F32(y0 - grid.origin_xy[1]),
-            F32(1.0 / grid.resolution), F32(cfg.collision_weight), F32(cfg.inflation_weight),
-            occupancy)
+            x, y, cos_yaw, sin_yaw, np.array(cfg.footprint_offsets_m, F32), cell_hit,
+            cell_near, ox, oy, F32(1.0 / grid.resolution), F32(cfg.collision_weight),
+            F32(cfg.inflation_weight), occupancy)
         cost += occupancy
+        if terrain is not None:
+            table, ahead = terrain
+            paid = np.empty_like(cost)
+            terrain_cost(x, y, yaw, cos_yaw, sin_yaw, table, ox, oy, F32(ahead),
+                         F32(1.0 / grid.resolution),
+                         F32(table.shape[0] / (2.0 * np.pi)), F32(cfg.terrain_weight), paid)
+            cost += paid
     cost += constraint_critic(v_act, w_act, cfg)
     return v, w, cost

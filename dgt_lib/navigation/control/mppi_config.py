@@ -47,6 +47,10 @@ class MPPIConfig:
     collision_weight: float = 1000.0  # (any step collides) + fraction of colliding steps
     inflation_weight: float = 3.0  # mean closeness to occupied cells, 0..1
     constraint_weight: float = 4.0  # lateral acceleration excess and reversing
+    # Terrain critic (ours; the paper's controller has none): mean over the steps of the
+    # directional cost at the body centre, C(1 + βC) as the planner amplifies it. 0 = off.
+    terrain_weight: float = 0.0  # weight of mean_t C(1 + β_c C), needs a costmap
+    terrain_beta: float = 150.0  # β_c (the planner's default β, PlannerConfig.beta)
 
     def __post_init__(self):
         if self.batch_size < 2 or self.time_steps < 2 or self.model_dt <= 0:
@@ -59,6 +63,8 @@ class MPPIConfig:
             raise ValueError("path_point_step must be ≥ 1 and path_resolution_m > 0")
         if not 0 < self.collision_radius_m < self.inflation_radius_m:
             raise ValueError("need 0 < collision_radius_m < inflation_radius_m")
+        if self.terrain_weight < 0 or self.terrain_beta < 0:
+            raise ValueError("terrain_weight and terrain_beta must be ≥ 0")
 
     @property
     def horizon_s(self) -> float:
