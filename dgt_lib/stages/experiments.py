@@ -11,10 +11,11 @@ The stage's figures, report and recordings are written by the top level
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import Profile, as_profile, get_profile
+from dgt_lib.core.config import BEVConfig, Profile, as_profile, get_profile
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult, run_experiment
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import classify_route
@@ -48,11 +49,22 @@ def _model_digests(prof: Profile) -> dict[str, str | None]:
     return out
 
 
+LATER_EXPERIMENT_FIELDS: dict[str, object] = {"eval_hazard_world": False}
+"""ExperimentsConfig fields added after results were cached, with the value that runs exactly
+as before they existed: left out of the key while they have it (as
+``stages.train.LATER_TRAIN_FIELDS``), so stored trials stay valid."""
+
+
 def experiment_config(name: str, prof: Profile) -> dict[str, object]:
-    """What an experiment's trials depend on (its cache key)."""
-    return {"stage": name, "experiments": prof.experiments, "planner": prof.planner,
-            "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof),
-            "physics": PHYSICS}
+    """What an experiment's trials depend on (its cache key); the ``bev`` settings only when
+    they differ from the paper's (true poses, observed colours)."""
+    experiments = {"__type__": type(prof.experiments).__name__,
+                   **{k: v for k, v in dataclasses.asdict(prof.experiments).items()
+                      if not (k in LATER_EXPERIMENT_FIELDS and v == LATER_EXPERIMENT_FIELDS[k])}}
+    cfg = {"stage": name, "experiments": experiments, "planner": prof.planner,
+           "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof),
+           "physics": PHYSICS}
+    return cfg if prof.bev == BEVConfig() else {**cfg, "bev": prof.bev}
 
 
 def experiment_stem(name: str, prof: Profile) -> str:
