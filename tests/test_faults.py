@@ -396,3 +396,43 @@ def test_ray_giving_up_on_a_job_is_recognised_without_importing_ray(name):
     assert "memory" in faults.explain(gave_up("worker died"))
     assert faults.explain(subclass("worker died")) == faults.explain(gave_up("x"))
     assert faults.explain(RuntimeError("worker died")) is None
+
+
+PLAN_WITH_A_GIVEN_TAU_S = textwrap.dedent("""
+    import sys
+    from dgt_lib.stages import costmaps
+    costmaps.ensure_tau_s = lambda profile=None: 0.6  # not from the hill's and ridge's surveys
+    from dgt_lib.cli import main
+    sys.exit(main(sys.argv[1:]))
+""")
+"""`dgt` with τ_s given: a plan on a tiny world then needs its survey alone (seconds, where
+the hill's and ridge's surveys that select τ_s take minutes)."""
+
+
+def test_dgt_plan_on_a_read_only_data_directory_with_everything_cached_prints_the_plan(
+        tmp_path):
+    """The plan needs nothing written: it is printed, with one line saying where the figure
+    and recording could not be written and why; exit status 0."""
+    data = tmp_path / "data"
+    heights = np.zeros((80, 120), np.float32)
+    heights[30:50, 55:65] = 3.0
+    np.save(tmp_path / "tiny.npy", heights)
+    command = [sys.executable, "-c", PLAN_WITH_A_GIVEN_TAU_S, "plan", "--world",
+               str(tmp_path / "tiny.npy"), "--vehicle", "jeep", "--start", "8,16,0",
+               "--goal", "40,16", "--method", "binary", "--profile", "smoke"]
+    env = {**os.environ, "DGT_DATA_DIR": str(data), "PYTHONPATH": str(ROOT)}
+    first = subprocess.run(command, env=env, cwd=ROOT, capture_output=True, text=True,
+                           timeout=600)
+    assert first.returncode == 0, first.stderr
+    for plans in (data / "smoke" / "seed-0" / "plans").iterdir():
+        plans.unlink()  # so that this run would have to write them again
+    with read_only(data) as prefix:
+        proc = subprocess.run([*prefix, *command], env=env, cwd=ROOT, capture_output=True,
+                              text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr and "found: length" in proc.stdout
+    said = [line for line in proc.stdout.splitlines() if "not written" in line]
+    assert len(said) == 1 and said[0].startswith(
+        "  figure and rerun recording not written: cannot write "
+        f"{data / 'smoke' / 'seed-0' / 'plans'}/tiny_jeep_binary_8.0_16.0_0deg_to_40.0_16.0_")
+    assert "(read-only file system)" in said[0]
