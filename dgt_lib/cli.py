@@ -459,8 +459,10 @@ def main(argv: list[str] | None = None) -> int:
 
     Ctrl-C ends any command with one line on stderr and status 130 (no traceback), and
     SIGTERM the same way with status 143: what the artifact cache holds stays, and the
-    same command resumes from it. A reader
-    that stops early (``dgt settings | head``) ends it quietly.
+    same command resumes from it. A fault from outside (a data directory or renderer that
+    cannot work, a full disk, a cluster that gave up: :func:`dgt_lib.core.faults.explain`)
+    is one line and status 1. A reader that stops early (``dgt settings | head``) ends it
+    quietly.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(_glue_negative_coordinates(argv))
