@@ -28,6 +28,8 @@ import time
 from dataclasses import replace
 
 from dgt_lib import __version__
+from dgt_lib.core import faults
+from dgt_lib.core.artifacts import data_root
 from dgt_lib.core.config import (
     DEVICES,
     EXECUTORS,
@@ -47,6 +49,7 @@ from dgt_lib.core.overrides import (
 from dgt_lib.mapping.methods import METHODS
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import profile_root
+from dgt_lib.world.opengl import check_mujoco_gl
 
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT, as a shell reports it)."""
@@ -58,12 +61,16 @@ stages differ in cost by 100× (the dataset takes a second, collection minutes),
 average over the stages done so far promised "3 s left" after collection."""
 
 
-def _interrupted_message(seed: int, stage: registry.Stage, command: str,
-                         how: str = "interrupted") -> str:
-    """The one line ``dgt reproduce`` prints when Ctrl-C (or SIGTERM: ``how``
-    "terminated") stops it in a stage."""
-    return (f"dgt: {how} in seed {seed} · {stage.name}. Kept: the earlier stages' "
-            f"outputs; {stage.kept}. Rerun `{command}` to resume.")
+def _stopped_message(args: argparse.Namespace, how: str, why: str = "") -> str:
+    """What ``dgt`` prints when Ctrl-C (``how`` "interrupted"), SIGTERM ("terminated") or a
+    fault ("error", ``why``) stops a command: where — the seed and stage ``dgt reproduce``
+    was in (``args.stage``) —, what it kept, and that the same command resumes."""
+    seed, stage = getattr(args, "stage", (None, None))
+    where = "" if stage is None else f" in seed {seed} · {stage.name}"
+    kept = ("everything finished so far" if stage is None
+            else f"the earlier stages' outputs; {stage.kept}")
+    said = f": {why}\n" if why else ". "  # a fault's reason on a line of its own
+    return f"dgt: {how}{where}{said}Kept: {kept}. Rerun `{args.command_line}` to resume."
 
 
 def _profile(args: argparse.Namespace) -> Profile:
@@ -144,28 +151,24 @@ def _reproduce(args: argparse.Namespace) -> int:
     rows = []
     invocation = new_run_id()
     jobs = [(run, stage) for run in runs for stage in stages]
-    run, stage = jobs[0]
     ex = profile.execution
-    try:
-        # one executor for the whole run (one local cluster, started once, stopped after)
-        with use_executor(ex.executor, address=ex.address, workers=profile.workers), \
-                tqdm(jobs, desc="pipeline", bar_format=PIPELINE_BAR_FORMAT) as bar:
-            for run, stage in bar:
-                tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
-                started, load, t0 = time.time(), machine_load(), time.perf_counter()
-                result = stage.run(run)
-                if stage.report:  # figures, tables and recordings: the top level's
-                    from dgt_lib.report import report_stage
+    # one executor for the whole run (one local cluster, started once, stopped after)
+    with use_executor(ex.executor, address=ex.address, workers=profile.workers), \
+            tqdm(jobs, desc="pipeline", bar_format=PIPELINE_BAR_FORMAT) as bar:
+        for run, stage in bar:
+            args.stage = (run.seed, stage)  # where Ctrl-C or a fault stops it (main)
+            tqdm.write(f"── seed {run.seed} · {stage.name}: {stage.description}")
+            started, load, t0 = time.time(), machine_load(), time.perf_counter()
+            result = stage.run(run)
+            if stage.report:  # figures, tables and recordings: the top level's
+                from dgt_lib.report import report_stage
 
-                    result = report_stage(stage.name, run, result)
-                seconds = time.perf_counter() - t0
-                record_stage_time(run, stage.name, seconds, run=invocation,
-                                  started_unix_s=started, load_before=load)
-                rows.append((run.seed, stage.name, seconds, result))
-    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (executors.Terminated)
-        how = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        print(_interrupted_message(run.seed, stage, args.command_line, how), file=sys.stderr)
-        return interrupted_status(exc)
+                result = report_stage(stage.name, run, result)
+            seconds = time.perf_counter() - t0
+            record_stage_time(run, stage.name, seconds, run=invocation,
+                              started_unix_s=started, load_before=load)
+            rows.append((run.seed, stage.name, seconds, result))
+    args.stage = (None, None)
     print("\nSummary")
     for seed, name, seconds, result in rows:
         print(f"  seed {seed} {name:<12} {seconds:8.1f} s  {result.summary}")
@@ -456,26 +459,37 @@ def main(argv: list[str] | None = None) -> int:
 
     Ctrl-C ends any command with one line on stderr and status 130 (no traceback), and
     SIGTERM the same way with status 143: what the artifact cache holds stays, and the
-    same command resumes from it. A reader
-    that stops early (``dgt settings | head``) ends it quietly.
+    same command resumes from it. A fault from outside (a data directory or renderer that
+    cannot work, a full disk, a cluster that gave up: :func:`dgt_lib.core.faults.explain`)
+    is one line and status 1. A reader that stops early (``dgt settings | head``) ends it
+    quietly.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(_glue_negative_coordinates(argv))
     args.command_line = shlex.join(["dgt", *argv])
     try:
         with sigterm_as_interrupt():  # SIGTERM stops a command as Ctrl-C does
+            if args.command in ("reproduce", "plan", "costmap"):  # renderer, data directory
+                check_mujoco_gl()
+                faults.prepare_data_dir(data_root())
             return args.func(args)
     except (UnknownProfileError, InvalidOverrideError, registry.UnknownStageError,
             UsageError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as exc:
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (executors.Terminated)
         how = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        print(f"dgt: {how}; kept everything finished so far. Rerun "
-              f"`{args.command_line}` to resume.", file=sys.stderr)
+        print(_stopped_message(args, how), file=sys.stderr)
         return interrupted_status(exc)
     except BrokenPipeError:  # stdout's reader is gone: say nothing more to it
         os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
+        return 1
+    except Exception as exc:  # no renderer or data directory, a full disk, a cluster gave up
+        why = faults.explain(exc)
+        if why is None:
+            raise
+        print(f"dgt: error: {why}" if isinstance(exc, faults.SetupError)
+              else _stopped_message(args, "error", why), file=sys.stderr)
         return 1
 
 

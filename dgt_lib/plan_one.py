@@ -24,6 +24,7 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile, get_profile
+from dgt_lib.core.faults import is_storage_error, storage_message
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.queries import classify_route
@@ -71,7 +72,17 @@ def load_world(world: str | World, profile: Profile, *, resolution_m: float = 0.
                                 "nor an existing .npy/.png heightmap or .tif/.asc DEM file")
     if is_dem_path(path):
         return load_dem(path, profile.worlds.hfield_resolution_m, nodata=nodata)
+    if path.suffix.lower() == ".npy" and not _is_npy(path):
+        raise ValueError(f"{world} is not a NumPy heightmap: a .npy file starts with "
+                         "NumPy's header (np.save writes one); this one does not")
     return load_heightmap(path, resolution_m, vertical_scale_m=vertical_scale_m), None
+
+
+def _is_npy(path: Path) -> bool:
+    """Whether ``path`` starts with the ``.npy`` format's magic string, so that a text or
+    pickle file renamed ``.npy`` is called what it is, not a pickle to allow."""
+    with open(path, "rb") as f:
+        return f.read(6) == b"\x93NUMPY"
 
 
 def crs_to_local(georef: Georeference | None, start, goal) -> tuple[tuple, tuple]:
@@ -104,6 +115,8 @@ class QueryReport:
     None on a world without routes or when no path was found."""
     figure: Path | None = None
     recording: Path | None = None
+    not_written: str | None = None
+    """Why the figure and recording were not written (a read-only or full directory)."""
     outcome: TrialOutcome | None = None
 
     def summary(self) -> str:
@@ -134,6 +147,8 @@ class QueryReport:
         for label, path in (("figure", self.figure), ("rerun", self.recording)):
             if path is not None:
                 lines.append(f"  {label}: {path}")
+        if self.not_written:
+            lines.append(f"  figure and rerun recording not written: {self.not_written}")
         return "\n".join(lines)
 
     def as_dict(self) -> dict:
@@ -151,7 +166,8 @@ class QueryReport:
                "expansions": int(p.expansions), "time_s": float(p.time_s),
                "route": self.route, "outcome": None,
                "figure": None if self.figure is None else str(self.figure),
-               "recording": None if self.recording is None else str(self.recording)}
+               "recording": None if self.recording is None else str(self.recording),
+               "not_written": self.not_written}
         if self.outcome is not None:
             o = self.outcome
             out["outcome"] = {"success": bool(o.success), "reason": o.reason,
@@ -302,10 +318,15 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
         report.route = classify_route(w, result.path) if w.routes else None
     out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
-    out_dir.mkdir(parents=True, exist_ok=True)
     stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success,
                        profile=prof)
-    report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")
+    except OSError as exc:  # a read-only or full directory: the plan stands without them
+        if not is_storage_error(exc):
+            raise
+        report.not_written = storage_message(exc)
     if drive and result.success:
         from dgt_lib.evaluation.trials import trial_time_limit_s  # imports MPPI: only to drive
         from dgt_lib.navigation.drive import drive as drive_path
@@ -318,8 +339,9 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
         report.outcome = outcome
     else:
         traj = speed = None
-    report.recording = _recording(w, maps, cost, report, traj, speed, out_dir / f"{stem}.rrd",
-                                  prof)
+    if report.not_written is None:
+        report.recording = _recording(w, maps, cost, report, traj, speed,
+                                      out_dir / f"{stem}.rrd", prof)
     return report
 
 

@@ -50,12 +50,14 @@ def _pid_of(_):
 
 def pool(profile):
     """Three jobs in a process pool, each result saved as it arrives; the first takes no
-    time, the other two a minute (test_cli stops it with Ctrl-C in between)."""
+    time, the other two a minute (test_cli stops it with Ctrl-C in between). Workers
+    forked, or started as $POOL_START_METHOD says."""
     def save(job, index):
         artifacts.ensure(f"jobs/{index}.json", {"job": index}, lambda: {"job": index},
                          profile=cache_dir(profile))
 
-    run_jobs(_job, [(0, 0.0), (1, 60.0), (2, 60.0)], workers=2, start_method="fork",
+    run_jobs(_job, [(0, 0.0), (1, 60.0), (2, 60.0)], workers=2,
+             start_method=os.environ.get("POOL_START_METHOD", "fork"),
              on_result=save, progress=False)
     return StageOutput([], "ran 3 jobs")
 
@@ -79,12 +81,14 @@ POOL_RUN = textwrap.dedent("""
 ``first``, as a script for a child process."""
 
 
-def start_pool_run(data_dir: Path, preexec_fn) -> subprocess.Popen:
+def start_pool_run(data_dir: Path, preexec_fn, start_method: str = "fork"
+                   ) -> subprocess.Popen:
     """:data:`POOL_RUN` in a child process of its own session (``preexec_fn`` sets its
     signal dispositions), returned once the pool's first job is saved, so a signal sent
     then stops a stage that has kept something."""
     root = Path(__file__).resolve().parents[1]
-    env = {**os.environ, "DGT_DATA_DIR": str(data_dir), "PYTHONPATH": str(root)}
+    env = {**os.environ, "DGT_DATA_DIR": str(data_dir), "PYTHONPATH": str(root),
+           "POOL_START_METHOD": start_method}
     proc = subprocess.Popen([sys.executable, "-c", POOL_RUN], cwd=root, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             start_new_session=True, preexec_fn=preexec_fn)

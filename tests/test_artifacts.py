@@ -1,4 +1,5 @@
 import copy
+import errno
 import json
 import os
 import stat
@@ -141,8 +142,9 @@ def test_crash_during_build_or_write_leaves_no_artifact(data_dir):
 
     with pytest.raises(TypeError):  # np.savez cannot store an object that is not a mapping
         artifacts.ensure("bad.npz", {"a": 1}, lambda: 42, profile="smoke")
-    leftovers = [p.name for p in (data_dir / "smoke").iterdir()]
-    assert leftovers == [], leftovers  # no half-written file, no temporary file
+    leftovers = [p.name for p in (data_dir / "smoke").iterdir() if p.suffix != ".lock"]
+    assert leftovers == [], leftovers  # no half-written file, no temporary file (the
+    # build locks stay: artifacts.build_lock)
 
 
 def test_config_hash_is_stable_and_sensitive():
@@ -219,3 +221,62 @@ def test_a_written_artifact_has_the_mode_the_umask_allows(data_dir, umask, mode,
     path = data_dir / "smoke" / f"x{suffix}"
     for written in (path, path.with_name(path.name + ".meta.json")):
         assert stat.S_IMODE(written.stat().st_mode) == mode, written.name
+
+
+ENSURE_SLOWLY = """
+import os, sys, time
+import numpy as np
+from dgt_lib.core import artifacts
+
+def build():
+    with open(sys.argv[1], "a") as f:
+        f.write(f"{os.getpid()}\\n")
+    time.sleep(float(sys.argv[2]))
+    return {"x": np.arange(1000)}
+
+value = artifacts.ensure("slow.npz", {"a": 1}, build, profile="smoke")
+print("sum", int(value["x"].sum()))
+"""
+
+
+def test_a_second_process_waits_for_the_build_and_loads_it(data_dir, tmp_path):
+    """Two processes ensure one artifact at once: the second waits on the build lock and
+    loads what the first built, instead of building it again or calling it corrupt
+    (its metadata is written after the file)."""
+    import subprocess
+    import sys
+    import time
+
+    builds = tmp_path / "builds.txt"
+    env = {**os.environ, artifacts.DATA_ENV_VAR: str(data_dir)}
+
+    def start(seconds):
+        return subprocess.Popen([sys.executable, "-c", ENSURE_SLOWLY, str(builds),
+                                 str(seconds)], env=env, text=True,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+
+    first = start(2.0)
+    deadline = time.monotonic() + 60
+    while not builds.exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    second = start(0.0)
+    said = [p.communicate(timeout=60)[0] for p in (first, second)]
+    assert [first.returncode, second.returncode] == [0, 0], said
+    assert builds.read_text().split() == [str(first.pid)]
+    assert said == ["sum 499500\n"] * 2  # and no "rebuilding … corrupt" line
+
+
+@pytest.mark.parametrize("code", [errno.EROFS, errno.EACCES])
+def test_an_artifact_to_build_in_a_directory_it_cannot_write_fails_before_its_build(
+        data_dir, monkeypatch, code):
+    """The directory is tried before the build starts (minutes of simulation would be
+    lost otherwise); the error names the artifact, not a temporary file."""
+    def refuse(*args, **kwargs):
+        raise OSError(code, os.strerror(code), "/somewhere/.tmp")
+
+    build = Builder()
+    monkeypatch.setattr(artifacts.tempfile, "mkstemp", refuse)
+    with pytest.raises(OSError) as caught:
+        artifacts.ensure("stage/out.npz", {"a": 1}, build, profile="smoke")
+    assert caught.value.errno == code and build.calls == 0
+    assert caught.value.filename == str(data_dir / "smoke" / "stage" / "out.npz")

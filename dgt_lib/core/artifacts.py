@@ -5,7 +5,9 @@ Every pipeline stage stores its output under ``data/<profile>/…`` through
 configuration, and built (then written atomically) otherwise. Beside each file
 ``X`` lies ``X.meta.json`` with the configuration hash, the file's size and its
 SHA-256, so a mismatched configuration, a truncated or otherwise corrupt file is
-detected, reported in one line and rebuilt — never silently used.
+detected, reported in one line and rebuilt — never silently used. A build holds an
+exclusive lock on ``X.lock`` beside the file: a second run on the same data directory
+waits for it and loads what it wrote instead of building it again.
 
 Formats follow the file suffix: ``.npz`` (a dict of numpy arrays), ``.json``,
 ``.pt`` (``torch.save``), anything else pickle.
@@ -13,17 +15,25 @@ Formats follow the file suffix: ``.npz`` (a dict of numpy arrays), ``.json``,
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
 import os
 import pickle
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+
+from dgt_lib.core.faults import STORAGE_ERRNOS
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks; runs on one data directory then race
+    fcntl = None
 
 T = TypeVar("T")
 
@@ -102,21 +112,47 @@ def new_file_mode() -> int:
     return 0o666 & ~mask
 
 
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+def _atomic_write(path: Path, write: Callable[[Path], None],
+                  needed_bytes: int | None = None) -> None:
     """Write through ``write(tmp_path)`` then rename: a crash never leaves half a file.
     The file gets :func:`new_file_mode` (the temporary file is private, 0o600, until then),
-    so others sharing the data directory can read it (docs/reliability.md)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    tmp_path = Path(tmp)
+    so others sharing the data directory can read it (docs/reliability.md). A full disk,
+    a read-only file system or a refused permission is an ``OSError`` naming ``path``
+    (not the temporary file) with ``needed_bytes`` when known
+    (:func:`dgt_lib.core.faults.storage_message` says it in one line)."""
+    tmp_path = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+        tmp_path = Path(tmp)
         write(tmp_path)
         os.chmod(tmp_path, new_file_mode())
         os.replace(tmp_path, path)
+    except OSError as exc:
+        if exc.errno not in STORAGE_ERRNOS:
+            raise
+        raise _naming(exc, path, needed_bytes) from exc
     finally:
-        if tmp_path.exists():
+        if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
+
+
+def _naming(exc: OSError, path: Path, needed_bytes: int | None = None) -> OSError:
+    """For a full, read-only or refused directory (``exc.errno`` in
+    :data:`~dgt_lib.core.faults.STORAGE_ERRNOS`): the same error naming the artifact
+    ``path`` — not a temporary file — with ``needed_bytes`` when known."""
+    err = OSError(exc.errno, os.strerror(exc.errno), str(path))
+    err.needed_bytes = needed_bytes
+    return err
+
+
+def _nbytes(value: Any) -> int | None:
+    """The bytes of a dict of arrays (what an ``.npz`` holds, uncompressed), else None."""
+    if isinstance(value, dict) and value and all(isinstance(v, np.ndarray)
+                                                 for v in value.values()):
+        return int(sum(v.nbytes for v in value.values()))
+    return None
 
 
 def save(path: Path, value: Any) -> None:
@@ -138,7 +174,7 @@ def save(path: Path, value: Any) -> None:
             with open(tmp, "wb") as f:
                 pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
 
-    _atomic_write(path, write)
+    _atomic_write(path, write, _nbytes(value))
 
 
 def load(path: Path) -> Any:
@@ -244,23 +280,68 @@ def ensure(
     place of the file's SHA-256, so the artifacts built on this one are keyed by content.
     """
     path = profile_dir(profile) / Path(relpath)
-    want = config_hash(config)
+    why, value = _load_if_fresh(path, config)
+    if why is None:
+        return value
+    with build_lock(path):  # one run builds it; another waits, then loads what it wrote
+        why, value = _load_if_fresh(path, config)
+        if why is None:
+            return value
+        if why != "missing":
+            log(f"[dgt] rebuilding {path}: {why}")
+        value = build()
+        save(path, value)
+        meta = {"config_hash": config_hash(config), "size": path.stat().st_size,
+                "sha256": _file_digest(path), "config": _jsonable(config)}
+        if fingerprint is not None:
+            meta["fingerprint"] = fingerprint(value)
+        _atomic_write(_meta_path(path), lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
+    return value
+
+
+def _load_if_fresh(path: Path, config: Any) -> tuple[str | None, Any]:
+    """``(None, value)`` for a valid artifact of ``config``, else ``(why not, None)``."""
     why = _check(path, config)
     if why is None:
         try:
-            return load(path)
+            return None, load(path)
         except Exception as exc:  # noqa: BLE001 - any failure to read means rebuild
             why = f"corrupt ({type(exc).__name__}: {exc})"
-    if why != "missing":
-        log(f"[dgt] rebuilding {path}: {why}")
-    value = build()
-    save(path, value)
-    meta = {"config_hash": want, "size": path.stat().st_size, "sha256": _file_digest(path),
-            "config": _jsonable(config)}
-    if fingerprint is not None:
-        meta["fingerprint"] = fingerprint(value)
-    _atomic_write(_meta_path(path), lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
-    return value
+    return why, None
+
+
+@contextlib.contextmanager
+def build_lock(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``<path>.lock`` beside the artifact while it is built:
+    runs sharing a data directory build it once (the others wait here, then load it)
+    instead of reading it half-way through and calling it corrupt. Inside, the directory
+    is known to be writable: a read-only or refused one raises its ``OSError`` (naming
+    ``path``) before anything is built. The lock file stays (removing it would let a
+    waiting run and a new one lock different files)."""
+    lock = path.with_name(path.name + ".lock")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # read-only suffices to lock, so a lock file another user made can be locked too
+        fd = os.open(lock, os.O_RDONLY | os.O_CREAT, 0o666)
+    except OSError as exc:
+        if exc.errno not in STORAGE_ERRNOS:
+            raise
+        raise _naming(exc, path) from exc
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX)  # released when fd is closed
+        try:  # a lock file made earlier opens on a read-only file system: try a file
+            probe, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                           suffix=".probe")
+        except OSError as exc:
+            if exc.errno not in STORAGE_ERRNOS:
+                raise
+            raise _naming(exc, path) from exc
+        os.close(probe)
+        os.unlink(name)
+        yield
+    finally:
+        os.close(fd)
 
 
 def stored_digest(relpath: str | Path, *, profile: str) -> str:

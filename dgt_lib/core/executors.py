@@ -30,6 +30,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from typing import Any
@@ -71,10 +72,34 @@ def init_worker() -> None:
     SIGINT ignored — a terminal's Ctrl-C reaches every process of the group, and the
     parent, not each worker, decides what happens (:func:`run_jobs` stops the pool).
     SIGTERM is the default's again (a forked worker inherits :func:`sigterm_as_interrupt`):
-    it is how the parent terminates a worker."""
+    it is how the parent terminates a worker. A worker whose parent is gone — killed by
+    SIGKILL or the out-of-memory killer, which no handler sees — ends itself
+    (:func:`exit_with_parent`)."""
     limit_threads()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    exit_with_parent()
+
+
+PARENT_POLL_S = 0.5
+"""How often a pool worker checks that its parent is alive [s]."""
+
+
+def exit_with_parent(poll_s: float = PARENT_POLL_S) -> threading.Thread:
+    """End this process within ``poll_s`` of its parent's death (a daemon thread watches
+    ``os.getppid()``: an orphan gets another parent); else a worker outlives a parent
+    killed by SIGKILL, finishing a job nobody will receive. Not ``prctl``'s death signal:
+    it follows the thread that started the worker, not the process."""
+    parent = getattr(multiprocessing.parent_process(), "pid", None) or os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(poll_s)
+        os._exit(1)  # no cleanup to run: the results had nobody to go to
+
+    thread = threading.Thread(target=watch, name="dgt-exit-with-parent", daemon=True)
+    thread.start()
+    return thread
 
 
 class Terminated(KeyboardInterrupt):

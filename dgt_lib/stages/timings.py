@@ -4,7 +4,9 @@ Each finished stage appends one JSON line to ``data/<profile>/stage_times.jsonl`
 started (UTC), the seed, the stage, its wall time [s], the machine's 1-minute load average
 when it started, the CPU count and how the jobs ran. Appending per stage keeps what
 finished when a run is interrupted or crashes later, and a stage that was already cached
-shows as a fraction of a second. A run's per-stage breakdown (:func:`stage_time_table`,
+shows as a fraction of a second. On a data directory that cannot be written (read-only,
+full) the times are not recorded, with one note on stderr, and the run goes on. A run's
+per-stage breakdown (:func:`stage_time_table`,
 ``benchmarks/stage_times.py``) can then be quoted from what the code wrote.
 """
 
@@ -12,10 +14,12 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
 from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.core.faults import is_storage_error
 from dgt_lib.stages.paths import profile_root
 
 STAGE_TIMES_NAME = "stage_times.jsonl"
@@ -63,10 +67,22 @@ def record_stage_time(profile: Profile, stage: str, seconds: float, *, run: str,
         "executor": prof.execution.executor, "device": prof.execution.device,
     }
     path = stage_times_path(prof)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("a", encoding="utf-8") as f:
-        f.write(json.dumps(record, ensure_ascii=False) + "\n")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("a", encoding="utf-8") as f:
+            f.write(json.dumps(record, ensure_ascii=False) + "\n")
+    except OSError as exc:
+        if not is_storage_error(exc):
+            raise
+        if path not in _UNWRITABLE:  # said once: a cached run on a read-only directory
+            _UNWRITABLE.add(path)
+            print(f"[dgt] stage times not recorded: cannot write {path} ({exc.strerror}); "
+                  "the summary shows them", file=sys.stderr)
     return record
+
+
+_UNWRITABLE: set[Path] = set()
+"""Stage-time logs this process could not write (each noted once)."""
 
 
 def read_stage_times(profile: Profile | str | None) -> list[dict]:
