@@ -226,7 +226,7 @@ def test_a_data_directory_that_cannot_be_one_is_one_line_before_any_work(
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / where))
     assert main(["reproduce", "--profile", "smoke"]) == 1
     err = capsys.readouterr().err
-    assert err.splitlines() == [f"dgt: error: {err.splitlines()[0][12:]}"]  # one line
+    assert len(err.splitlines()) == 1 and err.startswith("dgt: error: ")
     assert says in err and str(tmp_path / where) in err and "DGT_DATA_DIR" in err
     assert made_stage == []
 
