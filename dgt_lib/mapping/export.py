@@ -3,9 +3,11 @@
 :func:`write_geotiff`: one multi-band GeoTIFF (QGIS, rasterio, GDAL): band k + 1 is the
 cost layer of heading θ_k = 2πk/K (its description ``heading_k=k theta_deg=…``, the same
 as band tags; the binary method's one isotropic layer says so), the last band the
-occupancy map (0 free, 1 occupied, 2 unobserved). It is in the DEM's CRS and transform
-when the world came from one (a :class:`Georeference`), else in the world's metric frame
-with no CRS.
+occupancy map (0 free, 1 occupied, 2 unobserved), on the costmap's grid (its cells [m]). When
+the world came from a DEM (a :class:`Georeference`) it is in the CRS the world was built
+in: the DEM's own when projected, the UTM zone of its centre when in degrees (the map is
+not warped back to degrees: its cells stay square metres). Otherwise it is in the world's
+metric frame with no CRS.
 
 :func:`write_nav2`: for ROS 2 Nav2's map_server, one PGM image + YAML per heading
 (``mode: scale``: pixel 255·(1 − C), so 255 free … 0 lethal; occupied and unobserved

@@ -1,0 +1,251 @@
+"""Real terrain in, maps out: ``dgt plan`` and ``dgt costmap`` on a real DEM.
+
+The DEM ships with matplotlib (a dependency of the kit): ``jacksboro_fault_dem.npz``,
+344 × 403 elevations [m] on a 3 arc-second grid (about 74 m east-west × 93 m
+north-south) over the Jacksboro fault and Pine Mountain, Tennessee. It is SRTM elevation
+data, public domain, added to matplotlib's sample data in matplotlib pull request #3291
+(https://github.com/matplotlib/matplotlib/pull/3291). Row 0 is the north edge, as
+matplotlib's hillshading examples draw it (Pine Mountain then runs north-east, as it
+does).
+
+This script crops a window of it by slope statistics (:func:`choose_window`), writes it as
+a GeoTIFF in EPSG:4326 (longitude, latitude in degrees: the kit reprojects it to UTM),
+and with ``--figure`` plans carla_cola up and down the window on the profile's cached
+model and draws both plans::
+
+    python examples/real_dem.py                       # writes data/examples/jacksboro.tif
+    python examples/real_dem.py --figure docs/figures/jacksboro_plans.png --profile smoke
+
+The walkthrough, with the ``dgt`` commands: docs/usage.md, "A real DEM: the Jacksboro
+fault".
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+SAMPLE_NAME = "jacksboro_fault_dem.npz"
+EARTH_RADIUS_M = 6_371_008.8
+"""Mean Earth radius [m]: cell sizes in metres from degrees (a sphere: within 0.5 %)."""
+
+WINDOW_CELLS = 5
+"""Side of the window [DEM cells]: 5 × 5 cells ≈ 370 m × 460 m, 1.1 million height
+cells at the kit's 0.4 m (the kit maps at most 4 million)."""
+
+OCCUPIED_DEG = 27.0
+"""Ground steeper than this [deg] is an obstacle to every vehicle: τ_s, the occupancy
+map's gradient threshold, is 0.51 m/m (27°) in the ``smoke`` profile."""
+
+DEFAULT_OUT = Path("data/examples/jacksboro.tif")
+
+
+@dataclass(frozen=True)
+class SampleDem:
+    """matplotlib's Jacksboro DEM: heights (H, W) [m], row 0 the north edge; the grid's
+    north-west corner (``west``, ``north``) and its cell size ``step`` [deg]."""
+
+    heights: np.ndarray
+    west: float
+    north: float
+    step: float
+
+    def cell_size_m(self) -> tuple[float, float]:
+        """(east-west, north-south) size of a cell [m] at the grid's middle latitude."""
+        lat = np.radians(self.north - self.step * self.heights.shape[0] / 2)
+        dy = np.radians(self.step) * EARTH_RADIUS_M
+        return float(dy * np.cos(lat)), float(dy)
+
+    def patch_slopes_deg(self) -> tuple[np.ndarray, np.ndarray]:
+        """Slopes [deg] of the bilinear patches between four cell centres (what the kit's
+        bilinear resampling makes of the DEM), each (H - 1, W - 1): at the patch's centre,
+        and its steepest (at one of its corners: the gradient of a bilinear patch varies
+        linearly along each axis, so its norm peaks at a corner)."""
+        dx, dy = self.cell_size_m()
+        z = self.heights.astype(np.float64)
+        east = np.diff(z, axis=1) / dx  # (H, W - 1): top and bottom edges of each patch
+        north = -np.diff(z, axis=0) / dy  # (H - 1, W): its west and east edges
+        h, w = z.shape
+        corners = np.stack([np.hypot(east[a:a + h - 1], north[:, b:b + w - 1])
+                            for a in (0, 1) for b in (0, 1)])
+        centre = np.hypot((east[:-1] + east[1:]) / 2, (north[:, :-1] + north[:, 1:]) / 2)
+        return np.degrees(np.arctan(centre)), np.degrees(np.arctan(corners.max(axis=0)))
+
+
+def load_sample() -> SampleDem:
+    """The DEM from matplotlib's sample data (its 'xmin' is the west edge and its 'ymin'
+    the north edge: row 0; the cells are square in degrees)."""
+    from matplotlib.cbook import get_sample_data
+
+    with np.load(get_sample_data(SAMPLE_NAME, asfileobj=False)) as npz:
+        heights = npz["elevation"].astype(np.float32)
+        west, north, step = float(npz["xmin"]), float(npz["ymin"]), float(npz["dx"])
+        assert float(npz["dy"]) == step and float(npz["ymax"]) < north
+    return SampleDem(heights, west, north, step)
+
+
+def choose_window(dem: SampleDem, cells: int = WINDOW_CELLS, climb_deg: float | None = None,
+                  occupied_deg: float = OCCUPIED_DEG) -> tuple[int, int]:
+    """The (row, column) of the north-west cell of the ``cells`` × ``cells`` window that
+    mixes three kinds of ground most evenly: ground every vehicle climbs (gentler than
+    half of carla_cola's limit ``climb_deg``), ground carla_cola descends but cannot climb
+    (from ``climb_deg`` to ``occupied_deg``) and ground too steep for any vehicle (an
+    obstacle on the occupancy map). The score is the smallest of the three shares of the
+    window's patches (:meth:`SampleDem.patch_slopes_deg`: at their centres for the first
+    two, their steepest for the third); windows with a dead-flat patch (SRTM flattens
+    lakes to one height) are skipped; ties go to the larger relief, then to the first in
+    row order. ``climb_deg``: carla_cola's torque-limited climb (11.8°) by default."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    if climb_deg is None:
+        from dgt_lib.core.vehicles import get_vehicle
+
+        climb_deg = get_vehicle("carla_cola").max_climb_deg
+    centre, steepest = dem.patch_slopes_deg()
+    side = (cells - 1, cells - 1)  # patches per window side
+    centre, steepest = sliding_window_view(centre, side), sliding_window_view(steepest, side)
+    shares = [(centre < climb_deg / 2).mean(axis=(2, 3)),
+              ((centre > climb_deg) & (centre < occupied_deg)).mean(axis=(2, 3)),
+              (steepest > occupied_deg).mean(axis=(2, 3))]
+    score = np.where(steepest.min(axis=(2, 3)) > 0.0, np.minimum.reduce(shares), -1.0)
+    heights = sliding_window_view(dem.heights, (cells, cells))
+    relief = heights.max(axis=(2, 3)) - heights.min(axis=(2, 3))
+    best = np.lexsort((-relief.ravel(), -score.ravel()))[0]  # score first, then relief
+    return tuple(int(i) for i in np.unravel_index(best, score.shape))
+
+
+def write_window(path: str | Path, dem: SampleDem, row: int, col: int,
+                 cells: int = WINDOW_CELLS) -> Path:
+    """The window's heights as a one-band GeoTIFF in EPSG:4326 (float32 [m], no no-data
+    cells). Returns the path."""
+    from dgt_lib.world.dem import import_rasterio
+
+    rasterio = import_rasterio()
+    from rasterio.transform import Affine
+
+    window = dem.heights[row:row + cells, col:col + cells]
+    transform = Affine(dem.step, 0.0, dem.west + col * dem.step,
+                       0.0, -dem.step, dem.north - row * dem.step)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with rasterio.open(path, "w", driver="GTiff", height=cells, width=cells, count=1,
+                       dtype="float32", crs="EPSG:4326", transform=transform) as dst:
+        dst.write(window, 1)
+    return path
+
+
+UPHILL = ((60.0, 300.0, -np.pi / 2), (180.0, 25.0))
+"""carla_cola's query up the window: from the valley floor (x, y [m] from the map's
+south-west corner, heading south) to the hillside's upper slope; the downhill query is
+its reverse."""
+
+PLAN_SETTINGS = {"planner.max_time_s": 60.0}
+"""The plans' one change to the profile (``dgt plan --set planner.max_time_s=60``): the
+planner's time budget counts its 2D relaxation over the whole map, 1 million cells here,
+which on busy cores can take most of ``smoke``'s 10 s."""
+
+
+def plan_both_ways(world_path: Path, profile: str, vehicle: str = "carla_cola",
+                   method: str = "dgt") -> list:
+    """``dgt plan``'s engine on the window, up (:data:`UPHILL`) and back down, under
+    :data:`PLAN_SETTINGS`: two :class:`~dgt_lib.plan_one.QueryReport`."""
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.plan_one import plan_query
+
+    prof = get_profile(profile).with_overrides(PLAN_SETTINGS)
+    (sx, sy, yaw), (gx, gy) = UPHILL
+    return [plan_query(str(world_path), vehicle, start, goal, method=method, profile=prof)
+            for start, goal in [((sx, sy, yaw), (gx, gy)), ((gx, gy, yaw + np.pi), (sx, sy))]]
+
+
+def draw(dem: SampleDem, window: tuple[int, int], world_path: Path, costmap_path: Path,
+         reports: list, out: Path, profile: str) -> Path:
+    """Left: the whole sample DEM, hill-shaded, and the window. Right: the window as the
+    kit's world (heights, 10 m contours; metres from its south-west corner), the
+    occupancy read back from the ``dgt costmap`` GeoTIFF's last band, and the plans.
+    Saved as a PNG of at most 200 KB."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    import rasterio
+    from matplotlib.colors import LightSource
+
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.figures import save_png
+    from dgt_lib.plan_one import load_world
+
+    shade = LightSource(azdeg=315, altdeg=45)
+    fig, ax = plt.subplots(1, 2, figsize=(12, 5.2), gridspec_kw={"width_ratios": [1.1, 1]})
+    h, w = dem.heights.shape
+    dx, dy = dem.cell_size_m()
+    ax[0].imshow(shade.shade(dem.heights.astype(float), plt.cm.gist_earth, dx=dx, dy=dy,
+                             blend_mode="overlay"),
+                 extent=(dem.west, dem.west + w * dem.step, dem.north - h * dem.step, dem.north),
+                 aspect=dy / dx)
+    row, col = window
+    x0, y1 = dem.west + col * dem.step, dem.north - row * dem.step
+    side = WINDOW_CELLS * dem.step
+    ax[0].add_patch(plt.Rectangle((x0, y1 - side), side, side, fill=False, color="red", lw=2))
+    ax[0].set(title="matplotlib's Jacksboro DEM (SRTM, 3″) and the window",
+              xlabel="longitude [°]", ylabel="latitude [°]")
+    world, georef = load_world(str(world_path), get_profile(profile))
+    image = ax[1].imshow(world.heights, origin="lower", extent=world.extent, cmap="terrain")
+    fig.colorbar(image, ax=ax[1], shrink=0.8, label="height [m]")
+    levels = np.arange(np.ceil(world.heights.min() / 10) * 10, world.heights.max(), 10.0)
+    contours = ax[1].contour(world.heights, levels, origin="lower", extent=world.extent,
+                             colors="k", linewidths=0.4)
+    ax[1].clabel(contours, levels[::2], fontsize=7)
+    with rasterio.open(costmap_path) as src:
+        occupancy = src.read(src.count)[::-1]  # back to south row first
+    ax[1].imshow(np.ma.masked_equal(occupancy, 0), origin="lower", extent=world.extent,
+                 cmap="Reds", vmin=0, vmax=1.5, alpha=0.7)
+    for report, color, label in zip(reports, ("magenta", "orange"), ("up", "down"),
+                                    strict=True):
+        if report.plan.success:
+            ax[1].plot(report.plan.path[:, 0], report.plan.path[:, 1], color=color, lw=2,
+                       label=f"{label}: {report.plan.length_m:.0f} m")
+    (sx, sy, _), (gx, gy) = UPHILL
+    ax[1].plot(sx, sy, "ko", ms=6)
+    ax[1].plot(gx, gy, "k*", ms=11)
+    ax[1].legend(loc="upper right", fontsize=8)
+    ax[1].set(title=f"the window as a world: {world.heights.shape[1]} × "
+                    f"{world.heights.shape[0]} cells, occupied red",
+              xlabel="x east [m]", ylabel="y north [m]")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return save_png(fig, out, max_bytes=200_000)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="the GeoTIFF to write")
+    parser.add_argument("--figure", type=Path, help="also plan on it and draw the plans here")
+    parser.add_argument("--profile", default="smoke", help="profile of the plans (--figure)")
+    args = parser.parse_args(argv)
+    dem = load_sample()
+    row, col = choose_window(dem)
+    path = write_window(args.out, dem, row, col)
+    dx, dy = dem.cell_size_m()
+    print(f"window: rows {row}–{row + WINDOW_CELLS - 1}, columns {col}–{col + WINDOW_CELLS - 1} "
+          f"of {dem.heights.shape}, ≈ {WINDOW_CELLS * dx:.0f} m × {WINDOW_CELLS * dy:.0f} m, "
+          f"north-west corner {dem.west + col * dem.step:.5f}° E, "
+          f"{dem.north - row * dem.step:.5f}° N → {path}")
+    if args.figure is None:
+        return 0
+    from dgt_lib.costmap_export import export_costmap
+
+    costmap = export_costmap(str(path), "carla_cola", path.with_name(f"{path.stem}_carla_cola.tif"),
+                             profile=args.profile)[0]
+    reports = plan_both_ways(path, args.profile)
+    for report in reports:
+        print(report.summary())
+    print(draw(dem, (row, col), path, costmap, reports, args.figure, args.profile))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

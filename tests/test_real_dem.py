@@ -1,0 +1,116 @@
+"""A real DEM in and its costmap out: matplotlib's Jacksboro SRTM sample through
+examples/real_dem.py, `dgt_lib.world.dem` and `dgt costmap`."""
+
+import numpy as np
+import pytest
+
+from dgt_lib.cli import main
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.learning.synthetic import synthetic_dataset
+from dgt_lib.mapping.occupancy import FREE
+from dgt_lib.stages import costmaps, train
+from dgt_lib.stages.dataset import dataset_fingerprint
+from dgt_lib.world.dem import read_dem
+from examples.real_dem import WINDOW_CELLS, choose_window, load_sample, write_window
+
+rasterio = pytest.importorskip("rasterio")
+from rasterio.warp import transform_bounds  # noqa: E402
+
+PROFILE = get_profile("smoke")
+
+
+@pytest.fixture(scope="module")
+def sample():
+    dem = load_sample()
+    return dem, choose_window(dem)
+
+
+def test_the_sample_is_the_documented_grid(sample):
+    dem, _ = sample
+    assert dem.heights.shape == (344, 403)
+    assert dem.step == pytest.approx(1 / 1200)  # 3 arc-seconds
+    assert (dem.west, dem.north) == pytest.approx((-84.41375, 36.73291667))
+    dx, dy = dem.cell_size_m()
+    assert 74.0 < dx < 75.0 and 92.0 < dy < 93.0
+
+
+def test_the_window_is_a_geographic_geotiff_of_the_samples_cells(sample, tmp_path):
+    dem, (row, col) = sample
+    path = write_window(tmp_path / "jacksboro.tif", dem, row, col)
+    with rasterio.open(path) as src:
+        assert src.crs.to_epsg() == 4326 and src.shape == (WINDOW_CELLS, WINDOW_CELLS)
+        assert src.nodata is None
+        west, north = src.transform @ (0, 0)
+        assert (west, north) == pytest.approx((dem.west + col * dem.step,
+                                               dem.north - row * dem.step))
+        assert src.res == pytest.approx((dem.step, dem.step))
+        np.testing.assert_array_equal(src.read(1),
+                                      dem.heights[row:row + WINDOW_CELLS, col:col + WINDOW_CELLS])
+
+
+def test_the_window_becomes_a_metric_world_of_its_size_and_heights(sample, tmp_path):
+    dem, (row, col) = sample
+    path = write_window(tmp_path / "jacksboro.tif", dem, row, col)
+    res = PROFILE.worlds.hfield_resolution_m
+    world = read_dem(path, res)
+    assert rasterio.crs.CRS.from_wkt(world.georef.crs).to_epsg() == 32616  # UTM 16N
+    dx, dy = dem.cell_size_m()
+    h, w = world.heights.shape
+    # the rotation into UTM crops the corners it leaves empty: a few % of each side
+    assert 0.95 * WINDOW_CELLS * dx < w * res <= WINDOW_CELLS * dx * 1.001
+    assert 0.95 * WINDOW_CELLS * dy < h * res <= WINDOW_CELLS * dy * 1.001
+    source = dem.heights[row:row + WINDOW_CELLS, col:col + WINDOW_CELLS]
+    assert np.isfinite(world.heights).all()
+    assert world.heights.min() >= source.min() - 1e-3  # bilinear: no invented heights
+    assert world.heights.max() <= source.max() + 1e-3
+    assert np.ptp(world.heights) > 0.95 * np.ptp(source)
+    # the three kinds of ground the window was chosen for survive the resampling
+    slope = np.degrees(np.arctan(np.hypot(*np.gradient(world.heights.astype(float), res))))
+    climb = get_vehicle("carla_cola").max_climb_deg
+    assert (slope < climb / 2).mean() > 0.25  # every vehicle climbs it
+    assert ((slope > climb) & (slope < 27.0)).mean() > 0.25  # carla_cola only descends it
+    assert (slope > 27.0).mean() > 0.05  # an obstacle to all
+
+
+@pytest.mark.filterwarnings("ignore:.*near-constant")  # a model of 2 epochs learns little
+def test_dgt_costmap_on_the_window_writes_k_headings_in_utm(sample, tmp_path, monkeypatch,
+                                                             capsys):
+    """End to end on the smoke profile with a model trained on a synthetic dataset (no
+    driving episodes: seconds), on the 2 × 2 cells at the middle of the window (its survey takes a
+    sixth of the whole window's)."""
+    dem, (row, col) = sample
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    dataset = synthetic_dataset((120, 60, 60, 40), seed=0)
+    for module in (costmaps, train):  # where the model's key and its training look it up
+        monkeypatch.setattr(module, "ensure_dataset", lambda prof, progress=True: dataset)
+    monkeypatch.setattr(costmaps, "dataset_digest",
+                        lambda prof, progress=True: dataset_fingerprint(dataset))
+    path = write_window(tmp_path / "corner.tif", dem, row + 2, col + 2, cells=2)
+    out = tmp_path / "cola.tif"
+    assert main(["costmap", "--world", str(path), "--vehicle", "carla_cola", "--profile",
+                 "smoke", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == str(out)  # after the training notice
+    world = read_dem(path, PROFILE.worlds.hfield_resolution_m)
+    k = PROFILE.costmap.n_headings
+    with rasterio.open(out) as src:
+        assert src.count == k + 1 and src.crs.to_epsg() == 32616  # the world's CRS
+        assert src.shape == world.heights.shape and src.res == pytest.approx((0.4, 0.4))
+        assert (src.bounds.left, src.bounds.bottom) == pytest.approx(world.georef.origin)
+        assert src.descriptions[k // 4] == f"heading_k={k // 4} theta_deg=90.0"
+        bands = src.read()
+        lonlat = transform_bounds(src.crs, "EPSG:4326", *src.bounds)
+    with rasterio.open(path) as dem_file:
+        window = dem_file.bounds
+    # back in degrees, the costmap lies inside the DEM's window (to within one of its
+    # 0.4 m cells: reprojection keeps a cell whose centre is inside) and covers most of it
+    dx, dy = dem.cell_size_m()
+    tol_lon, tol_lat = 0.4 / dx * dem.step, 0.4 / dy * dem.step
+    assert window.left - tol_lon <= lonlat[0] and lonlat[2] <= window.right + tol_lon
+    assert window.bottom - tol_lat <= lonlat[1] and lonlat[3] <= window.top + tol_lat
+    assert (lonlat[2] - lonlat[0]) * (lonlat[3] - lonlat[1]) > 0.9 * (
+        (window.right - window.left) * (window.top - window.bottom))
+    free = bands[k] == FREE
+    assert free.mean() > 0.5
+    assert ((bands[:k, free] >= 0.0) & (bands[:k, free] <= 1.0)).all()
