@@ -48,7 +48,7 @@ figures: $(STAMP)
 	MUJOCO_GL=egl $(PY) -m dgt_lib.figures --profile demo
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check dgt_lib tests benchmarks studies
+	$(VENV)/bin/ruff check dgt_lib tests benchmarks studies examples
 
 clean-data:
 	rm -rf data/smoke data/demo data/paper

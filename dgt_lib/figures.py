@@ -171,6 +171,20 @@ def _commit() -> str:
         return "unknown"
 
 
+OTHER_FIGURES: dict[str, str] = {
+    "jacksboro_plans.png": "`python examples/real_dem.py --figure docs/figures/jacksboro_plans.png`"
+                           " (`smoke`): carla_cola's plans up and down a real DEM, the Jacksboro "
+                           "fault window (docs/usage.md).",
+    "map_inputs.png": "`python studies/map_inputs.py --profile demo --seeds 0 1 2 --variants rgbd "
+                      "shuffled geometry rgb --figure docs/figures/map_inputs.png`: what the "
+                      "network looks at (docs/map_inputs.md).",
+    "pose_noise.png": "`python studies/map_inputs.py --profile demo --seeds 0 1 2 --variants rgbd "
+                      "pose_high --figure docs/figures/pose_noise.png`: the claims under a noisy "
+                      "localisation (docs/map_inputs.md).",
+}
+"""Figures in the same folder drawn by scripts of their own, listed in its README."""
+
+
 def make_figures(profile: str | Profile = "demo", out: Path = OUT,
                  names: tuple[str, ...] = tuple(FIGURES)) -> list[Path]:
     """Draw the named figures of ``profile``'s run (its ``seed``) into ``out``; write
@@ -186,6 +200,8 @@ def make_figures(profile: str | Profile = "demo", out: Path = OUT,
              f"{', '.join(METHOD_LABELS.values())}.", ""]
     lines += [f"- [`{p.name}`]({p.name}): {' '.join(FIGURES[p.stem].__doc__.split())}"
               for p in paths]
+    lines += ["", "Drawn by scripts of their own:", ""]
+    lines += [f"- [`{name}`]({name}): {how}" for name, how in OTHER_FIGURES.items()]
     (out / "README.md").write_text("\n".join(lines) + "\n")
     return paths
 

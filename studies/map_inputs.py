@@ -196,6 +196,15 @@ def tables(scores: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def tick_label(variant: str) -> str:
+    """A variant's name, with its noise levels for the pose variants."""
+    cfg = VARIANTS[variant]
+    if "bev.pose_sigma_xy_m" not in cfg:
+        return variant
+    return (f"σ_xy {cfg['bev.pose_sigma_xy_m']:g} m\nσ_ψ {cfg['bev.pose_sigma_yaw_deg']:g}°\n"
+            f"σ_d {cfg['bev.pose_drift_m']:g} m")
+
+
 def figure(scores: list[dict], path: Path) -> None:
     """MAE per variant (mean over pairs, each seed a dot) and the ridge plans' share at the
     smoothed section."""
@@ -205,26 +214,29 @@ def figure(scores: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     variants = list(dict.fromkeys(s["variant"] for s in scores))
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.2), constrained_layout=True)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
     for i, var in enumerate(variants):
         mine = [s for s in scores if s["variant"] == var]
         mae = [np.mean([r["mae"] for r in s["accuracy"]]) for s in mine]
         smooth = [np.divide(*_share(s["plans"]["experiment2"], None, "smooth")) for s in mine]
         ascent = [np.divide(*_share(s["plans"]["experiment1"], "ascent", "A")) for s in mine]
+        descent = [np.divide(*_share(s["plans"]["experiment1"], "descent", "B")) for s in mine]
         axes[0].plot([i] * len(mae), mae, "o", color="C0")
         axes[0].bar(i, np.mean(mae), color="C0", alpha=0.3)
-        axes[1].plot(np.full(len(smooth), i - 0.12), smooth, "o", color="C1",
-                     label="ridge: smoothed crossing" if i == 0 else None)
-        axes[1].plot(np.full(len(ascent), i + 0.12), ascent, "s", color="C2",
-                     label="hill: ascent by Route A" if i == 0 else None)
+        for dx, share, marker, colour, text in (
+                (-0.18, smooth, "o", "C1", "ridge: van crosses at the smoothed section"),
+                (0.0, ascent, "s", "C2", "hill: carla_cola up by Route A"),
+                (0.18, descent, "v", "C3", "hill: carla_cola down by Route B")):
+            axes[1].plot(np.full(len(share), i + dx), share, marker, color=colour,
+                         label=text if i == 0 else None)
     for ax in axes:
-        ax.set_xticks(range(len(variants)), variants)
+        ax.set_xticks(range(len(variants)), [tick_label(v) for v in variants], fontsize=8)
     axes[0].set_ylabel("MAE vs measured ground truth")
     axes[0].set_title("costmap error (mean over world × vehicle)")
     axes[1].set_ylabel("share of plans as claimed")
     axes[1].set_ylim(-0.05, 1.05)
     axes[1].set_title("Experiments 1–2 plans (each seed a marker)")
-    axes[1].legend(loc="lower left", fontsize=8)
+    axes[1].legend(loc="center left", fontsize=7)
     fig.savefig(path, dpi=110)
     print(f"[map_inputs] wrote {path}")
 
