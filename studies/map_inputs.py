@@ -10,7 +10,7 @@ in Experiments 1 and 2.
 Variants (:data:`VARIANTS`, each a set of ``--set`` settings, fixed before any was run):
 ``rgbd`` the paper (every channel, true poses); ``geometry`` / ``rgb`` the network sees only
 H̄, σ_H, ‖∇H̄‖ / only the colours; ``shuffled`` every world's colour layer tile-permuted, so
-rock colour no longer marks steep or sharp ground; ``pose_*`` the frames of the training
+rock colour cannot mark steep or sharp ground; ``pose_*`` the frames of the training
 data and of the evaluation maps placed with per-frame position and heading noise and a
 drifting bias (``BEVConfig``).
 

@@ -174,7 +174,7 @@ class BEVConfig:
     pose_drift_m: float = 0.0
     # "observed": the colours the camera saw (the paper); "shuffled": the map's colour
     # layer cut into 6.4 m tiles and the tiles permuted, so colour keeps its statistics
-    # but no longer marks where the terrain is steep or sharp (input attribution). One of
+    # but cannot mark where the terrain is steep or sharp (input attribution). One of
     # BEV_COLOURS.
     colour: str = "observed"
 
