@@ -163,7 +163,8 @@ def _reproduce(args: argparse.Namespace) -> int:
             if stage.report:  # figures, tables and recordings: the top level's
                 from dgt_lib.report import report_stage
 
-                result = report_stage(stage.name, run, result)
+                with faults.report_writes(f"the {stage.name} report"):
+                    result = report_stage(stage.name, run, result)
             seconds = time.perf_counter() - t0
             record_stage_time(run, stage.name, seconds, run=invocation,
                               started_unix_s=started, load_before=load)

@@ -436,3 +436,19 @@ def test_dgt_plan_on_a_read_only_data_directory_with_everything_cached_prints_th
         "  figure and rerun recording not written: cannot write "
         f"{data / 'smoke' / 'seed-0' / 'plans'}/tiny_jeep_binary_8.0_16.0_0deg_to_40.0_16.0_")
     assert "(read-only file system)" in said[0]
+
+
+def test_a_report_that_cannot_be_written_is_one_line_and_the_run_goes_on(tmp_path, capsys):
+    """A fully cached run rewrites its tables and figures: on a read-only or full disk that
+    is one line, never the end of a run whose results are all stored."""
+    import errno as errno_
+
+    from dgt_lib.core.faults import report_writes
+
+    with report_writes("results/accuracy.md"):
+        raise OSError(errno_.EROFS, "Read-only file system", str(tmp_path / "accuracy.md"))
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "results/accuracy.md not written" in err
+    assert "Read-only file system" in err and "cached results stand" in err
+    with pytest.raises(OSError), report_writes("x"):  # other errors are not hidden
+        raise OSError(errno_.EISDIR, "Is a directory")

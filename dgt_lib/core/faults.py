@@ -6,9 +6,12 @@ instead of showing a traceback.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import shutil
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES,
@@ -121,3 +124,17 @@ def explain(exc: BaseException) -> str | None:
     if is_storage_error(exc):
         return storage_message(exc)
     return gave_up_message(exc)
+
+
+@contextlib.contextmanager
+def report_writes(what: str) -> Iterator[None]:
+    """Around writing a report the cache does not need (tables, figures, recordings): a
+    read-only or full disk is one line on stderr and the run goes on, so a fully cached run
+    on a read-only data directory still succeeds; the stored results stand."""
+    try:
+        yield
+    except OSError as exc:
+        if not is_storage_error(exc):
+            raise
+        print(f"[dgt] {what} not written: {exc.strerror} ({exc.filename}); the cached "
+              "results stand", file=sys.stderr)

@@ -16,6 +16,7 @@ from functools import lru_cache
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import BEVConfig, Profile, as_profile, get_profile
+from dgt_lib.core.faults import report_writes
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult, run_experiment
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import classify_route
@@ -99,8 +100,9 @@ def ensure_experiment(name: str, profile: Profile | str | None = None, *,
     world = get_world(result.world, prof)
     for r in result.results:  # routes follow the current classification rule
         r.route = classify_route(world, r.path)
-    (out / "results").mkdir(parents=True, exist_ok=True)
-    (out / "results" / f"{stem}.md").write_text(result.markdown(PAPER.get(name)))
+    with report_writes(f"results/{stem}.md"):
+        (out / "results").mkdir(parents=True, exist_ok=True)
+        (out / "results" / f"{stem}.md").write_text(result.markdown(PAPER.get(name)))
     return result
 
 

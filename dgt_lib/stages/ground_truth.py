@@ -28,6 +28,7 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.executors import run_jobs
+from dgt_lib.core.faults import report_writes
 from dgt_lib.core.geometry import heading_bins
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation import accuracy
@@ -224,8 +225,9 @@ def ensure_costmap_accuracy(profile: Profile | str | None = None, *,
 
     result = artifacts.ensure(ACCURACY_RELPATH, config, build, profile=cache_dir(prof))
     out = data_dir(prof) / "results"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "accuracy.md").write_text(accuracy_markdown(result))
+    with report_writes("results/accuracy.md"):
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "accuracy.md").write_text(accuracy_markdown(result))
     return result
 
 
