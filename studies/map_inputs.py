@@ -251,6 +251,8 @@ def main() -> None:
                         help="where the variants' data and scores go (default: "
                              "<data>/studies/map_inputs)")
     parser.add_argument("--figure", type=Path, default=None, help="figure path (default: in --out)")
+    parser.add_argument("--stored", action="store_true",
+                        help="tables and figure from the scores already stored; compute nothing")
     parser.add_argument("--one", nargs=2, metavar=("VARIANT", "SEED"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     from dgt_lib.core import artifacts
@@ -263,7 +265,12 @@ def main() -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(result, indent=1))
         return
-    scores = [run_one(v, args.profile, s, base, out) for v in args.variants for s in args.seeds]
+    if args.stored:
+        paths = [out / "scores" / f"{v}_seed{s}.json" for v in args.variants for s in args.seeds]
+        scores = [json.loads(p.read_text()) for p in paths if p.exists()]
+    else:
+        scores = [run_one(v, args.profile, s, base, out) for v in args.variants
+                  for s in args.seeds]
     print(tables(scores))
     figure(scores, args.figure or out / "map_inputs.png")
 

@@ -14,7 +14,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def test_the_committed_figures_are_small_and_every_one_is_shown():
     committed = sorted(p.name for p in figures.OUT.glob("*.png"))
-    assert committed == sorted(f"{name}.png" for name in figures.FIGURES)
+    assert committed == sorted([f"{name}.png" for name in figures.FIGURES]
+                               + list(figures.OTHER_FIGURES))
     assert [p.name for p in figures.OUT.glob("*.png") if p.stat().st_size > figures.MAX_BYTES] == []
     shown = set(re.findall(r"figures/(\w+\.png)", "\n".join(
         p.read_text() for p in [ROOT / "README.md", *(ROOT / "docs").glob("*.md")])))
@@ -22,6 +23,8 @@ def test_the_committed_figures_are_small_and_every_one_is_shown():
     source = (figures.OUT / "README.md").read_text()
     assert re.search(r"--profile \w+ --seed \d+` from the `\w+` profile's run seed \d+, "
                      r"with the code at commit `\w+", source)
+    for name in figures.OTHER_FIGURES:  # the scripts' own figures, each saying how it is drawn
+        assert f"[`{name}`]({name})" in source
 
 
 def test_a_figure_too_large_is_saved_with_a_palette_that_keeps_its_colours(tmp_path):
