@@ -169,15 +169,16 @@ def tables(scores: list[dict]) -> str:
     variants = list(dict.fromkeys(s["variant"] for s in scores))
     pairs = list(dict.fromkeys((r["world"], r["vehicle"]) for r in scores[0]["accuracy"]))
     seeds = sorted({s["seed"] for s in scores})
-    head = "| variant | " + " | ".join(f"{w} {v}" for w, v in pairs) + " | mean |"
-    lines = [f"MAE against the ground truth (mean ± std over seeds {seeds}):", "", head,
-             "|---" * (len(pairs) + 2) + "|"]
+    head = "| variant | seeds | " + " | ".join(f"{w} {v}" for w, v in pairs) + " | mean |"
+    lines = [f"MAE against the ground truth (mean ± std over the seeds of {seeds} run):", "",
+             head, "|---" * (len(pairs) + 3) + "|"]
     for var in variants:
         mine = [s for s in scores if s["variant"] == var]
         per_pair = [[next(r["mae"] for r in s["accuracy"] if (r["world"], r["vehicle"]) == p)
                      for s in mine] for p in pairs]
         cells = [f"{np.mean(x):.3f} ± {np.std(x):.3f}" for x in per_pair]
-        lines.append(f"| {var} | " + " | ".join(cells) + f" | {np.mean(per_pair):.3f} |")
+        ids = ", ".join(str(s["seed"]) for s in mine)
+        lines.append(f"| {var} | {ids} | " + " | ".join(cells) + f" | {np.mean(per_pair):.3f} |")
     lines += ["", "Plans (planned, not driven; per seed):", "",
               "| variant | hill ascents by Route A | hill descents by Route B | "
               "ridge crossings at the smoothed section | van cost sharp / smooth (N) |",
