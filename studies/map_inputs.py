@@ -237,7 +237,7 @@ def figure(scores: list[dict], path: Path) -> None:
     axes[1].set_ylabel("share of plans as claimed")
     axes[1].set_ylim(-0.05, 1.05)
     axes[1].set_title("Experiments 1–2 plans (each seed a marker)")
-    axes[1].legend(loc="center left", fontsize=7)
+    axes[1].legend(loc="best", fontsize=7)
     fig.savefig(path, dpi=110)
     print(f"[map_inputs] wrote {path}")
 
