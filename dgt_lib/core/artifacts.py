@@ -22,7 +22,7 @@ import json
 import os
 import pickle
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -77,6 +77,16 @@ def _jsonable(obj: Any, memo: dict[int, Any] | None = None) -> Any:
     if obj is None or isinstance(obj, (str, int, float, bool)):
         return obj
     raise TypeError(f"cannot hash configuration value of type {type(obj).__name__}: {obj!r}")
+
+
+def key_without_later_fields(config: Any, later: Mapping[str, object]) -> dict[str, object]:
+    """A dataclass ``config`` as a cache key sees it, leaving out each field of ``later``
+    (fields added after artifacts were cached) while it has the value that computes exactly
+    as before the field existed: the stored artifacts keep their keys; any other value is in
+    the key. Hashes as the dataclass itself would (:func:`config_hash`)."""
+    return {"__type__": type(config).__name__,
+            **{k: v for k, v in dataclasses.asdict(config).items()
+               if not (k in later and v == later[k])}}
 
 
 def config_hash(config: Any) -> str:

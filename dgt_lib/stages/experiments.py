@@ -11,7 +11,6 @@ The stage's figures, report and recordings are written by the top level
 
 from __future__ import annotations
 
-import dataclasses
 from functools import lru_cache
 
 from dgt_lib.core import artifacts
@@ -59,9 +58,7 @@ as before they existed: left out of the key while they have it (as
 def experiment_config(name: str, prof: Profile) -> dict[str, object]:
     """What an experiment's trials depend on (its cache key); the ``bev`` settings only when
     they differ from the paper's (true poses, observed colours)."""
-    experiments = {"__type__": type(prof.experiments).__name__,
-                   **{k: v for k, v in dataclasses.asdict(prof.experiments).items()
-                      if not (k in LATER_EXPERIMENT_FIELDS and v == LATER_EXPERIMENT_FIELDS[k])}}
+    experiments = artifacts.key_without_later_fields(prof.experiments, LATER_EXPERIMENT_FIELDS)
     cfg = {"stage": name, "experiments": experiments, "planner": prof.planner,
            "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof),
            "physics": PHYSICS}

@@ -8,7 +8,6 @@ each model by what determines it (dataset, settings, seed) and stores it under
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -83,10 +82,7 @@ models already trained (hours for ``paper``) stay valid; any other value is in t
 
 def train_key(cfg: TrainConfig) -> dict[str, object]:
     """``cfg`` as the model cache key sees it (see :data:`LATER_TRAIN_FIELDS`)."""
-    fields = dataclasses.asdict(cfg)
-    return {"__type__": type(cfg).__name__,
-            **{k: v for k, v in fields.items()
-               if not (k in LATER_TRAIN_FIELDS and v == LATER_TRAIN_FIELDS[k])}}
+    return artifacts.key_without_later_fields(cfg, LATER_TRAIN_FIELDS)
 
 
 def rgb_weights_for(cfg: TrainConfig, rgb_weights: str | Path | None) -> Path | str | None:
