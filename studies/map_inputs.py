@@ -30,12 +30,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
+from variant_runs import link, stored_or_run, write_scores
 
 VARIANTS: dict[str, dict[str, object]] = {
     "rgbd": {},
@@ -57,14 +55,6 @@ RIDGE_LANDMARKS = ("sharp_crossing", "smooth_crossing")
 NORTH = 2  # heading layer θ = π/2 of K = 8: across the ridge
 
 
-def _link(target: Path, link: Path) -> None:
-    """``link`` → ``target`` (a directory of the profile's run), made once."""
-    if link.is_symlink() or not target.exists():
-        return
-    link.parent.mkdir(parents=True, exist_ok=True)
-    link.symlink_to(target.resolve(), target_is_directory=True)
-
-
 def variant_root(variant: str, base: Path, out: Path) -> Path:
     """The data directory a variant's artifacts go to."""
     return base if not VARIANTS[variant] else out / variant
@@ -75,9 +65,9 @@ def prepare(variant: str, profile: str, seed: int, base: Path, out: Path) -> Pat
     root = variant_root(variant, base, out)
     if root == base:
         return root
-    _link(base / profile / "ground_truth", root / profile / "ground_truth")
+    link(base / profile / "ground_truth", root / profile / "ground_truth")
     if not any(k.startswith("bev.pose") for k in VARIANTS[variant]):
-        _link(base / profile / f"seed-{seed}" / "episodes",
+        link(base / profile / f"seed-{seed}" / "episodes",
               root / profile / f"seed-{seed}" / "episodes")
     return root
 
@@ -151,11 +141,8 @@ def run_one(variant: str, profile: str, seed: int, base: Path, out: Path) -> dic
     if path.exists():
         return json.loads(path.read_text())
     root = prepare(variant, profile, seed, base, out)
-    env = {**os.environ, "DGT_DATA_DIR": str(root)}
-    print(f"[map_inputs] {variant} seed {seed} in {root}", flush=True)
-    subprocess.run([sys.executable, __file__, "--one", variant, str(seed), "--profile", profile,
-                    "--out", str(out)], env=env, check=True)
-    return json.loads(path.read_text())
+    return stored_or_run(path, root, [__file__, "--one", variant, str(seed), "--profile",
+                                      profile, "--out", str(out)], f"{variant} seed {seed}")
 
 
 def _share(routes: dict[str, dict[str, int]], label: str | None, route: str) -> tuple[int, int]:
@@ -262,9 +249,7 @@ def main() -> None:
     out = (args.out or base / "studies" / "map_inputs").resolve()
     if args.one:
         result = score(args.one[0], args.profile, int(args.one[1]))
-        path = out / "scores" / f"{args.one[0]}_seed{args.one[1]}.json"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(result, indent=1))
+        write_scores(out / "scores" / f"{args.one[0]}_seed{args.one[1]}.json", result)
         return
     if args.stored:
         paths = [out / "scores" / f"{v}_seed{s}.json" for v in args.variants for s in args.seeds]

@@ -37,6 +37,7 @@ from dgt_lib.core.constraints import (  # the choices of TrainConfig's text sett
     LABEL_WEIGHTINGS,
     LR_SCHEDULES,
     SELECTIONS,
+    VEHICLES,
     check_settings,
 )
 from dgt_lib.core.overrides import apply_overrides, format_setting
@@ -44,10 +45,6 @@ from dgt_lib.core.overrides import apply_overrides, format_setting
 PROFILE_NAMES: tuple[str, ...] = ("smoke", "demo", "paper")
 DEFAULT_PROFILE = "demo"
 ENV_VAR = "DGT_PROFILE"
-
-
-VEHICLES: tuple[str, ...] = ("jeep", "vw_van", "mercedes_van", "carla_cola")
-"""The four vehicles, in head order (docs/ARCHITECTURE.md → Conventions)."""
 
 
 @dataclass(frozen=True)
@@ -146,14 +143,23 @@ class TrainConfig:
     # ‖∇H̄‖; "rgb", only the colours. The channels left out enter as their training mean
     # (the input attribution study, README). One of INPUTS.
     inputs: str = "rgbd"
+    # Data scarcity (the Claim 4 study, learning/scarcity.py): train on only a fraction
+    # ``scarce_fraction`` of ``scarce_vehicle``'s training runs (whole runs, drawn by the run
+    # seed; validation and test splits untouched). "" = every run (the paper).
+    scarce_vehicle: str = ""
+    scarce_fraction: float = 1.0
 
     def __post_init__(self):
         for name, valid in (("head_init", HEAD_INITS), ("label_weighting", LABEL_WEIGHTINGS),
                             ("lr_schedule", LR_SCHEDULES), ("selection", SELECTIONS),
-                            ("conv_taps", CONV_TAPS), ("inputs", INPUTS)):
+                            ("conv_taps", CONV_TAPS), ("inputs", INPUTS),
+                            ("scarce_vehicle", ("",) + VEHICLES)):
             if getattr(self, name) not in valid:
                 raise ValueError(f"unknown {name} {getattr(self, name)!r}; valid: "
                                  f"{', '.join(valid)}")
+        if 0 < self.scarce_fraction < 1 and not self.scarce_vehicle:  # (others: SETTING_RULES)
+            raise ValueError("train.scarce_fraction needs train.scarce_vehicle: whose runs "
+                             "to thin out")
 
 
 @dataclass(frozen=True)

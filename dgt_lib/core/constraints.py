@@ -25,6 +25,9 @@ INPUTS: tuple[str, ...] = ("rgbd", "geometry", "rgb")
 """Valid ``TrainConfig.head_init``, ``label_weighting``, ``lr_schedule``, ``selection``,
 ``conv_taps`` and ``inputs`` values (re-exported by :mod:`dgt_lib.core.config`; checked when
 a ``TrainConfig`` is made, so ``--set`` fails at once)."""
+VEHICLES: tuple[str, ...] = ("jeep", "vw_van", "mercedes_van", "carla_cola")
+"""The four vehicles, in head order (docs/ARCHITECTURE.md → Conventions; re-exported by
+:mod:`dgt_lib.core.config`)."""
 BEV_COLOURS: tuple[str, ...] = ("observed", "shuffled")
 """Valid ``BEVConfig.colour`` values."""
 
@@ -131,7 +134,8 @@ SETTING_RULES: dict[str, Rule] = {
     "train.label_weighting": one_of(*LABEL_WEIGHTINGS), "train.label_bins": COUNT,
     "train.max_label_weight": POSITIVE, "train.lr_schedule": one_of(*LR_SCHEDULES),
     "train.selection": one_of(*SELECTIONS), "train.conv_taps": one_of(*CONV_TAPS),
-    "train.inputs": one_of(*INPUTS),
+    "train.inputs": one_of(*INPUTS), "train.scarce_vehicle": one_of("", *VEHICLES),
+    "train.scarce_fraction": above_up_to(0, 1),
     "costmap.n_headings": COUNT, "costmap.stride": each(COUNT, 2), "costmap.batch_size": COUNT,
     "costmap.slope_trials": COUNT, "costmap.tau_s_margin": POSITIVE,
     "planner.step_m": POSITIVE, "planner.beta": NON_NEGATIVE,

@@ -28,6 +28,7 @@ from dgt_lib.core.config import TrainConfig
 from dgt_lib.learning.checkpoints import TrainResult, save_checkpoint
 from dgt_lib.learning.model import DGTNet
 from dgt_lib.learning.resume import TrainingState, load_training_state, training_identity
+from dgt_lib.learning.scarcity import keep_runs
 from dgt_lib.learning.training import (
     FitHooks,
     FitState,
@@ -258,8 +259,12 @@ def train_model(
     initialisation and batch order (same seed, same weights on the CPU with the same
     thread count). rgb_weights: torchvision's ImageNet ResNet-18 file for the RGB branch
     (width 64). ``run``: the run's bookkeeping (checkpoint, snapshots and resume, Ctrl-C,
-    live callback), as :func:`train_network` takes it.
+    live callback), as :func:`train_network` takes it. With ``cfg.scarce_vehicle`` only
+    a fraction of that vehicle's training runs is used (:func:`~dgt_lib.learning.scarcity.
+    keep_runs`, drawn by ``seed``).
     """
+    if cfg.scarce_vehicle:
+        dataset = keep_runs(dataset, cfg.scarce_vehicle, cfg.scarce_fraction, seed)
     data = TrainingSet.select(dataset, vehicles, cfg)
     device = resolve_device(device)
     torch.manual_seed(seed)
