@@ -181,6 +181,9 @@ OTHER_FIGURES: dict[str, str] = {
     "pose_noise.png": "`python studies/map_inputs.py --profile demo --seeds 0 1 2 --variants rgbd "
                       "pose_mid pose_high --figure docs/figures/pose_noise.png`: the claims "
                       "under a noisy localisation (docs/map_inputs.md).",
+    "scarcity.png": "`python studies/scarcity.py --profile demo --seeds 0 1 2 --stored --figure "
+                    "docs/figures/scarcity.png`: when multi-task learning helps, error against "
+                    "one vehicle's training patches (docs/scarcity.md).",
 }
 """Figures in the same folder drawn by scripts of their own, listed in its README."""
 
