@@ -1,0 +1,41 @@
+"""Zero-shot: each named vehicle left out of the conditioned network's training in turn,
+its costmap predicted from its spec alone and scored against its ground truth beside the
+maps it could otherwise get (its own head, the nearest seen vehicle's, Slope-Based from its
+climb)."""
+
+import numpy as np
+
+from dgt_lib.beyond.conditioned import nearest_vehicle
+from dgt_lib.core.config import VEHICLES
+from dgt_lib.evaluation.ground_truth import GroundTruth
+from dgt_lib.stages import zero_shot
+from tests import test_conditioned_stage as stage_tests
+from tests.test_conditioned_stage import PROFILE
+
+dataset, ramp_world = stage_tests.dataset, stage_tests.ramp_world  # the fixtures
+
+
+def _ground_truth(vehicle: str, bev) -> GroundTruth:
+    k = PROFILE.costmap.n_headings
+    cells = np.array([[6.2, 8.2], [10.2, 8.2], [12.2, 6.2]])
+    headings = np.linspace(0.0, 2 * np.pi, k, endpoint=False)
+    locomotion = np.tile(1.0 - 0.5 * (np.cos(headings) > 0.5), (3, 1))  # +x is uphill
+    return GroundTruth("ramp", vehicle, cells, np.zeros(3, np.int64), headings, locomotion,
+                       np.zeros((3, k), np.int8), np.full((3, k), 5.0), np.zeros((3, k)))
+
+
+def test_zero_shot_scores_every_comparison_for_each_left_out_vehicle(ramp_world, monkeypatch):
+    monkeypatch.setattr(zero_shot, "scored_worlds", lambda vehicle: ("ramp",))
+    monkeypatch.setattr(zero_shot, "ensure_ground_truths", lambda pairs, prof, progress=True:
+                        {p: _ground_truth(p[1], ramp_world) for p in pairs})
+    for vehicle in VEHICLES:
+        result = zero_shot.zero_shot_scores(vehicle, PROFILE, plans=False, progress=False)
+        methods = [r["method"] for r in result["rows"]]
+        assert methods == list(zero_shot.ZERO_SHOT_METHODS)
+        assert result["nearest"] == nearest_vehicle(vehicle, [v for v in VEHICLES
+                                                              if v != vehicle])[0]
+        assert result["nearest"] != vehicle
+        for row in result["rows"]:
+            assert row["vehicle"] == vehicle and row["n"] > 0 and 0 <= row["mae"] <= 1
+    zs = {r["method"]: r["mae"] for r in result["rows"]}
+    assert zs["zero-shot"] != zs["own head"]  # two networks, two maps
