@@ -127,8 +127,10 @@ def ensure_conditioned_costmaps(world: World | str, specs: tuple[VehicleSpec | s
     """{vehicle name: cost (K, H, W)} of the conditioned model trained without
     ``leave_out`` for ``specs`` (any vehicles: named, read from a file, generated) on a
     world, by the kit's costmap inference and settings; cached as
-    ``costmaps/<world>/<model stem>_for_<names>.npz``, keyed by the BEV map, the model's
-    digest, the specs themselves and the inference settings."""
+    ``costmaps/<world>/conditioned/<model stem>_for_<names>.npz`` (a folder of their own:
+    the accuracy stage's key holds the digests of the files in ``costmaps/<world>/``),
+    keyed by the BEV map, the model's digest, the specs themselves and the inference
+    settings."""
     prof = as_profile(profile)
     specs = tuple(get_vehicle(s) for s in specs)
     names = [s.name for s in specs]
@@ -150,5 +152,5 @@ def ensure_conditioned_costmaps(world: World | str, specs: tuple[VehicleSpec | s
         return dict(zip(names, cost, strict=True))
 
     key = world_key(world, bev_path)
-    return artifacts.ensure(f"costmaps/{key}/{stem}_for_{'+'.join(names)}.npz", config, build,
-                            profile=cache_dir(prof))
+    return artifacts.ensure(f"costmaps/{key}/conditioned/{stem}_for_{'+'.join(names)}.npz",
+                            config, build, profile=cache_dir(prof))
