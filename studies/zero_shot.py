@@ -10,7 +10,8 @@ Per (seed, left-out vehicle) it builds through the cache (the profile's data dir
 truth as ``dgt reproduce``) the conditioned model trained without the vehicle, and scores
 on every world whose experiments use the vehicle the maps of
 :data:`dgt_lib.stages.zero_shot.ZERO_SHOT_METHODS`: zero-shot, its own multi-task head, the
-nearest seen vehicle's head (multi-task, and conditioned), Slope-Based from its climb.
+nearest seen vehicle's head (multi-task, and conditioned), Slope-Based from its climb; the
+same predictors on the vehicle's test patches.
 Where the vehicle is Experiment 1's (carla_cola, hill) or 2's (mercedes_van, ridge) every
 map also plans the experiment's queries (the paper's 20 and 50; planned, not driven).
 Each (seed, vehicle) is stored as ``<out>/scores/seed<S>_without_<vehicle>.json`` once
@@ -71,6 +72,22 @@ def mae_table(scores: list[dict]) -> str:
                 cells.append(f"{np.mean(x):.3f} ± {np.std(x):.3f}")
             lines.append(f"| {world} | {vehicle} (nearest: {nearest}) | "
                          f"{', '.join(str(s['seed']) for s in mine)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def patch_table(scores: list[dict]) -> str:
+    """Markdown: MAE on each left-out vehicle's test patches, mean ± std over seeds."""
+    lines = ["MAE on the vehicle's test patches against their labels L (mean ± std over seeds):",
+             "", "| vehicle | patches | " + " | ".join(ZERO_SHOT_METHODS) + " |",
+             "|---" * (len(ZERO_SHOT_METHODS) + 2) + "|"]
+    for vehicle in VEHICLES:
+        mine = [s for s in scores if s["vehicle"] == vehicle and "patches" in s]
+        if mine:
+            cells = [f"{np.mean([s['patches'][m]['mae'] for s in mine]):.3f} ± "
+                     f"{np.std([s['patches'][m]['mae'] for s in mine]):.3f}"
+                     for m in ZERO_SHOT_METHODS]
+            n = ", ".join(str(s["patches"]["zero-shot"]["n"]) for s in mine)
+            lines.append(f"| {vehicle} | {n} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -139,6 +156,7 @@ def main() -> None:
     else:
         scores = [run_one(args.profile, s, v, out) for s in args.seeds for v in args.vehicles]
     print(mae_table(scores))
+    print(patch_table(scores))
     print(plan_table(scores))
     figure(scores, args.figure or out / "zero_shot.png")
 

@@ -24,8 +24,10 @@ def _ground_truth(vehicle: str, bev) -> GroundTruth:
                        np.zeros((3, k), np.int8), np.full((3, k), 5.0), np.zeros((3, k)))
 
 
-def test_zero_shot_scores_every_comparison_for_each_left_out_vehicle(ramp_world, monkeypatch):
+def test_zero_shot_scores_every_comparison_for_each_left_out_vehicle(ramp_world, dataset,
+                                                                     monkeypatch):
     monkeypatch.setattr(zero_shot, "scored_worlds", lambda vehicle: ("ramp",))
+    monkeypatch.setattr(zero_shot, "ensure_dataset", lambda prof, progress=True: dataset)
     monkeypatch.setattr(zero_shot, "ensure_ground_truths", lambda pairs, prof, progress=True:
                         {p: _ground_truth(p[1], ramp_world) for p in pairs})
     for vehicle in VEHICLES:
@@ -37,5 +39,8 @@ def test_zero_shot_scores_every_comparison_for_each_left_out_vehicle(ramp_world,
         assert result["nearest"] != vehicle
         for row in result["rows"]:
             assert row["vehicle"] == vehicle and row["n"] > 0 and 0 <= row["mae"] <= 1
+        n_test = int(((dataset.split == 2) & (dataset.vehicle == VEHICLES.index(vehicle))).sum())
+        assert list(result["patches"]) == list(zero_shot.ZERO_SHOT_METHODS)
+        assert all(m["n"] == n_test > 0 for m in result["patches"].values())
     zs = {r["method"]: r["mae"] for r in result["rows"]}
     assert zs["zero-shot"] != zs["own head"]  # two networks, two maps

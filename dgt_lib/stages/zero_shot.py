@@ -18,7 +18,9 @@ vehicle never driven could otherwise get, and its own:
   (:func:`~dgt_lib.mapping.baselines.climb_slope_model`).
 
 Where the vehicle is Experiment 1's or 2's, every map also plans the experiment's queries
-(:func:`~dgt_lib.stages.planned.planned_routes`: planned, not driven).
+(:func:`~dgt_lib.stages.planned.planned_routes`: planned, not driven). The same predictors
+are also scored on the vehicle's test patches against their labels (:func:`patch_scores`):
+many more samples than the ground truth's cells, of the training world's terrain.
 """
 
 from __future__ import annotations
@@ -28,12 +30,18 @@ import numpy as np
 from dgt_lib.beyond.conditioned import nearest_vehicle
 from dgt_lib.core.config import VEHICLES, Profile, as_profile
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.mapping.baselines import climb_slope_model, slope_costmap
+from dgt_lib.mapping.baselines import SlopePredictor, climb_slope_model, slope_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.stages.conditioned import ensure_conditioned_costmaps, seen_vehicles
+from dgt_lib.stages.conditioned import (
+    ensure_conditioned_costmaps,
+    ensure_conditioned_model,
+    seen_vehicles,
+)
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_world_costmaps
+from dgt_lib.stages.dataset import ensure_dataset
 from dgt_lib.stages.ground_truth import GROUND_TRUTH_WORLDS, ensure_ground_truths, score_costmap
 from dgt_lib.stages.planned import PLANNED, planned_routes, planning_profile
+from dgt_lib.stages.train import ensure_model
 
 ZERO_SHOT_METHODS: tuple[str, ...] = ("zero-shot", "own head", "nearest head",
                                       "nearest conditioned", "slope climb")
@@ -65,13 +73,37 @@ def zero_shot_costmaps(world: str, vehicle: str, profile: Profile | str | None =
     return maps, costs, nearest
 
 
+def patch_scores(vehicle: str, profile: Profile | str | None = None, *,
+                 progress: bool = True) -> dict[str, dict[str, float]]:
+    """{method: :func:`~dgt_lib.learning.training.regression_metrics`} of each
+    :data:`ZERO_SHOT_METHODS` predictor of ``vehicle`` on its test-split patches against
+    their labels L (the conditioned network never saw any patch of the vehicle)."""
+    from dgt_lib.learning.training import predict, regression_metrics  # torch: only here
+
+    prof = as_profile(profile)
+    nearest, _ = nearest_vehicle(vehicle, seen_vehicles(vehicle))
+    dataset = ensure_dataset(prof, progress=progress)
+    test = dataset.part("test", vehicle)
+    batch = prof.costmap.batch_size
+    net = ensure_conditioned_model(prof, dataset, vehicle, progress=progress).model
+    conditioned = predict(net.for_vehicles([vehicle, nearest]), test.patches, batch)
+    multi = ensure_model(prof, dataset, "multitask", progress=progress).model
+    heads = predict(multi, test.patches, batch)
+    slope = SlopePredictor([climb_slope_model(get_vehicle(vehicle).max_climb_deg)])
+    preds = {"zero-shot": conditioned[:, 0], "own head": heads[:, multi.head_index(vehicle)],
+             "nearest head": heads[:, multi.head_index(nearest)],
+             "nearest conditioned": conditioned[:, 1], "slope climb": slope(test.patches)[:, 0]}
+    return {m: regression_metrics(preds[m], test.labels) for m in ZERO_SHOT_METHODS}
+
+
 def zero_shot_scores(vehicle: str, profile: Profile | str | None = None, *,
                      plans: bool = True, progress: bool = True) -> dict:
     """One left-out vehicle in the profile's run seed: ``rows`` (world, vehicle, method,
     excluded and :func:`~dgt_lib.evaluation.accuracy.costmap_accuracy`'s scores) per
     scored world and :data:`ZERO_SHOT_METHODS`, the ``nearest`` vehicle and its spec
-    ``distance``, and with ``plans`` the :data:`~dgt_lib.stages.planned.PLANNED`
-    experiments of this vehicle as ``{experiment: {method: {label: {route: n}}}}``."""
+    ``distance``, the :func:`patch_scores` as ``patches``, and with ``plans`` the
+    :data:`~dgt_lib.stages.planned.PLANNED` experiments of this vehicle as
+    ``{experiment: {method: {label: {route: n}}}}``."""
     prof = as_profile(profile)
     if vehicle not in VEHICLES:
         raise ValueError(f"unknown vehicle {vehicle!r}; valid: {', '.join(VEHICLES)}")
@@ -89,4 +121,5 @@ def zero_shot_scores(vehicle: str, profile: Profile | str | None = None, *,
                 routes[name] = {m: planned_routes(name, planning_profile(prof), cost)
                                 for m, cost in costs.items()}
     return {"vehicle": vehicle, "seed": prof.seed, "nearest": nearest, "distance": distance,
-            "rows": rows, "plans": routes}
+            "rows": rows, "patches": patch_scores(vehicle, prof, progress=progress),
+            "plans": routes}
