@@ -9,6 +9,9 @@ every method (:func:`~dgt_lib.stages.ground_truth.score_costmap`), beside the ma
 vehicle never driven could otherwise get, and its own:
 
 * ``zero-shot``: the conditioned network trained without it, for its spec;
+* ``conditioned seen``: the conditioned network trained on all four vehicles, this one
+  included (the network ``dgt plan --vehicle FILE.toml`` plans with): what leaving the
+  vehicle out costs;
 * ``own head``: its own head of the multi-task model (method ``dgt``: it was driven);
 * ``nearest head``: the multi-task head of the seen vehicle nearest in normalised spec
   (:func:`~dgt_lib.beyond.conditioned.nearest_vehicle`; that model saw the left-out
@@ -43,8 +46,8 @@ from dgt_lib.stages.ground_truth import GROUND_TRUTH_WORLDS, ensure_ground_truth
 from dgt_lib.stages.planned import PLANNED, planned_routes, planning_profile
 from dgt_lib.stages.train import ensure_model
 
-ZERO_SHOT_METHODS: tuple[str, ...] = ("zero-shot", "own head", "nearest head",
-                                      "nearest conditioned", "slope climb")
+ZERO_SHOT_METHODS: tuple[str, ...] = ("zero-shot", "conditioned seen", "own head",
+                                      "nearest head", "nearest conditioned", "slope climb")
 """The maps compared for a left-out vehicle (module docstring), in table order."""
 
 
@@ -62,12 +65,14 @@ def zero_shot_costmaps(world: str, vehicle: str, profile: Profile | str | None =
     nearest, _ = nearest_vehicle(vehicle, seen_vehicles(vehicle))
     cond = ensure_conditioned_costmaps(world, (vehicle, nearest), prof, leave_out=vehicle,
                                        progress=progress)
+    seen = ensure_conditioned_costmaps(world, VEHICLES, prof, progress=progress)
     maps = ensure_world_costmaps(world, (vehicle, nearest), prof, methods=("dgt",),
                                  progress=progress)
     slope = slope_costmap(maps.bev, [climb_slope_model(get_vehicle(vehicle).max_climb_deg)],
                           prof.costmap.n_headings, stride=prof.costmap.stride,
                           batch_size=prof.costmap.batch_size, progress=progress)[0]
-    costs = {"zero-shot": cond[vehicle], "own head": maps.costmap("dgt", vehicle),
+    costs = {"zero-shot": cond[vehicle], "conditioned seen": seen[vehicle],
+             "own head": maps.costmap("dgt", vehicle),
              "nearest head": maps.costmap("dgt", nearest), "nearest conditioned": cond[nearest],
              "slope climb": slope}
     return maps, costs, nearest
@@ -77,7 +82,8 @@ def patch_scores(vehicle: str, profile: Profile | str | None = None, *,
                  progress: bool = True) -> dict[str, dict[str, float]]:
     """{method: :func:`~dgt_lib.learning.training.regression_metrics`} of each
     :data:`ZERO_SHOT_METHODS` predictor of ``vehicle`` on its test-split patches against
-    their labels L (the conditioned network never saw any patch of the vehicle)."""
+    their labels L (the network trained without the vehicle never saw any of its
+    patches)."""
     from dgt_lib.learning.training import predict, regression_metrics  # torch: only here
 
     prof = as_profile(profile)
@@ -87,10 +93,13 @@ def patch_scores(vehicle: str, profile: Profile | str | None = None, *,
     batch = prof.costmap.batch_size
     net = ensure_conditioned_model(prof, dataset, vehicle, progress=progress).model
     conditioned = predict(net.for_vehicles([vehicle, nearest]), test.patches, batch)
+    seen = ensure_conditioned_model(prof, dataset, None, progress=progress).model
+    seen_head = predict(seen, test.patches, batch)[:, seen.head_index(vehicle)]
     multi = ensure_model(prof, dataset, "multitask", progress=progress).model
     heads = predict(multi, test.patches, batch)
     slope = SlopePredictor([climb_slope_model(get_vehicle(vehicle).max_climb_deg)])
-    preds = {"zero-shot": conditioned[:, 0], "own head": heads[:, multi.head_index(vehicle)],
+    preds = {"zero-shot": conditioned[:, 0], "conditioned seen": seen_head,
+             "own head": heads[:, multi.head_index(vehicle)],
              "nearest head": heads[:, multi.head_index(nearest)],
              "nearest conditioned": conditioned[:, 1], "slope climb": slope(test.patches)[:, 0]}
     return {m: regression_metrics(preds[m], test.labels) for m in ZERO_SHOT_METHODS}
