@@ -9,6 +9,8 @@ import pytest
 
 from dgt_lib.cli import main
 from dgt_lib.core import artifacts
+from dgt_lib.core.vehicle_file import vehicle_toml
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.never_driven import plan_vehicle_query
 from dgt_lib.stages import conditioned
@@ -58,11 +60,13 @@ def test_a_vehicle_never_driven_plans_on_the_conditioned_networks_costmap(data, 
     assert told in again and "training it first" not in again
 
 
-def test_a_named_vehicle_still_plans_by_its_name(data, capsys):
-    assert main(["plan", "--world", str(data / "tiny.npy"), "--vehicle", "jeep",
-                 "--method", "binary", *QUERY]) == 0
-    out = capsys.readouterr().out
-    assert "plan for jeep" in out and "never driven" not in out
+def test_a_named_vehicle_plans_as_itself_by_name_or_from_its_own_file(data, capsys):
+    (data / "jeep.toml").write_text(vehicle_toml(get_vehicle("jeep")))
+    for vehicle in ("jeep", str(data / "jeep.toml")):
+        assert main(["plan", "--world", str(data / "tiny.npy"), "--vehicle", vehicle,
+                     "--method", "binary", *QUERY]) == 0
+        out = capsys.readouterr().out
+        assert "plan for jeep" in out and "never driven" not in out
 
 
 def test_an_impossible_vehicle_is_one_error_line_before_any_work(data, capsys):

@@ -44,3 +44,38 @@ def test_zero_shot_scores_every_comparison_for_each_left_out_vehicle(ramp_world,
         assert all(m["n"] == n_test > 0 for m in result["patches"].values())
     zs = {r["method"]: r["mae"] for r in result["rows"]}
     assert zs["zero-shot"] != zs["own head"]  # two networks, two maps
+
+
+def test_the_study_prints_its_tables_and_figure_from_stored_scores(tmp_path):
+    """``studies/zero_shot.py --stored``: the tables over seeds and the figure from the
+    stored scores alone, each left-out vehicle naming its nearest seen vehicle."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    scores = tmp_path / "scores"
+    scores.mkdir()
+    methods = zero_shot.ZERO_SHOT_METHODS
+    for seed in (0, 1):
+        rows = [{"world": "hill", "vehicle": "carla_cola", "method": m, "mae": 0.1 * (i + seed)}
+                for i, m in enumerate(methods)]
+        routes = {m: {"ascent": {"A": 1 + seed, "B": 9 - seed}, "descent": {"B": 10}}
+                  for m in methods}
+        patches = {m: {"n": 40, "mae": 0.2} for m in methods}
+        (scores / f"seed{seed}_without_carla_cola.json").write_text(json.dumps(
+            {"vehicle": "carla_cola", "seed": seed, "nearest": "mercedes_van", "rows": rows,
+             "patches": patches, "plans": {"experiment1": routes}}))
+    done = subprocess.run(
+        [sys.executable, str(root / "studies" / "zero_shot.py"), "--profile", "smoke",
+         "--seeds", "0", "1", "--out", str(tmp_path), "--stored"],
+        capture_output=True, text=True, cwd=root, timeout=300,
+        env={**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"})
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert "| hill | carla_cola (nearest: mercedes_van) | 0, 1 | 0.050 ± 0.050 |" in out
+    assert "| zero-shot | 1/10, 2/10 | 10/10, 10/10 | – |" in out
+    assert "| carla_cola | 40, 40 | 0.200 ± 0.000 |" in out
+    assert (tmp_path / "zero_shot.png").exists()
