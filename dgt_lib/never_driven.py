@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from dgt_lib import plan_one
-from dgt_lib.core.config import VEHICLES, Profile, as_profile
+from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.vehicle_file import VehicleRangeWarning, load_vehicle, warn_out_of_range
 from dgt_lib.core.vehicle_rules import check_vehicle
 from dgt_lib.core.vehicles import VEHICLE_SPECS, VehicleSpec, get_vehicle
@@ -58,13 +58,10 @@ def resolve_vehicle(vehicle: str | Path | VehicleSpec) -> tuple[VehicleSpec, boo
     if isinstance(vehicle, VehicleSpec):
         spec = check_vehicle(vehicle)
         warn_out_of_range(spec, spec.name)
-    elif str(vehicle) in VEHICLES:
-        spec = get_vehicle(str(vehicle))
     elif str(vehicle).endswith(".toml"):
         spec = load_vehicle(vehicle)
     else:
-        get_vehicle(str(vehicle))  # raises, listing the named vehicles
-        raise AssertionError  # unreachable
+        spec = get_vehicle(str(vehicle))  # not a named one: an error listing them
     return spec, VEHICLE_SPECS.get(spec.name) != spec
 
 

@@ -3,6 +3,7 @@ is stored, keyed and loaded back to the same predictions; its costmap for any sp
 from the kit's costmap inference."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -33,7 +34,7 @@ TRAIN = TrainConfig(epochs=2, batch_size=64, learning_rate=2e-3, width=4, fc_hid
 PROFILE = get_profile("smoke").with_(train=TRAIN)
 PROFILE = PROFILE.with_(execution=replace(PROFILE.execution, device="cpu"))
 BEV_PATH = "bev/custom/ramp.npz"
-TRUCK = "examples/my_truck.toml"
+TRUCK = Path(__file__).resolve().parents[1] / "examples" / "my_truck.toml"
 pytestmark = pytest.mark.filterwarnings("ignore:.*near-constant")  # 2 epochs learn little
 
 
