@@ -5,7 +5,7 @@
                   [--workers N] [--device auto|cpu|cuda]   run the cached pipeline stages
     dgt stages                                     list the stages
     dgt settings [--profile P] [--set NAME=VALUE …]  every NAME --set takes, its type and value
-    dgt plan --world W --vehicle V --start x,y,yaw --goal x,y [--method M] [--drive]
+    dgt plan --world W --vehicle V|FILE.toml --start x,y,yaw --goal x,y [--method M] [--drive]
              [--json] [--set NAME=VALUE …]         plan (and drive) one query
     dgt --version
 
@@ -19,15 +19,14 @@ import argparse
 import contextlib
 import importlib.util
 import json
-import math
 import os
-import re
 import shlex
 import sys
 import time
 from dataclasses import replace
 
 from dgt_lib import __version__
+from dgt_lib.cli_args import floats, glue_negative_coordinates, vehicle_or_file
 from dgt_lib.core import faults
 from dgt_lib.core.artifacts import data_root
 from dgt_lib.core.config import (
@@ -240,50 +239,6 @@ def _add_set_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", metavar="NAME=VALUE", help=SET_HELP)
 
 
-def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
-    """``x,y[,yaw]`` → n finite floats; an argparse error naming the format otherwise."""
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        names = "x,y,yaw" if n == 3 else "x,y"
-        raise argparse.ArgumentTypeError(f"{what} must be {names}: finite numbers in metres "
-                                         f"(yaw in radians), got {text!r}")
-    return values
-
-
-COORDINATE_OPTIONS: tuple[str, ...] = ("--start", "--goal")
-"""Options whose value is a comma-separated list of numbers, possibly negative."""
-
-_NEGATIVE_NUMBER = re.compile(r"-\.?\d")
-
-
-def _glue_negative_coordinates(argv: list[str]) -> list[str]:
-    """``--start -5,14,0.8`` → ``--start=-5,14,0.8``.
-
-    argparse reads a value that starts with '-' as an option unless it is one plain
-    negative number, so ``-5,14,0.8`` ended in "expected one argument". Gluing the
-    value to its option is argparse's own spelling for such values; only the options
-    of :data:`COORDINATE_OPTIONS` followed by a value that starts like a negative
-    number are rewritten, every other argument is left as it is."""
-    out: list[str] = []
-    i = 0
-    while i < len(argv):
-        arg = argv[i]
-        if (arg in COORDINATE_OPTIONS and i + 1 < len(argv)
-                and _NEGATIVE_NUMBER.match(argv[i + 1])):
-            out.append(f"{arg}={argv[i + 1]}")
-            i += 2
-            continue
-        if arg == "--":  # everything after it is positional: leave it alone
-            out.extend(argv[i:])
-            break
-        out.append(arg)
-        i += 1
-    return out
-
-
 @contextlib.contextmanager
 def _stdout_to_stderr():
     """Everything written to stdout inside goes to stderr: Python's prints and, at the file
@@ -311,13 +266,13 @@ def _plan(args: argparse.Namespace) -> int:
     collected or model trained (:func:`dgt_lib.plan_one.check_query`), then says when
     training comes first. ``--json``: the report as one JSON object, alone on stdout."""
     from dgt_lib.navigation.planner import InvalidQueryError
-    from dgt_lib.plan_one import plan_query
+    from dgt_lib.never_driven import plan_vehicle_query
 
     profile = _with_execution(_profile(args), args)
     quiet = _stdout_to_stderr() if args.json else contextlib.nullcontext()
     try:
         with quiet:
-            report = plan_query(args.world, args.vehicle, args.start, args.goal,
+            report = plan_vehicle_query(args.world, args.vehicle, args.start, args.goal,
                                 method=args.method, profile=profile, drive=args.drive,
                                 resolution_m=args.resolution,
                                 vertical_scale_m=args.vertical_scale,
@@ -375,11 +330,16 @@ WORLD_HELP = ("hill, ridge, eval, training, a .npy / 16-bit .png heightmap, or a
               "(.tif) or ESRI ASCII grid (.asc; pip install 'dgt-kit[geo]')")
 
 
-def _add_world_options(parser: argparse.ArgumentParser) -> None:
-    """``dgt plan``'s and ``dgt costmap``'s: world, vehicle, method, profile, device."""
+def _add_world_options(parser: argparse.ArgumentParser, vehicle_file: bool = False) -> None:
+    """``dgt plan``'s and ``dgt costmap``'s: world, vehicle (``vehicle_file``: or a TOML
+    file of a vehicle never driven, ``dgt plan``), method, profile, device."""
     parser.add_argument("--world", required=True, help=WORLD_HELP)
-    parser.add_argument("--vehicle", required=True, choices=VEHICLES,
-                        help="whose costmap (and for a plan footprint and turning radius)")
+    parser.add_argument("--vehicle", required=True, choices=None if vehicle_file else VEHICLES,
+                        type=vehicle_or_file if vehicle_file else str,
+                        metavar=f"{{{','.join(VEHICLES)}}} or FILE.toml" if vehicle_file else None,
+                        help="whose costmap (and footprint, turning radius)" + (
+                            "; a file: a vehicle never driven, on the vehicle-conditioned "
+                            "network's costmap (docs/vehicles.md)" if vehicle_file else ""))
     parser.add_argument("--method", default="dgt", choices=METHODS)
     parser.add_argument("--profile", type=_profile_arg, default=None,
                         metavar=PROFILE_METAVAR, help=PROFILE_HELP)
@@ -419,10 +379,10 @@ def _add_plan(sub) -> None:
                                     "a rerun recording, and optionally drive the path in "
                                     "MuJoCo. Exit status 0: a path was found; 1: no path; 2: an "
                                     "invalid query.")
-    _add_world_options(pl)
-    pl.add_argument("--start", required=True, type=lambda t: _floats(t, 3, "--start"),
+    _add_world_options(pl, vehicle_file=True)
+    pl.add_argument("--start", required=True, type=lambda t: floats(t, 3, "--start"),
                     help="x,y,yaw [m, m, rad]; negative values are fine (-5,14,0.8)")
-    pl.add_argument("--goal", required=True, type=lambda t: _floats(t, 2, "--goal"),
+    pl.add_argument("--goal", required=True, type=lambda t: floats(t, 2, "--goal"),
                     help="x,y [m]")
     pl.add_argument("--crs-coords", action="store_true",
                     help="DEM: --start/--goal x,y in the file's CRS (e.g. lon,lat in "
@@ -466,7 +426,7 @@ def main(argv: list[str] | None = None) -> int:
     quietly.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser().parse_args(_glue_negative_coordinates(argv))
+    args = build_parser().parse_args(glue_negative_coordinates(argv))
     args.command_line = shlex.join(["dgt", *argv])
     try:
         with sigterm_as_interrupt():  # SIGTERM stops a command as Ctrl-C does

@@ -16,6 +16,7 @@ passes high cost — saves a figure and a rerun recording named by the query
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,9 +27,10 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile, get_profile
 from dgt_lib.core.faults import is_storage_error, storage_message
 from dgt_lib.core.geometry import nearest_heading_bin
-from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.evaluation.queries import classify_route
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
+from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.navigation.planner import HybridAStar, PlanResult, check_query_on_world
 from dgt_lib.stages.costmaps import ensure_world_costmaps, world_occupancy
 from dgt_lib.stages.dataset import DATASET_RELPATH
@@ -118,11 +120,19 @@ class QueryReport:
     not_written: str | None = None
     """Why the figure and recording were not written (a read-only or full directory)."""
     outcome: TrialOutcome | None = None
+    never_driven: str | None = None
+    """For a vehicle never driven (a file's spec), where its costmap came from."""
+    warnings: list[str] = field(default_factory=list)
+    """Its spec's fields outside the vehicles the kit trains on."""
+    spec: VehicleSpec | None = None
+    """The vehicle's spec when it is not a named one."""
 
     def summary(self) -> str:
         p = self.plan
         lines = [f"{METHOD_LABELS[self.method]} plan for {self.vehicle} on {self.world}: "
                  f"{self.start} → {self.goal}"]
+        lines += [f"  {self.never_driven}"] if self.never_driven else []
+        lines += [f"  warning: {w}" for w in self.warnings]
         if p.success and len(p.path) < 2:
             lines.append("  found: the start is already within the goal tolerance (a path of "
                          "length 0 m)")
@@ -167,7 +177,8 @@ class QueryReport:
                "route": self.route, "outcome": None,
                "figure": None if self.figure is None else str(self.figure),
                "recording": None if self.recording is None else str(self.recording),
-               "not_written": self.not_written}
+               "not_written": self.not_written, "never_driven": self.never_driven,
+               "warnings": list(self.warnings)}
         if self.outcome is not None:
             o = self.outcome
             out["outcome"] = {"success": bool(o.success), "reason": o.reason,
@@ -261,14 +272,15 @@ def settings_tag(profile: Profile | None) -> str:
     return "_set-" + artifacts.config_hash(plan)[:8]
 
 
-def output_stem(world: World, vehicle: str, method: str, start, goal, *,
+def output_stem(world: World, vehicle: str | VehicleSpec, method: str, start, goal, *,
                 drive: bool = False, profile: Profile | None = None) -> str:
     """File name (no suffix) of a query's figure and recording: readable — world, vehicle,
     method, start x, y [m] and heading [deg], goal x, y [m] — and unique: it ends in a
     hash of the exact query and the world's terrain, so distinct queries (another
     heading, a start 0.3 m away, another heightmap of the same name, driven or not)
     never overwrite each other, and the same query replaces its own files; settings
-    changed from the profile's add :func:`settings_tag`."""
+    changed from the profile's add :func:`settings_tag`. A vehicle never driven is given
+    as its spec (two files of one name are two vehicles)."""
     sx, sy, sth = (float(v) for v in start)
     gx, gy = (float(v) for v in tuple(goal)[:2])
     key = artifacts.config_hash({
@@ -277,15 +289,31 @@ def output_stem(world: World, vehicle: str, method: str, start, goal, *,
         "vehicle": vehicle, "method": method, "start": [sx, sy, sth], "goal": [gx, gy],
         "drive": bool(drive)})[:8]
     heading_deg = float(np.degrees(sth)) % 360.0
-    return (f"{world.name}_{vehicle}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
+    name = vehicle.name if isinstance(vehicle, VehicleSpec) else vehicle
+    return (f"{world.name}_{name}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
             f"{gx:.1f}_{gy:.1f}{'_driven' if drive else ''}_{key}{settings_tag(profile)}")
+
+
+@dataclass
+class CostmapSource:
+    """The costmap of a vehicle that is not one of the named ones (a vehicle never driven:
+    :func:`dgt_lib.never_driven.plan_vehicle_query` makes one), for :func:`plan_query`:
+    ``maps(world)`` → (the world's maps, cost (K, H, W)); ``notice``, printed before it is
+    built; ``described``, the report's line on where it came from; ``warnings`` on the
+    spec."""
+
+    spec: VehicleSpec
+    maps: Callable[[World], tuple[WorldMaps, np.ndarray]]
+    notice: str | None
+    described: str
+    warnings: list[str] = field(default_factory=list)
 
 
 def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "dgt",
                profile: Profile | str | None = None, drive: bool = False,
                resolution_m: float = 0.4, vertical_scale_m: float | None = None,
                out_dir: Path | None = None, progress: bool = True, crs_coords: bool = False,
-               nodata: str = "error") -> QueryReport:
+               nodata: str = "error", source: CostmapSource | None = None) -> QueryReport:
     """Plan (and optionally drive) one query; see the module docstring.
 
     start (x, y, yaw) [m, m, rad], goal (x, y) [m]. Raises
@@ -293,12 +321,15 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     or in an obstacle (the message names which) — found before any dataset or model is
     built (:func:`check_query`). With ``progress``, prints when a model must be trained.
     ``crs_coords``: start and goal x, y are in a DEM file's CRS (:func:`crs_to_local`);
-    ``nodata``: a DEM's no-data policy (:func:`load_world`).
+    ``nodata``: a DEM's no-data policy (:func:`load_world`). ``source``: the costmap of a
+    vehicle that is not a named one (its spec, then, is the vehicle; ``vehicle`` is not
+    read).
     """
     prof = as_profile(profile)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
-    get_vehicle(vehicle)  # an unknown vehicle is a clear error before any work
+    spec = source.spec if source else get_vehicle(vehicle)  # unknown: an error before any work
+    vehicle = spec if source else spec.name
     w, georef = load_world(world, prof, resolution_m=resolution_m,
                            vertical_scale_m=vertical_scale_m, nodata=nodata)
     start = tuple(float(v) for v in start)
@@ -306,14 +337,20 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     if crs_coords:
         start, goal = crs_to_local(georef, start, goal)
     check_query(w, vehicle, start, goal, prof, progress=progress)
-    notice = training_notice(method, vehicle, prof)
+    notice = source.notice if source else training_notice(method, vehicle, prof)
     if progress and notice:
         print(notice, flush=True)
-    maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
-    cost = maps.costmap(method, vehicle)
+    if source:
+        maps, cost = source.maps(w)
+    else:
+        maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
+        cost = maps.costmap(method, vehicle)
     planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle, prof.planner)
     result = planner.plan(start, goal)
-    report = QueryReport(w.name, vehicle, method, start, goal, result)
+    report = QueryReport(w.name, spec.name, method, start, goal, result)
+    if source:
+        report.never_driven, report.warnings, report.spec = (source.described,
+                                                             list(source.warnings), spec)
     if result.success:
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
         report.route = classify_route(w, result.path) if w.routes else None
@@ -372,6 +409,6 @@ def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Prof
             rec.log_path(report.method, np.column_stack([report.plan.path[:, :2], z]))
         if traj is not None and len(traj):
             rec.log_trajectory(report.vehicle, traj[:, 0], traj[:, 1:4], {"speed_mps": speed},
-                               vehicle=report.vehicle)
+                               vehicle=report.spec or report.vehicle)
         rec.log_text("summary", "```\n" + report.summary() + "\n```")
     return path

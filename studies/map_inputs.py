@@ -35,6 +35,9 @@ from pathlib import Path
 import numpy as np
 from variant_runs import link, stored_or_run, write_scores
 
+from dgt_lib.stages.planned import PLANNED, planned_routes, planning_profile
+from dgt_lib.stages.planned import claim_share as _share
+
 VARIANTS: dict[str, dict[str, object]] = {
     "rgbd": {},
     "geometry": {"train.inputs": "geometry"},
@@ -49,8 +52,6 @@ VARIANTS: dict[str, dict[str, object]] = {
 }
 """Each variant's settings (``dgt reproduce --set`` names)."""
 
-PLANNED = {"experiment1": ("hill", "carla_cola", 20), "experiment2": ("ridge", "mercedes_van", 50)}
-"""Experiments whose plans are scored: world, vehicle, queries (the paper's n)."""
 RIDGE_LANDMARKS = ("sharp_crossing", "smooth_crossing")
 NORTH = 2  # heading layer θ = π/2 of K = 8: across the ridge
 
@@ -70,29 +71,6 @@ def prepare(variant: str, profile: str, seed: int, base: Path, out: Path) -> Pat
         link(base / profile / f"seed-{seed}" / "episodes",
               root / profile / f"seed-{seed}" / "episodes")
     return root
-
-
-def _plans(prof, name: str) -> dict[str, dict[str, int]]:
-    """{query label: {route: plans}} of the ``dgt`` costmap for one experiment."""
-    from dgt_lib.evaluation.experiments import experiment_queries
-    from dgt_lib.evaluation.queries import classify_route
-    from dgt_lib.navigation.planner.hybrid_astar import HybridAStar
-    from dgt_lib.stages.experiments import trial_maps
-    from dgt_lib.world.terrain import get_world
-
-    world_name, vehicle, _ = PLANNED[name]
-    world = get_world(world_name, prof)
-    queries = experiment_queries(name, prof, trial_maps)[vehicle]
-    maps = trial_maps(world_name, "dgt", vehicle, prof)
-    planner = HybridAStar.for_vehicle(maps.costmap("dgt", vehicle), maps.occupancy, maps.grid,
-                                      vehicle, prof.planner)
-    routes: dict[str, dict[str, int]] = {}
-    for q in queries:
-        plan = planner.plan(q.start, q.goal)
-        route = classify_route(world, plan.path) if plan.success else "no path"
-        label = routes.setdefault(q.label or "all", {})
-        label[route] = label.get(route, 0) + 1
-    return routes
 
 
 def _ridge_costs(prof) -> dict[str, dict[str, float]]:
@@ -122,7 +100,7 @@ def score(variant: str, profile: str, seed: int) -> dict:
     prof = get_profile(profile).with_(seed=seed)
     if VARIANTS[variant]:
         prof = prof.with_overrides(VARIANTS[variant])
-    plan_prof = prof.with_overrides({f"experiments.n_{w}": n for w, _, n in PLANNED.values()})
+    plan_prof = planning_profile(prof)
     pairs = [(w, v) for w in GROUND_TRUTH_WORLDS for v in EXPERIMENT_VEHICLES[w]]
     truths = ensure_ground_truths(pairs, prof)
     rows = []
@@ -131,7 +109,7 @@ def score(variant: str, profile: str, seed: int) -> dict:
     return {"variant": variant, "seed": seed, "settings": VARIANTS[variant],
             "accuracy": [{k: r[k] for k in ("world", "vehicle", "mae", "spearman", "contrast")}
                          for r in rows],
-            "plans": {name: _plans(plan_prof, name) for name in PLANNED},
+            "plans": {name: planned_routes(name, plan_prof) for name in PLANNED},
             "ridge_costs": _ridge_costs(prof)}
 
 
@@ -143,12 +121,6 @@ def run_one(variant: str, profile: str, seed: int, base: Path, out: Path) -> dic
     root = prepare(variant, profile, seed, base, out)
     return stored_or_run(path, root, [__file__, "--one", variant, str(seed), "--profile",
                                       profile, "--out", str(out)], f"{variant} seed {seed}")
-
-
-def _share(routes: dict[str, dict[str, int]], label: str | None, route: str) -> tuple[int, int]:
-    labels = [label] if label else list(routes)
-    return (sum(routes.get(lab, {}).get(route, 0) for lab in labels),
-            sum(sum(routes.get(lab, {}).values()) for lab in labels))
 
 
 def tables(scores: list[dict]) -> str:

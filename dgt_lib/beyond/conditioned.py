@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,8 +38,15 @@ from torch import nn
 
 from dgt_lib.core.config import VEHICLES, TrainConfig
 from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
-from dgt_lib.learning.model import HEAD_PRIOR_CLIP, DGTNet
-from dgt_lib.learning.training import TrainingSet, label_weights
+from dgt_lib.learning.checkpoints import TrainResult, load_checkpoint
+from dgt_lib.learning.model import HEAD_PRIOR_CLIP, ArchitectureMismatchError, DGTNet
+from dgt_lib.learning.run import train_network
+from dgt_lib.learning.training import (
+    TrainingSet,
+    channel_statistics,
+    label_weights,
+    resolve_device,
+)
 from dgt_lib.perception.dataset import TRAIN, VAL, PatchDataset
 
 FEATURES: dict[str, Callable[[VehicleSpec], float]] = {
@@ -88,6 +96,7 @@ class ConditionedNet(DGTNet):
         film_hidden: units of the FiLM generator's hidden layer.
         reference: the training vehicles μ_s, σ_s are computed from (default
             ``vehicles``).
+        rgb_weights, inputs: as DGTNet's (ImageNet RGB weights; the channels it sees).
 
     Buffers (in the state dict): ``spec_mean``, ``spec_std`` (D,) and ``spec_raw``
     (V, D), the heads' spec vectors, so a loaded checkpoint evaluates its heads without
@@ -96,8 +105,10 @@ class ConditionedNet(DGTNet):
 
     def __init__(self, vehicles: Sequence[VehicleSpec | str] = VEHICLES, width: int = 64,
                  fc_hidden: int = 256, film_hidden: int = 64,
-                 reference: Sequence[VehicleSpec | str] | None = None) -> None:
-        super().__init__(VEHICLES, width=width, fc_hidden=fc_hidden)
+                 reference: Sequence[VehicleSpec | str] | None = None,
+                 rgb_weights: str | Path | None = None, inputs: str = "rgbd") -> None:
+        super().__init__(VEHICLES, width=width, fc_hidden=fc_hidden, rgb_weights=rgb_weights,
+                         inputs=inputs)
         del self.vehicle_heads  # one conditioned head replaces the four
         specs = tuple(get_vehicle(v) for v in vehicles)
         names = tuple(v.name for v in specs)
@@ -151,6 +162,12 @@ class ConditionedNet(DGTNet):
         raw = self._raw([get_vehicle(v) for v in specs]).to(z.device)
         return self._conditioned(z, raw)
 
+    def for_vehicles(self, specs: Sequence[VehicleSpec | str]) -> VehicleHeads:
+        """This network answering for ``specs`` (any vehicles) instead of its own heads: a
+        module with the same weights whose column j is ``specs[j]``, for whatever takes a
+        network (``training.predict``, the costmap inference)."""
+        return VehicleHeads(self, specs)
+
     @torch.no_grad()
     def init_heads(self, mean_labels: Sequence[float], weight_scale: float = 0.1) -> None:
         """Start every vehicle at its prior, as :meth:`DGTNet.init_heads` does: L̂_v ≈ m_v,
@@ -174,6 +191,77 @@ class ConditionedNet(DGTNet):
         row = torch.linalg.pinv(a.double()) @ logits.double()  # least-norm δ row
         self.film[2].weight[-1] = row[:-1].float()
         self.film[2].bias[-1] = float(row[-1])
+
+class VehicleHeads(nn.Module):
+    """A :class:`ConditionedNet` (its weights, not a copy) evaluated for other vehicles:
+    L̂ (B, len(specs)), column j for ``specs[j]`` (:meth:`ConditionedNet.for_vehicles`)."""
+
+    def __init__(self, net: ConditionedNet, specs: Sequence[VehicleSpec | str]) -> None:
+        super().__init__()
+        specs = tuple(get_vehicle(v) for v in specs)
+        if not specs:
+            raise ValueError("for_vehicles needs at least one vehicle")
+        self.net, self.specs = net, specs
+        self.vehicles = tuple(v.name for v in specs)
+        self.register_buffer("spec_raw", ConditionedNet._raw(specs).to(net.spec_raw.device))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net._conditioned(self.net.embed(x), self.spec_raw)
+
+
+def nearest_vehicle(spec: VehicleSpec | str, candidates: Sequence[VehicleSpec | str]
+                    ) -> tuple[str, float]:
+    """The candidate nearest to ``spec`` and its distance: Euclidean between spec vectors
+    normalised by the candidates' :func:`spec_statistics` (the space a network trained on
+    them conditions in). The vehicle itself is skipped when among the candidates."""
+    v = get_vehicle(spec)
+    others = [get_vehicle(c) for c in candidates if get_vehicle(c).name != v.name]
+    if not others:
+        raise ValueError(f"no candidate other than {v.name}")
+    mean, std = spec_statistics(others)
+    c = (spec_vector(v) - mean) / std
+    dist = [float(np.linalg.norm((spec_vector(o) - mean) / std - c)) for o in others]
+    best = int(np.argmin(dist))
+    return others[best].name, dist[best]
+
+
+def conditioned_from_architecture(arch: dict[str, Any]) -> ConditionedNet:
+    """An untrained ConditionedNet of a checkpoint's architecture (its heads are named
+    vehicles; the spec statistics come with the weights): what
+    :func:`~dgt_lib.learning.checkpoints.load_checkpoint` fills with them."""
+    if arch.get("name") != "ConditionedNet" or arch.get("features") != list(FEATURES):
+        raise ArchitectureMismatchError(
+            f"not a ConditionedNet of the spec features {list(FEATURES)}: {arch}")
+    return ConditionedNet(arch["vehicles"], width=arch["width"], fc_hidden=arch["fc_hidden"],
+                          film_hidden=arch["film_hidden"], inputs=arch.get("inputs", "rgbd"))
+
+
+def load_conditioned(source: str | Path | dict[str, Any], *,
+                     vehicles: Sequence[str] | None = None,
+                     device: str | torch.device = "cpu") -> TrainResult:
+    """A ConditionedNet checkpoint (a ``.pt`` path or its dict), checked as
+    :func:`~dgt_lib.learning.checkpoints.load_checkpoint` checks a DGTNet's."""
+    return load_checkpoint(source, vehicles=vehicles, device=device,
+                           build=conditioned_from_architecture)
+
+
+def train_conditioned(dataset: PatchDataset, cfg: TrainConfig, *,
+                      vehicles: Sequence[str] = VEHICLES, seed: int = 0,
+                      film_hidden: int = 64, device: str | torch.device | None = None,
+                      progress: bool = True, rgb_weights: str | Path | None = None,
+                      **run: Any) -> TrainResult:
+    """Train a new ConditionedNet on the samples of the named ``vehicles`` (its heads;
+    leave one out to predict it from its spec alone) as
+    :func:`~dgt_lib.learning.run.train_model` trains a DGTNet: the same training set,
+    seeding, input normalisation, loop and bookkeeping (``run``)."""
+    data = TrainingSet.select(dataset, tuple(vehicles), cfg)
+    device = resolve_device(device)
+    torch.manual_seed(seed)
+    model = ConditionedNet(data.vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
+                           film_hidden=film_hidden, rgb_weights=rgb_weights, inputs=cfg.inputs)
+    model.set_normalization(*channel_statistics(dataset.patches, data.train_index))
+    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)
+
 
 def spec_training_set(dataset: PatchDataset, vehicles: Sequence[str],
                       cfg: TrainConfig) -> TrainingSet:

@@ -7,6 +7,7 @@ cache's key (:data:`CHECKPOINT_VERSION`) is checked by ``dgt plan`` without it."
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -91,13 +92,17 @@ def load_checkpoint(
     vehicles: tuple[str, ...] | list[str] | None = None,
     architecture: dict[str, Any] | None = None,
     device: str | torch.device = "cpu",
+    build: Callable[[dict[str, Any]], DGTNet] | None = None,
 ) -> TrainResult:
     """Read a checkpoint (a ``.pt`` path or the dict of :func:`checkpoint_dict`).
 
     ``vehicles`` and ``architecture`` (e.g. ``DGTNet(...).architecture()``) are what
     the caller expects; a checkpoint of another vehicle set or architecture raises
     :class:`~dgt_lib.learning.model.ArchitectureMismatchError` saying what differs. Something
-    that is not a DGTNet checkpoint raises :class:`CheckpointError`.
+    that is not a DGTNet checkpoint raises :class:`CheckpointError`. ``build``: the
+    untrained network of an architecture dict that the weights are loaded into (default a
+    DGTNet; a network of another kind, such as
+    :func:`~dgt_lib.beyond.conditioned.load_conditioned`'s, passes its own).
     """
     from dgt_lib.learning.model import ArchitectureMismatchError, DGTNet
 
@@ -117,8 +122,13 @@ def load_checkpoint(
                 if arch.get(k) != architecture.get(k)}
         raise ArchitectureMismatchError(
             f"{where} has a different architecture (checkpoint, expected): {diff}")
-    model = DGTNet(arch["vehicles"], width=arch["width"], fc_hidden=arch["fc_hidden"],
-                   inputs=arch.get("inputs", "rgbd"))
+    if build is None and arch.get("name", "DGTNet") != "DGTNet":
+        raise ArchitectureMismatchError(
+            f"{where} holds a {arch['name']}, not a DGTNet (a ConditionedNet loads with "
+            "dgt_lib.beyond.conditioned.load_conditioned)")
+    model = (build(arch) if build is not None else
+             DGTNet(arch["vehicles"], width=arch["width"], fc_hidden=arch["fc_hidden"],
+                    inputs=arch.get("inputs", "rgbd")))
     try:
         model.load_state_dict(ckpt["state_dict"])
     except RuntimeError as exc:

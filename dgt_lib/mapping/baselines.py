@@ -96,6 +96,17 @@ class SlopeModel:
         return asdict(self)
 
 
+def climb_slope_model(max_climb_deg: float, exponent: float = 1.0) -> SlopeModel:
+    """L_sb from a vehicle's spec alone, nothing fitted: full locomotion on the flat
+    (θ0 = 0), falling as |θ|^p to 0 at the torque-limited climb θmax = −θmin =
+    ``max_climb_deg`` [deg] (``VehicleSpec.max_climb_deg``) in either direction — what a
+    vehicle never driven has before any data."""
+    if not 0.0 < max_climb_deg <= 90.0:
+        raise ValueError(f"max_climb_deg must be in (0, 90], got {max_climb_deg}")
+    climb = float(np.radians(max_climb_deg))
+    return SlopeModel(0.0, -climb, climb, exponent, exponent)
+
+
 def fit_slope_model(theta: np.ndarray, labels: np.ndarray, *, n_trials: int = 200,
                     seed: int = 0) -> SlopeModel:
     """Fit {θ0, θmin, θmax, p_u, p_d} to (slope θ [rad], label L) pairs with Optuna.

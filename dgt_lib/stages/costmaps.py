@@ -87,7 +87,7 @@ def world_bev(world: World | str, profile: Profile | str | None = None, *,
     return bev, relpath
 
 
-def _world_key(world: World | str, bev_path: str) -> str:
+def world_key(world: World | str, bev_path: str) -> str:
     """Folder name of a world's costmaps: its name, plus the BEV hash for custom worlds."""
     name = world if isinstance(world, str) else world.name
     return Path(bev_path).stem if bev_path.startswith("bev/custom/") else name
@@ -174,7 +174,7 @@ source). Not ``batch_size`` (patches per call: the same costmap up to float roun
 ``tau_s_margin`` (the occupancy map, not stored with the costmaps)."""
 
 
-def _costmap_config(prof: Profile, bev_path: str, method: str, source: str) -> dict:
+def costmap_config(prof: Profile, bev_path: str, method: str, source: str) -> dict:
     """The cache key of a stored costmap: the BEV map, the method, its ``source`` (the
     model's or the slope fit's digest) and the :data:`INFERENCE_FIELDS`."""
     return {"stage": "costmap", "bev_path": bev_path, "method": method, "source": source,
@@ -186,7 +186,7 @@ def _slope_costmaps(prof: Profile, bev: BEVMap, bev_path: str, key: str,
                     ds_hash: str | None, kwargs: dict) -> dict[str, np.ndarray]:
     """The slope baseline's costmaps of every vehicle on a world (one cached file)."""
     slope_models = ensure_slope_models(prof, dataset_hash=ds_hash, progress=kwargs["progress"])
-    config = _costmap_config(prof, bev_path, "slope",
+    config = costmap_config(prof, bev_path, "slope",
                              artifacts.stored_digest("baselines/slope_models.json",
                                                      profile=cache_dir(prof)))
 
@@ -215,7 +215,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
         for v in vehicles:
             check_method(m, v)
     bev, bev_path = world_bev(world, prof, progress=progress)
-    key = _world_key(world, bev_path)
+    key = world_key(world, bev_path)
     # the dataset's fingerprint keys every model and the slope fit; its patches are loaded
     # only to train or fit (a cached map's keys are checked without them)
     ds_hash = (dataset_digest(prof, progress=progress)
@@ -241,7 +241,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
         return cost, model.vehicles
 
     if {"dgt", "isotropic"} & set(methods):
-        config = _costmap_config(prof, bev_path, "dgt",
+        config = costmap_config(prof, bev_path, "dgt",
                                  model_digest(prof, None, "multitask", dataset_hash=ds_hash,
                                               progress=progress))
 
@@ -259,7 +259,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
     if "single-task" in methods:
         for v in vehicles:
             kind = f"single:{v}"
-            config = _costmap_config(prof, bev_path, kind,
+            config = costmap_config(prof, bev_path, kind,
                                      model_digest(prof, None, kind, dataset_hash=ds_hash,
                                                   progress=progress))
 

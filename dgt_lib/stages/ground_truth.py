@@ -35,6 +35,7 @@ from dgt_lib.evaluation import accuracy
 from dgt_lib.evaluation.ground_truth import GroundTruth, drive_job, sample_cells
 from dgt_lib.evaluation.journal import Journal, read_journal
 from dgt_lib.mapping.methods import METHODS
+from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_tau_s, ensure_world_costmaps
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir, profile_root
@@ -168,20 +169,28 @@ def score_world(world: str, truths: dict[tuple[str, str], GroundTruth],
     vehicles = tuple(v for w, v in truths if w == world)
     maps = ensure_world_costmaps(world, vehicles, prof, methods=tuple(methods),
                                  progress=progress)
-    k = prof.costmap.n_headings
     rows, samples = [], {}
     for v in vehicles:
-        gt = truths[(world, v)]
-        free = accuracy.free_cells(maps.occupancy, maps.grid, gt.cells)[:, None]
-        valid = gt.measured & free
         for m in methods:
-            cost = accuracy.cost_at(maps.costmap(m, v), maps.grid, gt.cells, k)
-            rows.append({"world": world, "vehicle": v, "method": m,
-                         "excluded": int((gt.measured & ~free).sum()),
-                         **accuracy.costmap_accuracy(gt.cost, cost, valid,
-                                                     prof.ground_truth.contrast_threshold)})
-            samples[(world, v, m)] = (cost[valid], gt.cost[valid])
+            scores, samples[(world, v, m)] = score_costmap(maps.costmap(m, v),
+                                                           truths[(world, v)], maps, prof)
+            rows.append({"world": world, "vehicle": v, "method": m, **scores})
     return rows, samples
+
+
+def score_costmap(costmap: np.ndarray, gt: GroundTruth, maps: WorldMaps, prof: Profile
+                  ) -> tuple[dict, tuple[np.ndarray, np.ndarray]]:
+    """One costmap (K, H, W) on ``maps``' grid against one ground truth, on the measured
+    samples of cells the occupancy map marks free: ``excluded`` (measured samples on
+    occupied or unobserved cells) with :func:`~dgt_lib.evaluation.accuracy.costmap_accuracy`,
+    and the scored samples (C (n,), C* (n,))."""
+    free = accuracy.free_cells(maps.occupancy, maps.grid, gt.cells)[:, None]
+    valid = gt.measured & free
+    cost = accuracy.cost_at(costmap, maps.grid, gt.cells, prof.costmap.n_headings)
+    scores = {"excluded": int((gt.measured & ~free).sum()),
+              **accuracy.costmap_accuracy(gt.cost, cost, valid,
+                                          prof.ground_truth.contrast_threshold)}
+    return scores, (cost[valid], gt.cost[valid])
 
 
 def _costmap_digests(prof: Profile, worlds: Sequence[str]) -> dict[str, str]:

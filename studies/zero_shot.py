@@ -1,0 +1,165 @@
+"""A costmap for a vehicle that was never driven: each named vehicle left out of the
+vehicle-conditioned network's training in turn, its costmap predicted from its spec alone
+and scored against its measured ground truth, per run seed.
+
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2 --stored
+
+Per (seed, left-out vehicle) it builds through the cache (the profile's data directory,
+``$DGT_DATA_DIR`` or ``data/``: the same collection, dataset, multi-task model and ground
+truth as ``dgt reproduce``) the conditioned model trained without the vehicle, and scores
+on every world whose experiments use the vehicle the maps of
+:data:`dgt_lib.stages.zero_shot.ZERO_SHOT_METHODS`: zero-shot, its own multi-task head, the
+nearest seen vehicle's head (multi-task, and conditioned), Slope-Based from its climb; the
+same predictors on the vehicle's test patches.
+Where the vehicle is Experiment 1's (carla_cola, hill) or 2's (mercedes_van, ridge) every
+map also plans the experiment's queries (the paper's 20 and 50; planned, not driven).
+Each (seed, vehicle) is stored as ``<out>/scores/seed<S>_without_<vehicle>.json`` once
+done, so an interrupted run resumes; then it prints the tables over seeds and draws
+``<out>/zero_shot.png``. ``--stored``: tables and figure from the stored scores only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from dgt_lib.core.config import VEHICLES
+from dgt_lib.stages.planned import CLAIMS, claim_share
+from dgt_lib.stages.zero_shot import ZERO_SHOT_METHODS
+
+
+def score_path(out: Path, seed: int, vehicle: str) -> Path:
+    return out / "scores" / f"seed{seed}_without_{vehicle}.json"
+
+
+def run_one(profile: str, seed: int, vehicle: str, out: Path) -> dict:
+    """The stored scores of (seed, left-out vehicle), computed (through the cache) if missing."""
+    path = score_path(out, seed, vehicle)
+    if path.exists():
+        return json.loads(path.read_text())
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.stages.zero_shot import zero_shot_scores
+
+    print(f"[zero_shot] seed {seed}, {vehicle} left out", flush=True)
+    prof = get_profile(profile).with_(seed=seed)
+    result = {"profile": profile, **zero_shot_scores(vehicle, prof)}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result, indent=1))
+    return result
+
+
+def mae_table(scores: list[dict]) -> str:
+    """Markdown: MAE per (world, left-out vehicle) and method, mean ± std over seeds."""
+    seeds = sorted({s["seed"] for s in scores})
+    lines = [f"MAE against the measured ground truth (mean ± std over seeds {seeds}; "
+             "the vehicle never driven by the zero-shot network):", "",
+             "| world | vehicle | seeds | " + " | ".join(ZERO_SHOT_METHODS) + " |",
+             "|---" * (len(ZERO_SHOT_METHODS) + 3) + "|"]
+    for vehicle in VEHICLES:
+        mine = [s for s in scores if s["vehicle"] == vehicle]
+        if not mine:
+            continue
+        nearest = ", ".join(sorted({s["nearest"] for s in mine}))
+        for world in dict.fromkeys(r["world"] for r in mine[0]["rows"]):
+            cells = []
+            for m in ZERO_SHOT_METHODS:
+                x = [r["mae"] for s in mine for r in s["rows"]
+                     if (r["world"], r["method"]) == (world, m)]
+                cells.append(f"{np.mean(x):.3f} ± {np.std(x):.3f}")
+            lines.append(f"| {world} | {vehicle} (nearest: {nearest}) | "
+                         f"{', '.join(str(s['seed']) for s in mine)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def patch_table(scores: list[dict]) -> str:
+    """Markdown: MAE on each left-out vehicle's test patches, mean ± std over seeds."""
+    lines = ["MAE on the vehicle's test patches against their labels L (mean ± std over seeds):",
+             "", "| vehicle | patches | " + " | ".join(ZERO_SHOT_METHODS) + " |",
+             "|---" * (len(ZERO_SHOT_METHODS) + 2) + "|"]
+    for vehicle in VEHICLES:
+        mine = [s for s in scores if s["vehicle"] == vehicle and "patches" in s]
+        if mine:
+            cells = [f"{np.mean([s['patches'][m]['mae'] for s in mine]):.3f} ± "
+                     f"{np.std([s['patches'][m]['mae'] for s in mine]):.3f}"
+                     for m in ZERO_SHOT_METHODS]
+            n = ", ".join(str(s["patches"]["zero-shot"]["n"]) for s in mine)
+            lines.append(f"| {vehicle} | {n} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plan_table(scores: list[dict]) -> str:
+    """Markdown: the plan claims per map, one count per seed."""
+    lines = ["Plans of Experiments 1–2 on each map (planned, not driven; one count per seed):",
+             "", "| map | hill ascents by Route A | hill descents by Route B | "
+             "ridge crossings at the smoothed section |", "|---|---|---|---|"]
+    for m in ZERO_SHOT_METHODS:
+        cols = []
+        for exp, label, route in CLAIMS:
+            mine = sorted((s for s in scores if exp in s["plans"]), key=lambda s: s["seed"])
+            cols.append(", ".join("{}/{}".format(*claim_share(s["plans"][exp][m], label, route))
+                                  for s in mine) or "–")
+        lines.append(f"| {m} | " + " | ".join(cols) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def figure(scores: list[dict], path: Path) -> None:
+    """MAE per left-out vehicle and world, one group per (world, vehicle), a bar per map
+    (mean over seeds) with each seed a dot."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pairs = list(dict.fromkeys((r["world"], r["vehicle"]) for s in scores for r in s["rows"]))
+    fig, ax = plt.subplots(figsize=(2.2 * len(pairs) + 2, 3.8), constrained_layout=True)
+    width = 0.8 / len(ZERO_SHOT_METHODS)
+    for j, m in enumerate(ZERO_SHOT_METHODS):
+        for i, pair in enumerate(pairs):
+            x = [r["mae"] for s in scores for r in s["rows"]
+                 if (r["world"], r["vehicle"], r["method"]) == (*pair, m)]
+            pos = i - 0.4 + (j + 0.5) * width
+            ax.bar(pos, np.mean(x), width, color=f"C{j}", alpha=0.5,
+                   label=m if i == 0 else None)
+            ax.plot([pos] * len(x), x, "o", color=f"C{j}", ms=3)
+    ax.set_xticks(range(len(pairs)), [f"{v}\non {w}" for w, v in pairs], fontsize=8)
+    ax.set_ylabel("MAE vs measured ground truth")
+    ax.set_title("A vehicle never driven: zero-shot costmap against the alternatives")
+    ax.legend(fontsize=7, loc="best")
+    fig.savefig(path, dpi=110)
+    print(f"[zero_shot] wrote {path}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--profile", default="demo")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--vehicles", nargs="+", default=list(VEHICLES), choices=VEHICLES,
+                        help="the vehicles to leave out, each in turn (default: all four)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="where the scores and figure go (default: <data>/studies/zero_shot)")
+    parser.add_argument("--figure", type=Path, default=None, help="figure path (default: in --out)")
+    parser.add_argument("--stored", action="store_true",
+                        help="tables and figure from the scores already stored; compute nothing")
+    args = parser.parse_args()
+    from dgt_lib.core import artifacts
+
+    out = (args.out or artifacts.data_root() / "studies" / "zero_shot").resolve()
+    if args.stored:
+        paths = [score_path(out, s, v) for s in args.seeds for v in args.vehicles]
+        scores = [json.loads(p.read_text()) for p in paths if p.exists()]
+        if not scores:
+            raise SystemExit(f"no stored scores under {out / 'scores'}")
+    else:
+        scores = [run_one(args.profile, s, v, out) for s in args.seeds for v in args.vehicles]
+    print(mae_table(scores))
+    print(patch_table(scores))
+    print(plan_table(scores))
+    figure(scores, args.figure or out / "zero_shot.png")
+
+
+if __name__ == "__main__":
+    main()
