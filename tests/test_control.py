@@ -486,3 +486,46 @@ def test_a_trial_stepped_by_hand_is_the_trial_drive_runs():
     assert steps[-1].outcome == outcome and outcome.success
     assert [(s.state.time_s, s.speed_cmd, s.steer) for s in steps[:-1]] == seen
     np.testing.assert_array_equal(steps[-1].state.position, traj[-1, 1:])
+
+
+def test_a_stuck_vehicle_is_sent_more_speed_by_the_robust_controller():
+    # the crawl: a truck that does not move at the commands it gets. The robust settings
+    # (a model that stands still below the breakaway speed, a critic on the sent step)
+    # send it faster steps, call after call, than the paper's controller
+    from dgt_lib.navigation.control.mppi import warm_start_trace
+    from dgt_lib.navigation.control.profiles import ROBUST, controller_settings
+
+    sent = {}
+    for name in ("paper", "robust"):
+        cfg = dataclasses.replace(FAST, **controller_settings(name))
+        ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
+        ctrl.set_path(straight())
+        sent[name] = warm_start_trace(ctrl, (0.0, 0.0, 0.0), 0.0, 20)["command"]
+    assert controller_settings("paper") == {} and ROBUST["breakaway_speed_mps"] > 0
+    assert (sent["robust"][5:] > sent["paper"][5:]).all()
+    assert sent["robust"][-1] > 2 * ROBUST["breakaway_speed_mps"]  # it moves off
+
+
+def test_a_too_fast_corner_is_slowed_below_the_roll_limit_keeping_its_curvature():
+    from dgt_lib.core.vehicles import get_vehicle
+    from dgt_lib.navigation.control.mppi import slow_corners
+
+    seq = np.array([[5.0, 0.2], [5.0, 1.5], [-4.0, -2.0], [0.0, 1.0]], np.float32)
+    before = seq.copy()
+    slow_corners(seq, 3.0)
+    assert np.all(np.abs(seq[:, 0] * seq[:, 1]) <= 3.0 + 1e-5)
+    np.testing.assert_array_equal(seq[[0, 3]], before[[0, 3]])  # under the limit: untouched
+    np.testing.assert_allclose(seq[1:3, 1] / seq[1:3, 0], before[1:3, 1] / before[1:3, 0],
+                               rtol=1e-6)  # the same curvature: slower, never wider
+    # in the loop: an 8 m arc that the paper's controller takes at about v²/r = 3 m/s²
+    jeep = get_vehicle("jeep")
+    limit = 0.2 * jeep.rollover_accel_mps2  # 2.1 m/s²
+    peaks = {}
+    for frac in (0.0, 0.2):
+        cfg = dataclasses.replace(FAST, roll_limit_fraction=frac, lateral_accel_max=8.0)
+        ctrl = MPPIController.from_vehicle(jeep, cfg, seed=0)
+        plant = KinematicBicycle(jeep.wheelbase_m, jeep.max_steer_rad, pose=(0.0, 0.0, 0.0),
+                                 seed=1, speed_time_constant_s=0.5)
+        out = simulate_tracking(ctrl, plant, lead_in_arc(8.0, lead=15.0), 12.0)
+        peaks[frac] = np.abs(out["v_cmd"] * out["w_cmd"]).max()
+    assert peaks[0.0] > limit >= peaks[0.2] - 1e-4

@@ -49,7 +49,7 @@ def _model_digests(prof: Profile) -> dict[str, str | None]:
     return out
 
 
-LATER_EXPERIMENT_FIELDS: dict[str, object] = {"eval_hazard_world": False}
+LATER_EXPERIMENT_FIELDS: dict[str, object] = {"eval_hazard_world": False, "controller": "paper"}
 """ExperimentsConfig fields added after results were cached, with the value that runs exactly
 as before they existed: left out of the key while they have it (as
 ``stages.train.LATER_TRAIN_FIELDS``), so stored trials stay valid."""
