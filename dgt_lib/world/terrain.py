@@ -377,27 +377,29 @@ def _levelled_ditch(h: np.ndarray, grid: GridSpec, centre: tuple[float, float], 
     return w, np.clip(depth - gap * flank, 0.0, None)
 
 
-def ditch_cuts(base: World, count: int, seed: int,
-               vehicle: str = DITCH_VEHICLE) -> tuple[np.ndarray, np.ndarray]:
-    """``base``'s heights with ``count`` ditch aprons levelled, and the depth [m] the
-    ditches then cut into them (:func:`add_ditches`). Every apron is levelled before any
-    ditch is cut, so a later apron never fills an earlier ditch."""
+def ditch_cuts(base: World, count: int, seed: int, vehicle: str = DITCH_VEHICLE
+               ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, float, float]]]:
+    """``base``'s heights with ``count`` ditch aprons levelled, the depth [m] the ditches
+    then cut into them (:func:`add_ditches`) and each ditch's centre and direction
+    (x [m], y [m], angle [rad]). Every apron is levelled before any ditch is cut, so a
+    later apron never fills an earlier ditch."""
     rng = np.random.default_rng((seed, 7))
     grid = base.grid
     (x0, x1, y0, y1) = grid.extent
     par = ditch_parameters(vehicle)
     h = base.heights.astype(np.float64)
     cut = np.zeros(grid.shape)
-    ditches = []
+    ditches, placed = [], []
     for _ in range(count):
         cx, cy = x0 + rng.uniform(0.05, 0.95) * (x1 - x0), y0 + rng.uniform(0.05, 0.95) * (y1 - y0)
         length, depth = rng.uniform(*par["length_m"]), rng.uniform(*par["depth_m"])
         flank = np.tan(np.radians(rng.uniform(*par["flank_deg"])))
         ang = _contour_angle(h, grid, cx, cy, length / 2 + DITCH_APRON_M)
         ditches.append(_levelled_ditch(h, grid, (cx, cy), ang, (length, depth, flank)))
+        placed.append((float(cx), float(cy), ang))
     for w, c in ditches:
         cut[w] += c
-    return h, cut
+    return h, cut, placed
 
 
 def add_ditches(base: World, count: int, seed: int, name: str,
@@ -409,7 +411,7 @@ def add_ditches(base: World, count: int, seed: int, name: str,
     free (docs/worlds.md). Dirt-coloured where deeper than ~0.3 m. Trees, routes and
     landmarks are kept; the base's own random stream is untouched (the ditches draw
     from theirs)."""
-    h, cut = ditch_cuts(base, count, seed, vehicle)
+    h, cut, _ = ditch_cuts(base, count, seed, vehicle)
     h -= cut
     dirt = _smoothstep(cut, 0.1, 0.3)
     colors = base.colors * (1 - dirt[..., None]) + dirt[..., None] * DIRT
