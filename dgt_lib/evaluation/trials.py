@@ -92,16 +92,20 @@ def trial_tasks(experiment: str, world: str, vehicle: str, queries: Sequence[Que
             for i, q in enumerate(queries) for m in methods]
 
 
+def method_costmap(maps: WorldMaps, method: str, vehicle: str) -> np.ndarray:
+    """The directional costmap (K, H, W) a method's trials plan on (Binary's: zeros)."""
+    if method == "binary" and ("binary", vehicle) not in maps.costmaps:
+        return binary_costmap(maps.grid.shape)
+    return maps.costmap(method, vehicle)
+
+
 @lru_cache(maxsize=16)
 def _planner(world: str, method: str, vehicle: str, profile: Profile,
              load_maps: MapsLoader) -> tuple[HybridAStar, WorldMaps, np.ndarray]:
     """The planner of a (world, method, vehicle), built once per process, its maps and the
     costmap it plans on (Binary's: zeros)."""
     maps = load_maps(world, method, vehicle, profile)
-    if method == "binary" and ("binary", vehicle) not in maps.costmaps:
-        cost = binary_costmap(maps.grid.shape)
-    else:
-        cost = maps.costmap(method, vehicle)
+    cost = method_costmap(maps, method, vehicle)
     return HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle,
                                    profile.planner), maps, cost
 
