@@ -488,22 +488,34 @@ def test_a_trial_stepped_by_hand_is_the_trial_drive_runs():
     np.testing.assert_array_equal(steps[-1].state.position, traj[-1, 1:])
 
 
-def test_a_stuck_vehicle_is_sent_more_speed_by_the_robust_controller():
-    # the crawl: a truck that does not move at the commands it gets. The robust settings
-    # (a model that stands still below the breakaway speed, a critic on the sent step)
-    # send it faster steps, call after call, than the paper's controller
+def test_the_breakaway_model_predicts_a_crawl_as_standing_still():
+    # commands below the breakaway speed move the modelled vehicle not at all (nor turn it);
+    # at or above it the response is the plain lag's, to the bit
+    from dgt_lib.navigation.control.sampling import vehicle_response
+
+    v = np.array([[0.3, 0.6, -0.2, 2.0]] * 6, np.float32)
+    w = np.full_like(v, 0.1)
+    plain = vehicle_response(v, w, 0.0, 0.1)
+    held = vehicle_response(v, w, 0.0, 0.1, breakaway_mps=0.5)
+    slow = np.abs(v) < 0.5
+    assert np.all(held[0][slow] == 0) and np.all(held[1][slow] == 0)
+    np.testing.assert_array_equal(held[0][~slow], plain[0][~slow])
+    np.testing.assert_array_equal(held[1][~slow], plain[1][~slow])
+    assert np.all(plain[0][slow] != 0)  # the plain model has them creep
+
+
+def test_the_first_step_critic_sends_a_stuck_vehicle_more_speed():
+    # a truck that does not move at the commands it gets: scoring the sent step against
+    # the reference speed sends it faster steps, call after call, than the paper's MPPI
     from dgt_lib.navigation.control.mppi import warm_start_trace
-    from dgt_lib.navigation.control.profiles import ROBUST, controller_settings
 
     sent = {}
-    for name in ("paper", "robust"):
-        cfg = dataclasses.replace(FAST, **controller_settings(name))
+    for weight in (0.0, 20.0):
+        cfg = dataclasses.replace(FAST, first_step_weight=weight)
         ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
         ctrl.set_path(straight())
-        sent[name] = warm_start_trace(ctrl, (0.0, 0.0, 0.0), 0.0, 20)["command"]
-    assert controller_settings("paper") == {} and ROBUST["breakaway_speed_mps"] > 0
-    assert (sent["robust"][5:] > sent["paper"][5:]).all()
-    assert sent["robust"][-1] > 2 * ROBUST["breakaway_speed_mps"]  # it moves off
+        sent[weight] = warm_start_trace(ctrl, (0.0, 0.0, 0.0), 0.0, 20)["command"]
+    assert (sent[20.0][5:] > sent[0.0][5:]).all()
 
 
 def test_a_too_fast_corner_is_slowed_below_the_roll_limit_keeping_its_curvature():

@@ -28,6 +28,8 @@ def test_another_controller_is_a_variant_with_its_settings(name):
     prof = SMOKE.with_overrides({"experiments.controller": name})
     assert experiment_config("experiment1", prof)["experiments"]["controller"] == name
     assert experiment_stem("experiment1", prof) != experiment_stem("experiment1", SMOKE)
+    # the key holds what the name sets: other settings under the same name are other trials
+    assert experiment_config("experiment1", prof)["mppi"] == controller_settings(name)
     cost = np.random.default_rng(0).random((8, 4, 4)).astype(np.float32)
     args = trial_controller(prof, cost)
     assert args["mppi_settings"] == controller_settings(name)

@@ -130,8 +130,9 @@ def test_compiled_terrain_critic_matches_when_a_sample_leaves_the_map():
 
 def test_compiled_backend_matches_the_reference_with_the_robust_controller():
     # the breakaway model lives in both rollouts; the first-step critic and the roll limit
-    # act after them: the robust controller's commands are the same in both backends
+    # act after them: the commands with every such field on are the same in both backends
     from dgt_lib.navigation.control.profiles import ROBUST
 
-    assert_same_calls(with_footprint(dataclasses.replace(MPPIConfig(batch_size=200), **ROBUST)),
+    every = {**ROBUST, "first_step_weight": 20.0}
+    assert_same_calls(with_footprint(dataclasses.replace(MPPIConfig(batch_size=200), **every)),
                       30, speed=0.3)

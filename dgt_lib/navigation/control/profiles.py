@@ -2,8 +2,8 @@
 
 - ``"paper"``: MPPI as the paper runs it (every :class:`MPPIConfig` default; no terrain term).
 - ``"robust"``: the same MPPI that does not crawl and does not corner past the roll limit:
-  its model stands still below a breakaway speed, a critic scores the step it sends, and
-  the sent speeds are slowed below half the vehicle's rollover acceleration.
+  its model stands still below a breakaway speed, and the sent speeds are slowed below half
+  the vehicle's rollover acceleration.
 - ``"terrain"``: ``"robust"`` plus the terrain critic reading the trial method's own
   costmap (Binary's is zero: no terrain term).
 """
@@ -15,9 +15,8 @@ CONTROLLERS: tuple[str, ...] = ("paper", "robust", "terrain")
 
 ROBUST: dict[str, object] = {
     "breakaway_speed_mps": 0.5,  # a command below this does not move a truck on a grade
-    "first_step_weight": 20.0,  # as the speed critic's weight: the sent step counts as much
     "roll_limit_fraction": 0.5,  # corners at most half the static rollover acceleration
-}
+}  # first_step_weight stays 0: it carries speed into corners (docs/controller.md)
 TERRAIN: dict[str, object] = {**ROBUST, "terrain_weight": 0.05}  # docs/controller.md
 
 
