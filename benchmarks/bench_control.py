@@ -9,6 +9,9 @@ commands, and the closed-loop tracking error on the kinematic bicycle.
 ``--terrain-weight W`` adds the terrain critic (``MPPIConfig.terrain_weight`` W, a random
 8-heading costmap on the grid) to the trials' case, times it on and off in the same run
 and prints the ratio: ``python benchmarks/bench_control.py --terrain-weight 0.05``.
+``--controller NAME`` runs that case with a named trials' controller
+(``experiments.controller``: ``robust`` adds the breakaway model, the first-step critic and
+the roll limit): ``python benchmarks/bench_control.py --terrain-weight 0.05 --controller robust``.
 ``--cpu-time`` times each call by this thread's CPU time instead of the wall clock: on
 cores shared with other work, the compute without the waits for a core.
 """
@@ -34,6 +37,7 @@ from dgt_lib.navigation.control.bicycle import (  # noqa: E402
 )
 from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E402
 from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint  # noqa: E402
+from dgt_lib.navigation.control.profiles import CONTROLLERS, controller_settings  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
 CLOCK = {"now": time.perf_counter}  # ``--cpu-time``: time.thread_time
@@ -50,7 +54,7 @@ def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200,
     """Seconds per compute() call while driving along the path (pose advanced by the
     commands, so the path window and warm start behave as in a loop), and the commands."""
     ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0,
-                          backend=backend)
+                          backend=backend, roll_accel_mps2=get_vehicle("jeep").rollover_accel_mps2)
     ctrl.set_path(s_curve())
     x, y, yaw, v = 0.0, 0.0, 0.3, 4.0
     times, commands = [], []
@@ -108,6 +112,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--terrain-weight", type=float, default=None,
                     help="also time the terrain critic with this weight (on against off)")
+    ap.add_argument("--controller", choices=CONTROLLERS[:2], default="paper",
+                    help="the terrain case's controller (its critic is the --terrain-weight)")
     ap.add_argument("--cpu-time", action="store_true",
                     help="time calls by the thread's CPU time (on busy cores)")
     args = ap.parse_args()
@@ -137,7 +143,8 @@ def main() -> None:
         print(f"{'':<9}compiled {ratio:.1f}× faster; the same commands: {same}")
 
     if args.terrain_weight is not None:
-        terrain_case(van, occ, grid, args.terrain_weight)
+        terrain_case(dataclasses.replace(van, **controller_settings(args.controller)), occ,
+                     grid, args.terrain_weight)
 
     noise_ms = time_noise(van)
     print(f"{'':<9}of which the noise draw (numpy's float32 normals, 2 × "

@@ -10,7 +10,9 @@ Every trial of the cached experiments of run seeds ``0 … seeds-1`` that matche
 does not depend on the controller — once per ``--variant`` (``FIELD=VALUE[,FIELD=VALUE]``
 of :class:`dgt_lib.navigation.control.mppi_config.MPPIConfig`; several fields in one variant are
 changed together), with the trial's own seed, time limit and occupancy map, in a pool of
-``--workers`` processes. It prints, per variant and query label, how many arrived and how
+``--workers`` processes; ``--controller NAME`` adds a variant driven as the trials drive
+with ``experiments.controller=NAME`` (``terrain``: MPPI reads the method's own costmap).
+It prints, per variant and query label, how many arrived and how
 the others ended, beside the recorded outcomes, and which trials ended otherwise than
 recorded (named as ``replay_trial.py --mppi`` replays them); ``--check`` also drives the
 defaults again (none should end otherwise on the machine that recorded them).
@@ -30,8 +32,9 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.executors import limit_threads
-from dgt_lib.evaluation.trials import trial_time_limit_s
+from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
 from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
+from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.navigation.drive import drive
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
@@ -47,15 +50,21 @@ def parse_variant(text: str) -> dict[str, object]:
 
 
 def _drive(job: tuple) -> tuple[str, bool, float]:
-    """Worker: drive one recorded plan with one variant; (reason, success, duration [s])."""
-    profile, world_name, method, vehicle, path, goal, seed, settings = job
+    """Worker: drive one recorded plan with one variant, MPPI fields or a controller's name;
+    (reason, success, duration [s])."""
+    profile, world_name, method, vehicle, path, goal, seed, variant = job
     world = get_world(world_name, profile)
     maps = trial_maps(world_name, method, vehicle, profile)
+    if isinstance(variant, str):
+        named = profile.with_overrides({"experiments.controller": variant})
+        control = trial_controller(named, method_costmap(maps, method, vehicle))
+    else:
+        control = {"mppi_settings": variant}
     length_m = float(np.hypot(*np.diff(path[:, :2], axis=0).T).sum())
     outcome, _, _ = drive(world, vehicle, path, goal, occupancy=maps.occupancy, grid=maps.grid,
                           time_limit_s=trial_time_limit_s(profile.experiments, length_m),
                           mppi_batch_size=profile.experiments.mppi_batch_size, seed=seed,
-                          mppi_settings=settings)
+                          **control)
     return outcome.reason, outcome.success, outcome.duration_s
 
 
@@ -83,6 +92,8 @@ def main() -> None:
     ap.add_argument("--method", default=None, help="only this method, e.g. dgt")
     ap.add_argument("--variant", action="append", default=[], type=parse_variant,
                     help="FIELD=VALUE[,FIELD=VALUE] of MPPIConfig (repeatable)")
+    ap.add_argument("--controller", action="append", default=[], choices=CONTROLLERS,
+                    help="a trials' controller by name (experiments.controller; repeatable)")
     ap.add_argument("--check", action="store_true", help="also drive the defaults again")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
@@ -110,7 +121,7 @@ def main() -> None:
           f"0–{args.seeds - 1}, route {args.route or 'any'}, label {args.label or 'any'}, "
           f"method {args.method or 'any'})")
     print(f"  recorded: {summary(recorded)}")
-    variants = ([{}] if args.check else []) + args.variant
+    variants = ([{}] if args.check else []) + args.variant + args.controller
     ctx = multiprocessing.get_context("fork")
     with ProcessPoolExecutor(args.workers, mp_context=ctx, initializer=limit_threads) as pool:
         for settings in variants:
@@ -119,7 +130,8 @@ def main() -> None:
                      r.task.query.goal, r.task.seed, settings) for r in trials]
             out = list(pool.map(_drive, jobs))
             rows = [(r.task.query.label, *o) for r, o in zip(trials, out, strict=True)]
-            name = ", ".join(f"{k}={v}" for k, v in settings.items()) or "defaults again"
+            name = (f"controller {settings}" if isinstance(settings, str) else
+                    ", ".join(f"{k}={v}" for k, v in settings.items()) or "defaults again")
             print(f"  {name}: {summary(rows)}  [{time.perf_counter() - t0:.0f} s]")
             changed = [(who, r.outcome.reason, o[0])
                        for who, r, o in zip(names, trials, out, strict=True)

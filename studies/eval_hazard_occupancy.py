@@ -22,7 +22,7 @@ from dgt_lib.mapping.baselines import binary_costmap
 from dgt_lib.navigation.planner import HybridAStar
 from dgt_lib.perception.bev import GRADIENT
 from dgt_lib.stages.experiments import trial_maps
-from dgt_lib.world.terrain import get_world
+from dgt_lib.world.terrain import ditch_count, ditch_cuts, get_world
 
 
 def main() -> None:
@@ -33,8 +33,8 @@ def main() -> None:
     prof = get_profile(args.profile).with_overrides({"experiments.eval_hazard_world": True})
     world, base = get_world("eval_hazard", prof), get_world("eval", prof)
     maps = trial_maps("eval_hazard", "binary", "jeep", prof)
-    cut = np.abs((world.heights - world.heights.max()) - (base.heights - base.heights.max())
-                 ) > 1e-3
+    cut = ditch_cuts(base, ditch_count(prof.worlds.eval_size_m),
+                     prof.worlds.eval_seed)[1] > 0  # the generator's own cells
     gy, gx = np.gradient(world.heights.astype(np.float64), world.resolution)
     steep = np.hypot(gx, gy) > maps.tau_s
     occupied = maps.bev.channels[GRADIENT] > maps.tau_s

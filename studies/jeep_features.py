@@ -20,7 +20,7 @@ import numpy as np
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.drive import drive_straight
 from dgt_lib.world.simulator import Simulator
-from dgt_lib.world.terrain import add_ditches, ditch_parameters
+from dgt_lib.world.terrain import add_ditches, ditch_cuts, ditch_parameters
 from dgt_lib.world.worlds import World, from_heightmap
 
 JEEP = get_vehicle("jeep")
@@ -66,9 +66,8 @@ def ditches(seeds: int) -> None:
     counts: dict[int, list[bool]] = {0: [], 30: [], 60: []}
     for seed in range(seeds):
         world = add_ditches(flat, 1, seed, "one")
-        rng = np.random.default_rng((seed, 7))  # add_ditches' first draws: centre, angle
-        centre = rng.uniform(0.05, 0.95, 2) * 100.0
-        ang = rng.uniform(0.0, np.pi)
+        cx, cy, ang = ditch_cuts(flat, 1, seed)[2][0]  # where add_ditches put it
+        centre = np.array([cx, cy])
         for off, sign in ((o, s) for o in counts for s in (1, -1)):
             a = ang + sign * np.pi / 2 + np.radians(off)
             start = centre - 8.0 * np.array([np.cos(a), np.sin(a)])

@@ -486,3 +486,58 @@ def test_a_trial_stepped_by_hand_is_the_trial_drive_runs():
     assert steps[-1].outcome == outcome and outcome.success
     assert [(s.state.time_s, s.speed_cmd, s.steer) for s in steps[:-1]] == seen
     np.testing.assert_array_equal(steps[-1].state.position, traj[-1, 1:])
+
+
+def test_the_breakaway_model_predicts_a_crawl_as_standing_still():
+    # commands below the breakaway speed move the modelled vehicle not at all (nor turn it);
+    # at or above it the response is the plain lag's, to the bit
+    from dgt_lib.navigation.control.sampling import vehicle_response
+
+    v = np.array([[0.3, 0.6, -0.2, 2.0]] * 6, np.float32)
+    w = np.full_like(v, 0.1)
+    plain = vehicle_response(v, w, 0.0, 0.1)
+    held = vehicle_response(v, w, 0.0, 0.1, breakaway_mps=0.5)
+    slow = np.abs(v) < 0.5
+    assert np.all(held[0][slow] == 0) and np.all(held[1][slow] == 0)
+    np.testing.assert_array_equal(held[0][~slow], plain[0][~slow])
+    np.testing.assert_array_equal(held[1][~slow], plain[1][~slow])
+    assert np.all(plain[0][slow] != 0)  # the plain model has them creep
+
+
+def test_the_first_step_critic_sends_a_stuck_vehicle_more_speed():
+    # a truck that does not move at the commands it gets: scoring the sent step against
+    # the reference speed sends it faster steps, call after call, than the paper's MPPI
+    from dgt_lib.navigation.control.mppi import warm_start_trace
+
+    sent = {}
+    for weight in (0.0, 20.0):
+        cfg = dataclasses.replace(FAST, first_step_weight=weight)
+        ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
+        ctrl.set_path(straight())
+        sent[weight] = warm_start_trace(ctrl, (0.0, 0.0, 0.0), 0.0, 20)["command"]
+    assert (sent[20.0][5:] > sent[0.0][5:]).all()
+
+
+def test_a_too_fast_corner_is_slowed_below_the_roll_limit_keeping_its_curvature():
+    from dgt_lib.core.vehicles import get_vehicle
+    from dgt_lib.navigation.control.mppi import slow_corners
+
+    seq = np.array([[5.0, 0.2], [5.0, 1.5], [-4.0, -2.0], [0.0, 1.0]], np.float32)
+    before = seq.copy()
+    slow_corners(seq, 3.0)
+    assert np.all(np.abs(seq[:, 0] * seq[:, 1]) <= 3.0 + 1e-5)
+    np.testing.assert_array_equal(seq[[0, 3]], before[[0, 3]])  # under the limit: untouched
+    np.testing.assert_allclose(seq[1:3, 1] / seq[1:3, 0], before[1:3, 1] / before[1:3, 0],
+                               rtol=1e-6)  # the same curvature: slower, never wider
+    # in the loop: an 8 m arc that the paper's controller takes at about v²/r = 3 m/s²
+    jeep = get_vehicle("jeep")
+    limit = 0.2 * jeep.rollover_accel_mps2  # 2.1 m/s²
+    peaks = {}
+    for frac in (0.0, 0.2):
+        cfg = dataclasses.replace(FAST, roll_limit_fraction=frac, lateral_accel_max=8.0)
+        ctrl = MPPIController.from_vehicle(jeep, cfg, seed=0)
+        plant = KinematicBicycle(jeep.wheelbase_m, jeep.max_steer_rad, pose=(0.0, 0.0, 0.0),
+                                 seed=1, speed_time_constant_s=0.5)
+        out = simulate_tracking(ctrl, plant, lead_in_arc(8.0, lead=15.0), 12.0)
+        peaks[frac] = np.abs(out["v_cmd"] * out["w_cmd"]).max()
+    assert peaks[0.0] > limit >= peaks[0.2] - 1e-4

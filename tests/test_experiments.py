@@ -274,7 +274,7 @@ def test_a_customised_profile_travels_with_its_trials():
     result = run_trial(task, trial_maps)
     assert result.outcome.reason == "no_path", result.outcome
     assert result.expansions <= 1
-    planner, _ = trials._planner("hill", "binary", "carla_cola", PROFILE, trial_maps)
+    planner, _, _ = trials._planner("hill", "binary", "carla_cola", PROFILE, trial_maps)
     assert planner.plan(query.start, query.goal).expansions > 1  # the default plans on
 
 

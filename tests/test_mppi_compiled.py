@@ -126,3 +126,13 @@ def test_compiled_terrain_critic_matches_when_a_sample_leaves_the_map():
     edge = np.stack([x, np.full_like(x, -39.0), np.zeros_like(x)], 1)
     cfg = dataclasses.replace(with_footprint(MPPIConfig(batch_size=200)), terrain_weight=0.05)
     assert_same_calls(cfg, 40, path=edge, with_costmap=True)
+
+
+def test_compiled_backend_matches_the_reference_with_the_robust_controller():
+    # the breakaway model lives in both rollouts; the first-step critic and the roll limit
+    # act after them: the commands with every such field on are the same in both backends
+    from dgt_lib.navigation.control.profiles import ROBUST
+
+    every = {**ROBUST, "first_step_weight": 20.0}
+    assert_same_calls(with_footprint(dataclasses.replace(MPPIConfig(batch_size=200), **every)),
+                      30, speed=0.3)

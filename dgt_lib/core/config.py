@@ -243,6 +243,10 @@ class ExperimentsConfig:
     # Experiment 3 on ``eval_hazard`` (the eval world plus V-ditches sized by the jeep's spec,
     # dgt_lib/world/terrain.py, docs/worlds.md) instead of ``eval``; False = the paper's setup
     eval_hazard_world: bool = False
+    # The trials' controller (navigation/control/profiles.py, docs/controller.md): "paper"
+    # (MPPI as the paper runs it), "robust" (no crawl, corners below the roll limit) or
+    # "terrain" (robust plus the terrain critic on each method's own costmap)
+    controller: str = "paper"
 
 
 EXECUTORS: tuple[str, ...] = ("process", "dask", "ray")

@@ -150,6 +150,7 @@ SETTING_RULES: dict[str, Rule] = {
     "experiments.start_jitter_m": NON_NEGATIVE, "experiments.heading_jitter_deg": between(0, 180),
     "experiments.eval_distance_m": distance_range(), "experiments.eval_min_hazard_m": NON_NEGATIVE,
     "experiments.time_limit_base_s": POSITIVE, "experiments.time_limit_factor": NON_NEGATIVE,
+    "experiments.controller": one_of("paper", "robust", "terrain"),  # CONTROLLERS
     "ground_truth.cells": COUNT, "ground_truth.run_up_m": NON_NEGATIVE,
     "ground_truth.past_m": NON_NEGATIVE, "ground_truth.edge_margin_m": NON_NEGATIVE,
     "ground_truth.tree_clearance_m": NON_NEGATIVE, "ground_truth.max_slope_deg": above_up_to(0, 90),

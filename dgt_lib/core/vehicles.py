@@ -72,6 +72,18 @@ class VehicleSpec:
     color: tuple[float, float, float] = (0.8, 0.8, 0.8)
 
     @property
+    def com_height_m(self) -> float:
+        """Centre of mass above the ground [m]: a quarter of the body height above its
+        underside (the MuJoCo model's, ``world/mujoco_model.py``)."""
+        return self.ground_clearance_m + 0.25 * (self.height_m - self.ground_clearance_m)
+
+    @property
+    def rollover_accel_mps2(self) -> float:
+        """Lateral acceleration that tips the vehicle on level ground, g·(track/2)/h_cg
+        [m/s²] (the static stability factor of a rigid body)."""
+        return 9.81 * 0.5 * self.track_m / self.com_height_m
+
+    @property
     def min_turn_radius_m(self) -> float:
         """R_min = L / tan(δ_max) [m] (kinematic bicycle, rear-axle centre)."""
         return self.wheelbase_m / math.tan(self.max_steer_rad)

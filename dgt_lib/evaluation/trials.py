@@ -34,6 +34,7 @@ from dgt_lib.evaluation.journal import Journal, read_journal
 from dgt_lib.evaluation.queries import Query, classify_route
 from dgt_lib.mapping.baselines import binary_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.navigation.control.profiles import controller_settings, reads_costmap
 from dgt_lib.navigation.drive import drive
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar
@@ -91,17 +92,33 @@ def trial_tasks(experiment: str, world: str, vehicle: str, queries: Sequence[Que
             for i, q in enumerate(queries) for m in methods]
 
 
+def method_costmap(maps: WorldMaps, method: str, vehicle: str) -> np.ndarray:
+    """The directional costmap (K, H, W) a method's trials plan on (Binary's: zeros)."""
+    if method == "binary" and ("binary", vehicle) not in maps.costmaps:
+        return binary_costmap(maps.grid.shape)
+    return maps.costmap(method, vehicle)
+
+
 @lru_cache(maxsize=16)
 def _planner(world: str, method: str, vehicle: str, profile: Profile,
-             load_maps: MapsLoader) -> tuple[HybridAStar, WorldMaps]:
-    """The planner of a (world, method, vehicle), built once per process."""
+             load_maps: MapsLoader) -> tuple[HybridAStar, WorldMaps, np.ndarray]:
+    """The planner of a (world, method, vehicle), built once per process, its maps and the
+    costmap it plans on (Binary's: zeros)."""
     maps = load_maps(world, method, vehicle, profile)
-    if method == "binary" and ("binary", vehicle) not in maps.costmaps:
-        cost = binary_costmap(maps.grid.shape)
-    else:
-        cost = maps.costmap(method, vehicle)
+    cost = method_costmap(maps, method, vehicle)
     return HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle,
-                                   profile.planner), maps
+                                   profile.planner), maps, cost
+
+
+def trial_controller(prof: Profile, costmap: np.ndarray) -> dict[str, object]:
+    """``drive``'s controller arguments for ``prof.experiments.controller``
+    (:mod:`dgt_lib.navigation.control.profiles`): none for the paper's, else the MPPI
+    settings and, for ``"terrain"``, the method's own ``costmap`` (K, H, W)."""
+    name = prof.experiments.controller
+    if name == "paper":
+        return {}
+    out: dict[str, object] = {"mppi_settings": controller_settings(name)}
+    return {**out, "costmap": costmap} if reads_costmap(name) else out
 
 
 def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
@@ -110,7 +127,7 @@ def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
     try:
         prof = task.profile
         world = get_world(task.world, prof)
-        planner, maps = _planner(task.world, task.method, task.vehicle, prof, load_maps)
+        planner, maps, cost = _planner(task.world, task.method, task.vehicle, prof, load_maps)
         plan = planner.plan(task.query.start, task.query.goal)
         if not plan.success:
             return TrialResult(task, TrialOutcome.failure("no_path", detail=plan.reason),
@@ -121,7 +138,7 @@ def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
                                      time_limit_s=trial_time_limit_s(prof.experiments,
                                                                      plan.length_m),
                                      mppi_batch_size=prof.experiments.mppi_batch_size,
-                                     seed=task.seed)
+                                     seed=task.seed, **trial_controller(prof, cost))
         return TrialResult(task, outcome, plan.path, plan.cost, plan.time_s, plan.expansions,
                            classify_route(world, plan.path), traj, speed,
                            time.perf_counter() - t0)

@@ -154,9 +154,11 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     command MPPI gives, with the state it answered (``studies/replay_trial.py`` prints
     them). ``mppi_settings``: :class:`MPPIConfig` fields to change for this drive, e.g.
     ``{"lateral_accel_max": 2.0}`` (``studies/controller_variants.py``); the experiments
-    use the defaults. ``costmap``: the plan's directional costmap (K, H, W) on ``grid``,
+    use the defaults unless ``experiments.controller`` names another controller.
+    ``costmap``: the plan's directional costmap (K, H, W) on ``grid``,
     paid by every rollout when ``mppi_settings`` sets ``terrain_weight`` > 0 (the terrain
-    critic, docs/controller.md; the experiments pass none). The same as
+    critic, docs/controller.md; the experiments pass the method's own with
+    ``experiments.controller=terrain``). The same as
     :func:`start_trial` then :func:`drive_steps` to the end.
     """
     sim = Simulator(world, get_vehicle(vehicle))

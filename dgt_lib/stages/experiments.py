@@ -21,6 +21,7 @@ from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import classify_route
 from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.navigation.control.profiles import controller_settings
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
@@ -49,7 +50,7 @@ def _model_digests(prof: Profile) -> dict[str, str | None]:
     return out
 
 
-LATER_EXPERIMENT_FIELDS: dict[str, object] = {"eval_hazard_world": False}
+LATER_EXPERIMENT_FIELDS: dict[str, object] = {"eval_hazard_world": False, "controller": "paper"}
 """ExperimentsConfig fields added after results were cached, with the value that runs exactly
 as before they existed: left out of the key while they have it (as
 ``stages.train.LATER_TRAIN_FIELDS``), so stored trials stay valid."""
@@ -62,6 +63,8 @@ def experiment_config(name: str, prof: Profile) -> dict[str, object]:
     cfg = {"stage": name, "experiments": experiments, "planner": prof.planner,
            "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof),
            "physics": PHYSICS}
+    if prof.experiments.controller != "paper":  # what the named controller sets, too
+        cfg["mppi"] = controller_settings(prof.experiments.controller)
     return cfg if prof.bev == BEVConfig() else {**cfg, "bev": prof.bev}
 
 

@@ -117,7 +117,7 @@ def _add_vehicle(spec: mujoco.MjSpec, v: VehicleSpec) -> None:
     chassis.explicitinertial = True
     chassis.mass = m_body
     # Centre of mass a quarter of the body height above the underside.
-    com_above_ground = v.ground_clearance_m + 0.25 * (v.height_m - v.ground_clearance_m)
+    com_above_ground = v.com_height_m
     chassis.ipos = [0, 0, com_above_ground - r]
     lx, ly, lz = v.length_m, v.width_m, v.height_m - v.ground_clearance_m
     chassis.inertia = [m_body / 12 * (ly**2 + lz**2), m_body / 12 * (lx**2 + lz**2),

@@ -310,6 +310,8 @@ DITCH_LENGTH_M = (20.0, 40.0)  # several vehicle lengths: a detour to go round
 DITCH_QUERY_M = 65.0  # mean straight-line query length (Experiment 3's 40–90 m)
 DITCH_CROSSINGS_PER_QUERY = 1.0  # expected ditches on a random line of that length
 BUMPER_RAISE_M = 0.1  # bumpers' underside above the belly's (world/mujoco_model.py) [m]
+DITCH_LEVEL_M = 2.0  # level ground beyond each rim [m]: the flank is the ditch's own slope
+DITCH_APRON_M = 15.0  # then blending back to the base terrain over this width [m]
 
 
 def ditch_parameters(vehicle: str = DITCH_VEHICLE) -> dict[str, tuple[float, float]]:
@@ -340,34 +342,81 @@ def ditch_count(size_m: float) -> int:
     return max(1, int(round(n)))
 
 
-def add_ditches(base: World, count: int, seed: int, name: str,
-                vehicle: str = DITCH_VEHICLE) -> World:
-    """``base`` with ``count`` straight V-ditches (ends shallowing over 2 m) sized by
-    :func:`ditch_parameters`, at uniform centres 5 % inside the map and uniform
-    orientations, dirt-coloured where deeper than ~0.3 m. Trees, routes and landmarks
-    are kept; the base's own random stream is untouched (the ditches draw from theirs)."""
+def _contour_angle(h: np.ndarray, grid: GridSpec, cx: float, cy: float,
+                   radius_m: float) -> float:
+    """The direction [rad, 0–π] of the contour line through (cx, cy): perpendicular to
+    ``h``'s mean gradient over the cells within ``radius_m`` along x and y."""
+    w = _window(grid, cx, cy, radius_m)
+    gy, gx = np.gradient(h[w], grid.resolution)
+    return float(np.mod(np.arctan2(gy.mean(), gx.mean()) + 0.5 * np.pi, np.pi))
+
+
+def _levelled_ditch(h: np.ndarray, grid: GridSpec, centre: tuple[float, float], ang: float,
+                    size: tuple[float, float, float]) -> tuple[tuple[slice, slice], np.ndarray]:
+    """One V-ditch of ``size`` = (length, depth, tan φ) [m, m, m/m] along ``ang`` with
+    rounded ends, on level ground: within :data:`DITCH_LEVEL_M` of the rim the ground
+    takes the mean height of the ditch's bottom line, blending back to ``h`` over
+    :data:`DITCH_APRON_M`. Returns the window and the cut [m]; the levelling is applied
+    to ``h`` in place."""
+    (cx, cy), (length, depth, flank), res = centre, size, grid.resolution
+    rim = depth / flank
+    w = _window(grid, cx, cy, length / 2 + rim + DITCH_LEVEL_M + DITCH_APRON_M + res)
+    X, Y = grid.cell_centers()
+    u = (X[w] - cx) * np.cos(ang) + (Y[w] - cy) * np.sin(ang)
+    v = -(X[w] - cx) * np.sin(ang) + (Y[w] - cy) * np.cos(ang)
+    # the level: the base's mean height along the bottom line (bilinear samples)
+    us = np.linspace(-length / 2, length / 2, 64)
+    line = ndimage.map_coordinates(h, [(cy + us * np.sin(ang) - grid.origin_xy[1]) / res - 0.5,
+                                       (cx + us * np.cos(ang) - grid.origin_xy[0]) / res - 0.5],
+                                   order=1, mode="nearest").mean()
+    flat = rim + DITCH_LEVEL_M
+    level = (_smoothstep(-np.abs(v), -(flat + DITCH_APRON_M), -flat)
+             * _smoothstep(-np.abs(u), -(length / 2 + flat + DITCH_APRON_M), -length / 2 - flat))
+    h[w] -= level * (h[w] - line)
+    gap = np.hypot(np.clip(np.abs(u) - length / 2, 0.0, None), v)  # to the bottom line
+    return w, np.clip(depth - gap * flank, 0.0, None)
+
+
+def ditch_cuts(base: World, count: int, seed: int, vehicle: str = DITCH_VEHICLE
+               ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, float, float]]]:
+    """``base``'s heights with ``count`` ditch aprons levelled, the depth [m] the ditches
+    then cut into them (:func:`add_ditches`) and each ditch's centre and direction
+    (x [m], y [m], angle [rad]). Every apron is levelled before any ditch is cut, so a
+    later apron never fills an earlier ditch."""
     rng = np.random.default_rng((seed, 7))
-    grid, res = base.grid, base.grid.resolution
+    grid = base.grid
     (x0, x1, y0, y1) = grid.extent
     par = ditch_parameters(vehicle)
-    X, Y = grid.cell_centers()
     h = base.heights.astype(np.float64)
-    dirt = np.zeros(grid.shape)
+    cut = np.zeros(grid.shape)
+    ditches, placed = [], []
     for _ in range(count):
         cx, cy = x0 + rng.uniform(0.05, 0.95) * (x1 - x0), y0 + rng.uniform(0.05, 0.95) * (y1 - y0)
-        ang = rng.uniform(0.0, np.pi)
         length, depth = rng.uniform(*par["length_m"]), rng.uniform(*par["depth_m"])
         flank = np.tan(np.radians(rng.uniform(*par["flank_deg"])))
-        w = _window(grid, cx, cy, length / 2 + depth / flank + res)
-        u = (X[w] - cx) * np.cos(ang) + (Y[w] - cy) * np.sin(ang)
-        v = -(X[w] - cx) * np.sin(ang) + (Y[w] - cy) * np.cos(ang)
-        cut = np.clip(depth - np.abs(v) * flank, 0.0, None) * _smoothstep(
-            length / 2 - np.abs(u), 0.0, 2.0)
-        h[w] -= cut
-        dirt[w] = np.maximum(dirt[w], _smoothstep(cut, 0.1, 0.3))
+        ang = _contour_angle(h, grid, cx, cy, length / 2 + DITCH_APRON_M)
+        ditches.append(_levelled_ditch(h, grid, (cx, cy), ang, (length, depth, flank)))
+        placed.append((float(cx), float(cy), ang))
+    for w, c in ditches:
+        cut[w] += c
+    return h, cut, placed
+
+
+def add_ditches(base: World, count: int, seed: int, name: str,
+                vehicle: str = DITCH_VEHICLE) -> World:
+    """``base`` with ``count`` straight V-ditches with rounded ends, sized by
+    :func:`ditch_parameters`, at uniform centres 5 % inside the map, each along the
+    base's contour line there and cut into a levelled apron (:func:`_levelled_ditch`):
+    the flanks keep their own slope on rolling ground, so the occupancy map leaves them
+    free (docs/worlds.md). Dirt-coloured where deeper than ~0.3 m. Trees, routes and
+    landmarks are kept; the base's own random stream is untouched (the ditches draw
+    from theirs)."""
+    h, cut, _ = ditch_cuts(base, count, seed, vehicle)
+    h -= cut
+    dirt = _smoothstep(cut, 0.1, 0.3)
     colors = base.colors * (1 - dirt[..., None]) + dirt[..., None] * DIRT
     h -= h.min()
-    return World(name, grid, h.astype(np.float32), colors.astype(np.float32),
+    return World(name, base.grid, h.astype(np.float32), colors.astype(np.float32),
                  base.trees.copy(), dict(base.landmarks),
                  {k: r.copy() for k, r in base.routes.items()}, base.seed)
 
@@ -376,8 +425,8 @@ def make_eval_hazard(size_m: float = 160.0, resolution: float = 0.4, seed: int =
                      name: str = "eval_hazard") -> World:
     """The ``eval`` world (:func:`make_training` from the same seed) plus V-ditches the
     jeep's front bumper digs into (:func:`add_ditches`, :func:`ditch_count` of them):
-    flanks of 21.5–25.3° that the occupancy map leaves free, 0.76–1.14 m deep, 20–40 m
-    long. The rule and its numbers: docs/worlds.md."""
+    flanks of 21.5–25.3° on levelled aprons that the occupancy map leaves free,
+    0.76–1.14 m deep, 20–40 m long. The rule and its numbers: docs/worlds.md."""
     base = make_training(size_m, resolution, seed, name=name)
     return add_ditches(base, ditch_count(size_m), seed, name)
 

@@ -152,6 +152,15 @@ def constraint_critic(v, w, cfg: MPPIConfig) -> np.ndarray:
     return cfg.constraint_weight * cost
 
 
+def first_step_critic(v0: np.ndarray, v_ref: float, cfg: MPPIConfig) -> np.ndarray:
+    """w_first · ((v_0 − v_ref)/v_target)² ``(B,)``: the speed of the step each sequence
+    sends now, ``v0`` [m/s], against the reference speed at the robot. The path critics
+    score the horizon, where a ramp planned every call and never driven looks as good as
+    one driven (docs/controller.md, "Why MPPI crawls"); this scores the committed step."""
+    err = (v0 - f32(v_ref)) * f32(1.0 / cfg.target_speed)
+    return f32(cfg.first_step_weight) * err * err
+
+
 def terrain_table(costmap: np.ndarray, cfg: MPPIConfig) -> np.ndarray:
     """The terrain critic's per-cell term, float32 ``(K, H, W)``: C(1 + β_c·C) of the
     directional costmap C ``(K, H, W)`` (layer k for heading θ_k = 2πk/K), the planner's

@@ -100,6 +100,18 @@ def shift(sequence: np.ndarray) -> None:
     sequence[:-1] = sequence[1:].copy()
 
 
+def slow_corners(sequence: np.ndarray, a_lat_max: float) -> None:
+    """Slow every step of a (v [m/s], ω [rad/s]) ``(T, 2)`` sequence whose lateral
+    acceleration |v·ω| exceeds ``a_lat_max`` [m/s²] to it, in place, keeping its curvature
+    κ = ω/v: both scale by √(a_lat_max / |v·ω|). A roll limit: a corner is driven slower,
+    never wider."""
+    a_lat = np.abs(sequence[:, 0] * sequence[:, 1])
+    over = a_lat > a_lat_max
+    if over.any():
+        scale = np.sqrt(np.float32(a_lat_max) / a_lat[over]).astype(np.float32)
+        sequence[over] *= scale[:, None]
+
+
 # ----------------------------------------------------------------------------- controller
 
 
@@ -128,6 +140,8 @@ class MPPIController:
     ``(T, 3)`` holds the predicted (x, y, yaw) of the chosen sequence and ``last_costs``
     ``(B,)`` the sampled sequences' costs S (for plots). ``seed`` makes runs repeatable.
     ``backend`` (:data:`BACKENDS`) picks numba's kernels or the numpy reference.
+    ``roll_accel_mps2``: the lateral acceleration that tips the vehicle [m/s²], for
+    ``cfg.roll_limit_fraction`` (:func:`slow_corners`).
     ``weighting`` (default :func:`mppi_weights`) maps (S, λ) to the weights; with
     ``keep_rollouts`` the numpy backend keeps each call's :class:`SampledRollouts` in
     ``last_rollouts``.
@@ -139,7 +153,7 @@ class MPPIController:
 
     def __init__(self, cfg: MPPIConfig | None = None, *, wheelbase_m: float,
                  max_steer_rad: float, min_turn_radius_m: float | None = None, seed: int = 0,
-                 backend: str = "compiled"):
+                 backend: str = "compiled", roll_accel_mps2: float | None = None):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         if backend == "compiled":
@@ -159,6 +173,7 @@ class MPPIController:
         self.wheelbase_m = float(wheelbase_m)
         self.max_steer_rad = float(max_steer_rad)
         self.min_turn_radius_m = float(min_turn_radius_m)
+        self.roll_accel_mps2 = roll_accel_mps2
         self.seed = seed
         T, B = self.cfg.time_steps, self.cfg.batch_size
         # preallocated noise (ε_v, ε_ω) and sampled controls (v, ω), (T, B) float32 each
@@ -176,9 +191,10 @@ class MPPIController:
     def from_vehicle(cls, vehicle, cfg: MPPIConfig | None = None, seed: int = 0,
                      backend: str = "compiled"):
         """Build from an object with ``wheelbase_m``, ``max_steer_rad``, ``min_turn_radius_m``
-        (e.g. ``dgt_lib.core.vehicles.VehicleSpec``)."""
+        and optionally ``rollover_accel_mps2`` (e.g. ``dgt_lib.core.vehicles.VehicleSpec``)."""
         return cls(cfg, wheelbase_m=vehicle.wheelbase_m, max_steer_rad=vehicle.max_steer_rad,
-                   min_turn_radius_m=vehicle.min_turn_radius_m, seed=seed, backend=backend)
+                   min_turn_radius_m=vehicle.min_turn_radius_m, seed=seed, backend=backend,
+                   roll_accel_mps2=getattr(vehicle, "rollover_accel_mps2", None))
 
     # -- state ---------------------------------------------------------------
 
@@ -283,6 +299,10 @@ class MPPIController:
         sampled_costs = (self._sampled_costs_compiled if self.backend == "compiled"
                          else self._sampled_costs)
         v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid, terrain)  # steps 1–3
+        if cfg.first_step_weight > 0:
+            remaining = ref.remaining_m(i_robot)
+            v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining))
+            cost = cost + critics.first_step_critic(v[0], v_ref, cfg)
         self.last_costs = cost
         weights = self.weighting(cost, cfg.temperature)  # step 4
         nominal = weighted_sequence(v, w, weights, self._nominal)
@@ -290,7 +310,10 @@ class MPPIController:
             nominal[:, 1] = smooth_yaw_rates(nominal[:, 1], self._w_history, self._savgol)
         bound = np.minimum(np.abs(nominal[:, 0]) / self.min_turn_radius_m, cfg.w_max)
         np.clip(nominal[:, 1], -bound, bound, out=nominal[:, 1])
-        vo, wo = vehicle_response(nominal[:, :1], nominal[:, 1:], speed, self._alpha)
+        if self.roll_accel_mps2 is not None and cfg.roll_limit_fraction > 0:
+            slow_corners(nominal, cfg.roll_limit_fraction * self.roll_accel_mps2)
+        vo, wo = vehicle_response(nominal[:, :1], nominal[:, 1:], speed, self._alpha,
+                                  cfg.breakaway_speed_mps)
         xo, yo, yawo = rollout_unicycle((x0, y0, yaw0), vo, wo, cfg.model_dt)
         self.optimal_trajectory = np.stack([xo[:, 0], yo[:, 0], yawo[:, 0]], axis=1)
         v_cmd, w_cmd = float(nominal[0, 0]), float(nominal[0, 1])  # step 5
@@ -319,7 +342,7 @@ class MPPIController:
         ev, ew = self._noise()
         v, w = sample_controls(ev, ew, self._nominal, self._last_v, cfg,
                                self.min_turn_radius_m, self._v, self._w)
-        v_act, w_act = vehicle_response(v, w, speed, self._alpha)
+        v_act, w_act = vehicle_response(v, w, speed, self._alpha, cfg.breakaway_speed_mps)
         # Rollouts in a frame centred on the robot (float32 keeps its precision there).
         x, y, yaw = rollout_unicycle((0.0, 0.0, yaw0), v_act, w_act, cfg.model_dt)
         errors = critics.path_errors(x, y, yaw, v_act, self._ref.window(i_robot, x0, y0),

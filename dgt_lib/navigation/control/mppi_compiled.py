@@ -41,13 +41,14 @@ F32 = np.float32
 @njit(cache=True)
 def sample_rollouts(ev, ew, nom_v, nom_w, last_v, dt, accel_std, decel_max, accel_max,
                     v_min, v_max, w_noise, inv_r_min, w_max, b0, a1, z0, yaw0,
-                    v, w, v_act, w_act, yaw, mid):
+                    v, w, v_act, w_act, yaw, mid, breakaway):
     """Sampled commands and the vehicle's response, all ``(T, B)`` float32, in place.
 
     ``ev``, ``ew``: standard normal noise (column 0 zero: the warm start);
     ``nom_v``, ``nom_w``: (T,) the warm start; every scalar a float32 as the reference
     casts it (``w_noise`` = σ_ω̇·dt, ``inv_r_min`` = 1/r_min, ``b0`` = α and ``a1`` =
-    α − 1 the lag filter's coefficients, ``z0`` = (1 − α)·speed its state).
+    α − 1 the lag filter's coefficients, ``z0`` = (1 − α)·speed its state, ``breakaway``
+    the command below which the achieved speed is 0; the filter's state runs on).
     Writes the commands ``v``, ``w``, the achieved ``v_act``, ``w_act``, the yaw at the
     end of each step and the step's midpoint yaw ``mid`` (positions need numpy's cos).
     """
@@ -77,6 +78,8 @@ def sample_rollouts(ev, ew, nom_v, nom_w, last_v, dt, accel_std, decel_max, acce
             # scipy's lfilter, order 1: y = z + b0·x; z = x·b1 − y·a1 (b1 = 0)
             va = lag[b] + b0 * vv
             lag[b] = vv * zero - va * a1
+            if abs(vv) < breakaway:
+                va = zero
             sign = -one if vv < zero else one
             wa = ww * (va / (sign * max(abs(vv), v_floor)))
             v_act[t, b] = va
@@ -253,7 +256,7 @@ def sampled_costs(ev: np.ndarray, ew: np.ndarray, nominal: np.ndarray, last_v: f
         F32(cfg.accel_std), F32(cfg.decel_max), F32(cfg.accel_max), F32(cfg.v_min),
         F32(cfg.v_max), F32(cfg.w_rate_std * cfg.model_dt), F32(1.0 / min_turn_radius_m),
         F32(cfg.w_max), F32(a), F32(a - 1.0), F32((1.0 - a) * speed), F32(yaw0), v, w, v_act,
-        w_act, yaw, mid)
+        w_act, yaw, mid, F32(cfg.breakaway_speed_mps))
     x, y = np.empty_like(v), np.empty_like(v)
     first, every = cfg.path_point_step - 1, cfg.path_point_step
     scored = (cfg.time_steps - first + every - 1) // every

@@ -51,6 +51,10 @@ class MPPIConfig:
     # directional cost at the body centre, C(1 + βC) as the planner amplifies it. 0 = off.
     terrain_weight: float = 0.0  # weight of mean_t C(1 + β_c C), needs a costmap
     terrain_beta: float = 150.0  # β_c (the planner's default β, PlannerConfig.beta)
+    # Against crawling and rolling (ours; 0 = off, the paper's controller: docs/controller.md).
+    breakaway_speed_mps: float = 0.0  # the model stands still while |v_cmd| is below this
+    first_step_weight: float = 0.0  # ((v_0 − v_ref) / target_speed)² of the sent step
+    roll_limit_fraction: float = 0.0  # slow corners to this × the vehicle's rollover a_lat
 
     def __post_init__(self):
         if self.batch_size < 2 or self.time_steps < 2 or self.model_dt <= 0:
@@ -65,6 +69,9 @@ class MPPIConfig:
             raise ValueError("need 0 < collision_radius_m < inflation_radius_m")
         if self.terrain_weight < 0 or self.terrain_beta < 0:
             raise ValueError("terrain_weight and terrain_beta must be ≥ 0")
+        if min(self.breakaway_speed_mps, self.first_step_weight, self.roll_limit_fraction) < 0:
+            raise ValueError("breakaway_speed_mps, first_step_weight and roll_limit_fraction "
+                             "must be ≥ 0")
 
     @property
     def horizon_s(self) -> float:

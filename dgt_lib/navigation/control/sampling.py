@@ -65,8 +65,8 @@ def speed_lag_gain(cfg: MPPIConfig) -> float:
     return cfg.model_dt / (cfg.speed_time_constant_s + cfg.model_dt)
 
 
-def vehicle_response(v: np.ndarray, w: np.ndarray, speed: float, alpha: float
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def vehicle_response(v: np.ndarray, w: np.ndarray, speed: float, alpha: float,
+                     breakaway_mps: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Speed and yaw rate ``(T, B)`` the vehicle achieves for commands (v, ω).
 
     The speed loop (``dgt_lib.world.speed_control.SpeedController`` in the simulator) is
@@ -76,11 +76,15 @@ def vehicle_response(v: np.ndarray, w: np.ndarray, speed: float, alpha: float
 
     run over all samples at once as an IIR filter along time (``lfilter``). Steering fixes
     the curvature κ = ω / v (the bicycle relation), so the yaw rate is ω̂ = v̂·ω / v.
+    With ``breakaway_mps`` > 0 the vehicle stands still (v̂ = 0) at any step whose command
+    is below it in magnitude: a crawl the truck does not drive is predicted as no motion.
     """
     zi = np.full((1, v.shape[1]), (1.0 - alpha) * speed, np.float32)
     v_act = lfilter(
         np.array([alpha], np.float32), np.array([1.0, alpha - 1.0], np.float32), v, axis=0,
         zi=zi)[0]
+    if breakaway_mps > 0:
+        v_act = np.where(np.abs(v) < np.float32(breakaway_mps), np.float32(0.0), v_act)
     v_safe = np.where(v < 0, np.float32(-1.0), np.float32(1.0)) * np.maximum(
         np.abs(v), np.float32(0.05))
     return v_act, w * (v_act / v_safe)
