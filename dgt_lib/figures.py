@@ -179,8 +179,8 @@ OTHER_FIGURES: dict[str, str] = {
                       "shuffled geometry rgb --figure docs/figures/map_inputs.png`: what the "
                       "network looks at (docs/map_inputs.md).",
     "pose_noise.png": "`python studies/map_inputs.py --profile demo --seeds 0 1 2 --variants rgbd "
-                      "pose_low pose_mid pose_high --figure docs/figures/pose_noise.png`: the claims "
-                      "under a noisy localisation (docs/map_inputs.md).",
+                      "pose_low pose_mid pose_high --figure docs/figures/pose_noise.png`: the "
+                      "claims under a noisy localisation (docs/map_inputs.md).",
     "scarcity.png": "`python studies/scarcity.py --profile demo --seeds 0 1 2 --stored --figure "
                     "docs/figures/scarcity.png`: when multi-task learning helps, error against "
                     "one vehicle's training patches (docs/scarcity.md).",

@@ -145,19 +145,19 @@ class TrainConfig:
     inputs: str = "rgbd"
     # Data scarcity (the Claim 4 study, learning/scarcity.py): train on only a fraction
     # ``scarce_fraction`` of ``scarce_vehicle``'s training runs (whole runs, drawn by the run
-    # seed; validation and test splits untouched). "" = every run (the paper).
-    scarce_vehicle: str = ""
+    # seed; validation and test splits untouched). "none" = every run (the paper).
+    scarce_vehicle: str = "none"
     scarce_fraction: float = 1.0
 
     def __post_init__(self):
         for name, valid in (("head_init", HEAD_INITS), ("label_weighting", LABEL_WEIGHTINGS),
                             ("lr_schedule", LR_SCHEDULES), ("selection", SELECTIONS),
                             ("conv_taps", CONV_TAPS), ("inputs", INPUTS),
-                            ("scarce_vehicle", ("",) + VEHICLES)):
+                            ("scarce_vehicle", ("none",) + VEHICLES)):
             if getattr(self, name) not in valid:
                 raise ValueError(f"unknown {name} {getattr(self, name)!r}; valid: "
                                  f"{', '.join(valid)}")
-        if 0 < self.scarce_fraction < 1 and not self.scarce_vehicle:  # (others: SETTING_RULES)
+        if 0 < self.scarce_fraction < 1 and self.scarce_vehicle == "none":  # (else: rules)
             raise ValueError("train.scarce_fraction needs train.scarce_vehicle: whose runs "
                              "to thin out")
 

@@ -134,7 +134,7 @@ SETTING_RULES: dict[str, Rule] = {
     "train.label_weighting": one_of(*LABEL_WEIGHTINGS), "train.label_bins": COUNT,
     "train.max_label_weight": POSITIVE, "train.lr_schedule": one_of(*LR_SCHEDULES),
     "train.selection": one_of(*SELECTIONS), "train.conv_taps": one_of(*CONV_TAPS),
-    "train.inputs": one_of(*INPUTS), "train.scarce_vehicle": one_of("", *VEHICLES),
+    "train.inputs": one_of(*INPUTS), "train.scarce_vehicle": one_of("none", *VEHICLES),
     "train.scarce_fraction": above_up_to(0, 1),
     "costmap.n_headings": COUNT, "costmap.stride": each(COUNT, 2), "costmap.batch_size": COUNT,
     "costmap.slope_trials": COUNT, "costmap.tau_s_margin": POSITIVE,

@@ -263,7 +263,7 @@ def train_model(
     a fraction of that vehicle's training runs is used (:func:`~dgt_lib.learning.scarcity.
     keep_runs`, drawn by ``seed``).
     """
-    if cfg.scarce_vehicle:
+    if cfg.scarce_vehicle != "none":
         dataset = keep_runs(dataset, cfg.scarce_vehicle, cfg.scarce_fraction, seed)
     data = TrainingSet.select(dataset, vehicles, cfg)
     device = resolve_device(device)

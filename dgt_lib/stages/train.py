@@ -75,7 +75,7 @@ def default_rgb_weights() -> Path | None:
 
 LATER_TRAIN_FIELDS: dict[str, object] = {"lr_schedule": "constant", "selection": "best_val",
                                          "conv_taps": "all", "inputs": "rgbd",
-                                         "scarce_vehicle": "", "scarce_fraction": 1.0}
+                                         "scarce_vehicle": "none", "scarce_fraction": 1.0}
 """TrainConfig fields added after models were cached, with the value that trains exactly as
 before they existed. :func:`train_key` leaves a field out while it has that value, so the
 models already trained (hours for ``paper``) stay valid; any other value is in the key."""
