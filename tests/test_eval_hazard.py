@@ -100,6 +100,16 @@ def test_eval_hazard_is_the_eval_world_plus_ditches_and_no_default_builds_it():
         {"experiments.eval_hazard_world": True})) == "hill"
 
 
+def test_the_hazard_world_reruns_experiment3_only():
+    # Experiments 1 and 2 never drive on eval_hazard: their stored trials stay valid
+    from dgt_lib.stages.experiments import experiment_config
+
+    hazard = SMOKE.with_overrides({"experiments.eval_hazard_world": True})
+    for name in ("experiment1", "experiment2"):
+        assert experiment_config(name, hazard) == experiment_config(name, SMOKE)
+    assert experiment_config("experiment3", hazard) != experiment_config("experiment3", SMOKE)
+
+
 def test_a_ditch_at_both_ends_of_its_range_stops_the_jeep_at_the_trials_speed():
     # the premise, in MuJoCo: driven straight at 5 m/s into the gentlest-shallowest and the
     # steepest-deepest ditch, the jeep stays with its front wheels in it

@@ -59,7 +59,10 @@ as before they existed: left out of the key while they have it (as
 def experiment_config(name: str, prof: Profile) -> dict[str, object]:
     """What an experiment's trials depend on (its cache key); the ``bev`` settings only when
     they differ from the paper's (true poses, observed colours)."""
-    experiments = artifacts.key_without_later_fields(prof.experiments, LATER_EXPERIMENT_FIELDS)
+    later = dict(LATER_EXPERIMENT_FIELDS)
+    if name != "experiment3":  # only Experiment 3 runs on eval_hazard: 1 and 2 never see it
+        later["eval_hazard_world"] = prof.experiments.eval_hazard_world
+    experiments = artifacts.key_without_later_fields(prof.experiments, later)
     cfg = {"stage": name, "experiments": experiments, "planner": prof.planner,
            "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof),
            "physics": PHYSICS}
