@@ -70,6 +70,17 @@ def test_a_short_closed_loop_trial_succeeds_on_flat_ground():
     assert np.abs(traj[:, 2] - 20.0).max() < 1.0  # and stayed on the line
 
 
+def test_a_vehicle_started_beside_its_plan_rejoins_it_and_arrives():
+    # studies/off_plan.py's disturbance: at rest 2.5 m left of the path, MPPI steers back
+    world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
+    path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
+    outcome, traj, _ = drive(world, "jeep", path, (60.0, 20.0), time_limit_s=30.0,
+                             mppi_batch_size=128, start_pose=(10.0, 22.5, 0.0))
+    assert abs(traj[0, 2] - 22.5) < 0.3  # it started where it was put, not on the path
+    assert outcome.success
+    assert abs(traj[-1, 2] - 20.0) < 1.0  # back on the line by the goal
+
+
 def test_watching_a_trials_commands_does_not_change_the_trial():
     """`studies/replay_trial.py` prints every command MPPI gives through `on_command`:
     one per ~50 ms control period, the speed command and the steering within the

@@ -16,7 +16,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -124,12 +124,14 @@ def trial_mppi_config(spec: VehicleSpec, mppi_batch_size: int = 1000,
 def start_trial(sim: Simulator, path: np.ndarray, *, occupancy=None, grid=None,
                 mppi_batch_size: int = 1000, seed: int = 0,
                 on_command: Callable[[VehicleState, float, float], None] | None = None,
-                mppi_settings: Mapping[str, object] | None = None, costmap=None) -> Policy:
-    """Put the simulated vehicle on ``path``'s first pose and return the trial's policy:
+                mppi_settings: Mapping[str, object] | None = None, costmap=None,
+                start_pose: Sequence[float] | None = None) -> Policy:
+    """Put the simulated vehicle on ``path``'s first pose, or on ``start_pose`` (x [m],
+    y [m], yaw [rad]: a vehicle pushed off its plan), and return the trial's policy:
     :class:`MPPIPolicy` tracking the path (``costmap``: for the terrain critic), or
     holding still when the path is one pose (nothing to track)."""
     path = np.asarray(path, float)
-    x, y, yaw = (float(v) for v in path[0])
+    x, y, yaw = (float(v) for v in (path[0] if start_pose is None else start_pose))
     sim.reset(x, y, yaw)
     if not _has_length(path):
         return lambda state: (0.0, 0.0)  # hold still: nothing to track
@@ -141,7 +143,8 @@ def start_trial(sim: Simulator, path: np.ndarray, *, occupancy=None, grid=None,
 def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None, grid=None,
           time_limit_s: float, mppi_batch_size: int = 1000, seed: int = 0,
           on_command: Callable[[VehicleState, float, float], None] | None = None,
-          mppi_settings: Mapping[str, object] | None = None, costmap=None
+          mppi_settings: Mapping[str, object] | None = None, costmap=None,
+          start_pose: Sequence[float] | None = None
           ) -> tuple[TrialOutcome, np.ndarray, np.ndarray]:
     """Track ``path`` (N, 3) in MuJoCo with MPPI at 20 Hz from its first pose.
 
@@ -158,7 +161,8 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     ``costmap``: the plan's directional costmap (K, H, W) on ``grid``,
     paid by every rollout when ``mppi_settings`` sets ``terrain_weight`` > 0 (the terrain
     critic, docs/controller.md; the experiments pass the method's own with
-    ``experiments.controller=terrain``). The same as
+    ``experiments.controller=terrain``). ``start_pose`` (x, y, yaw): start there instead
+    of on the path (``studies/off_plan.py``). The same as
     :func:`start_trial` then :func:`drive_steps` to the end.
     """
     sim = Simulator(world, get_vehicle(vehicle))
@@ -166,7 +170,7 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
         policy = start_trial(sim, path, occupancy=occupancy, grid=grid,
                              mppi_batch_size=mppi_batch_size, seed=seed,
                              on_command=on_command, mppi_settings=mppi_settings,
-                             costmap=costmap)
+                             costmap=costmap, start_pose=start_pose)
         rows, speeds = [], []
         next_log = 0.0
         for step in drive_steps(sim, policy, OutcomeRule(time_limit_s=time_limit_s),

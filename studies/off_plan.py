@@ -1,0 +1,143 @@
+"""A vehicle pushed off its plan: recorded plans driven from a start beside them, with each
+trials' controller — where a terrain-aware controller should matter.
+
+    .venv/bin/python studies/off_plan.py --profile demo --seeds 3 \\
+        --experiment experiment1 --experiment experiment2 --offset 2.5 --at 0.4
+
+For every recorded plan of ``--method`` (default DGT-Map) in the cached experiments of run
+seeds ``0 … seeds-1``, the vehicle starts at rest ``--offset`` metres to the left and to the
+right of the plan's pose at ``--at`` of its length, with the plan's heading there, and tracks
+the rest of the plan to the query's goal (a start on an occupied cell is skipped). Each start
+is driven with every controller (``experiments.controller``; ``terrain`` reads the method's
+costmap) with the trial's seed, batch size and time-limit rule. Printed per controller:
+arrivals, immobilized, flipped, and the mean cost of the driven path on the vehicle's DGT-Map
+costmap (:func:`dgt_lib.evaluation.driven_cost.driven_cost`), and the paired difference of
+the driven cost between controllers on the same starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import time
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.core.executors import limit_threads
+from dgt_lib.evaluation.driven_cost import driven_cost
+from dgt_lib.evaluation.statistics import wilson_interval
+from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
+from dgt_lib.navigation.control.profiles import CONTROLLERS
+from dgt_lib.navigation.drive import drive
+from dgt_lib.stages.experiments import trial_maps
+from dgt_lib.stages.paths import data_dir
+from dgt_lib.world.terrain import get_world
+
+
+def pushed_start(path: np.ndarray, at: float, offset_m: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(start pose (x, y, yaw), the rest of the plan from there): the plan's pose at fraction
+    ``at`` of its length moved ``offset_m`` to its left (negative: right)."""
+    seg = np.hypot(*np.diff(path[:, :2], axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    i = int(np.searchsorted(s, at * s[-1]))
+    x, y, yaw = path[i]
+    start = np.array([x - offset_m * np.sin(yaw), y + offset_m * np.cos(yaw), yaw])
+    return start, path[i:]
+
+
+def _drive(job: tuple) -> tuple[str, float]:
+    """Worker: one pushed start driven with one controller; (reason, driven cost)."""
+    profile, world_name, method, vehicle, rest, goal, seed, start, controller = job
+    world = get_world(world_name, profile)
+    maps = trial_maps(world_name, method, vehicle, profile)
+    named = profile.with_overrides({"experiments.controller": controller})
+    length_m = float(np.hypot(*np.diff(rest[:, :2], axis=0).T).sum())
+    outcome, traj, _ = drive(
+        world, vehicle, rest, goal, occupancy=maps.occupancy, grid=maps.grid,
+        time_limit_s=trial_time_limit_s(profile.experiments, length_m),
+        mppi_batch_size=profile.experiments.mppi_batch_size, seed=seed, start_pose=start,
+        **trial_controller(named, method_costmap(maps, method, vehicle)))
+    dgt = trial_maps(world_name, "dgt", vehicle, profile)
+    return outcome.reason, driven_cost(traj, dgt.costmap("dgt", vehicle), dgt.grid)
+
+
+def starts(args: argparse.Namespace) -> list[tuple]:
+    """Every pushed start of the recorded plans: (profile, world, method, vehicle, rest of the
+    plan, goal, seed, start pose)."""
+    out = []
+    for seed in range(args.seeds):
+        prof = get_profile(args.profile).with_(seed=seed)
+        for name in args.experiment:
+            path = data_dir(prof) / "experiments" / f"{name}.pkl"
+            if not path.exists():
+                raise SystemExit(f"no cached {name} for seed {seed} at {path}")
+            for r in artifacts.load(path).results:
+                if r.task.method != args.method or len(r.path) < 2:
+                    continue
+                maps = trial_maps(r.task.world, r.task.method, r.task.vehicle, prof)
+                for side in (1.0, -1.0):
+                    start, rest = pushed_start(np.asarray(r.path, float), args.at,
+                                               side * args.offset)
+                    row, col = maps.grid.xy_to_cell(start[0], start[1])
+                    h, w = maps.occupancy.shape
+                    if 0 <= row < h and 0 <= col < w and maps.occupancy[row, col] == 0:
+                        out.append((prof, r.task.world, r.task.method, r.task.vehicle, rest,
+                                    r.task.query.goal, r.task.seed, start))
+    return out
+
+
+def report(controllers: list[str], out: dict[str, list[tuple[str, float]]]) -> None:
+    """Print arrivals, failure reasons and driven cost per controller, then paired costs."""
+    for c in controllers:
+        rows = out[c]
+        k, n = sum(reason == "success" for reason, _ in rows), len(rows)
+        lo, hi = wilson_interval(k, n)
+        why = Counter(reason for reason, _ in rows if reason != "success")
+        cost = np.nanmean([v for _, v in rows])
+        print(f"  {c:<8} arrived {k}/{n} ({100 * k / n:.0f} %, 95 % {100 * lo:.0f}–"
+              f"{100 * hi:.0f}); " + ", ".join(f"{v} {r}" for r, v in why.most_common())
+              + f"; mean driven cost {cost:.3f}")
+    for a, b in zip(controllers, controllers[1:], strict=False):
+        d = np.array([cb - ca for (_, ca), (_, cb) in zip(out[a], out[b], strict=True)])
+        d = d[np.isfinite(d)]
+        print(f"  driven cost {b} − {a}: mean {d.mean():+.3f}, lower on {int((d < 0).sum())}"
+              f", higher on {int((d > 0).sum())} of {len(d)} starts")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default="demo")
+    ap.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    ap.add_argument("--experiment", action="append", default=None,
+                    help="cached experiments whose plans to push off (default: 1 and 2)")
+    ap.add_argument("--method", default="dgt")
+    ap.add_argument("--offset", type=float, default=2.5, help="metres beside the plan")
+    ap.add_argument("--at", type=float, default=0.4, help="where along the plan, 0–1")
+    ap.add_argument("--controller", action="append", choices=CONTROLLERS, default=None)
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    if not 0.0 <= args.at < 1.0:
+        ap.error(f"--at must be in [0, 1), got {args.at}")
+    args.experiment = args.experiment or ["experiment1", "experiment2"]
+    controllers = args.controller or list(CONTROLLERS)
+    jobs = starts(args)
+    print(f"{len(jobs)} starts {args.offset} m beside {args.method}'s plans at {args.at:.0%} "
+          f"of their length ({', '.join(args.experiment)}; {args.profile} seeds "
+          f"0–{args.seeds - 1})")
+    out = {}
+    ctx = multiprocessing.get_context("fork")
+    with ProcessPoolExecutor(args.workers, mp_context=ctx, initializer=limit_threads) as pool:
+        for c in controllers:
+            t0 = time.perf_counter()
+            out[c] = list(pool.map(_drive, [(*job, c) for job in jobs]))
+            print(f"  [{c}: {time.perf_counter() - t0:.0f} s]", flush=True)
+    report(controllers, out)
+
+
+if __name__ == "__main__":
+    main()
