@@ -45,3 +45,16 @@ def test_an_unknown_controller_is_refused():
         SMOKE.with_overrides({"experiments.controller": "fast"})
     with pytest.raises(ValueError, match="unknown controller"):
         controller_settings("fast")
+
+
+def test_the_robust_model_steps_the_period_the_trials_execute():
+    # drive holds each command for MPPI_DT_S rounded to whole physics steps; the paper's
+    # MPPI models 50 ms a step, the robust one the executed period (its warm start shifts by
+    # exactly the time that passed)
+    from dgt_lib.navigation.drive import MPPI_DT_S
+    from dgt_lib.world.mujoco_model import TIMESTEP_S
+
+    executed = round(MPPI_DT_S / TIMESTEP_S) * TIMESTEP_S
+    assert MPPIConfig().model_dt == MPPI_DT_S != pytest.approx(executed)
+    for name in ("robust", "terrain"):
+        assert controller_settings(name)["model_dt"] == pytest.approx(executed, abs=1e-12)

@@ -2,8 +2,8 @@
 
 - ``"paper"``: MPPI as the paper runs it (every :class:`MPPIConfig` default; no terrain term).
 - ``"robust"``: the same MPPI that does not crawl and does not corner past the roll limit:
-  its model stands still below a breakaway speed, and the sent speeds are slowed below half
-  the vehicle's rollover acceleration.
+  its model stands still below a breakaway speed, the sent speeds are slowed below half
+  the vehicle's rollover acceleration, and its model step is the executed control period.
 - ``"terrain"``: ``"robust"`` plus the terrain critic reading the trial method's own
   costmap (Binary's is zero: no terrain term).
 """
@@ -13,9 +13,14 @@ from __future__ import annotations
 CONTROLLERS: tuple[str, ...] = ("paper", "robust", "terrain")
 """Valid ``ExperimentsConfig.controller`` values; the first is the default."""
 
+EXECUTED_PERIOD_S = 0.048
+"""The control period the trials execute [s]: ``drive``'s 50 ms rounded to whole 8 ms physics
+steps (6 × 8 ms); ``"robust"`` models that, the paper's MPPI a 50 ms step."""
+
 ROBUST: dict[str, object] = {
     "breakaway_speed_mps": 0.5,  # a command below this does not move a truck on a grade
     "roll_limit_fraction": 0.5,  # corners at most half the static rollover acceleration
+    "model_dt": EXECUTED_PERIOD_S,  # each call's warm-start shift = the time that passed
 }  # first_step_weight stays 0: it carries speed into corners (docs/controller.md)
 TERRAIN: dict[str, object] = {**ROBUST, "terrain_weight": 0.05}  # docs/controller.md
 
