@@ -151,3 +151,35 @@ def test_the_model_trained_without_a_vehicle_learns_from_the_generated_ones(
     assert again.specs == model.specs  # the generated specs come back from the checkpoint
     np.testing.assert_array_equal(predict(again, named.patches[:8]),
                                   predict(model, named.patches[:8]))
+
+
+def test_the_study_says_how_many_generated_vehicles_it_used(tmp_path):
+    """``studies/zero_shot.py --generated 8 --stored`` reads the runs with 8 generated
+    vehicles (apart from the others) and prints how many each network used."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from dgt_lib.stages.zero_shot import ZERO_SHOT_METHODS
+
+    root = Path(__file__).resolve().parents[1]
+    (tmp_path / "scores").mkdir()
+    rows = [{"world": "hill", "vehicle": "carla_cola", "method": m, "mae": 0.1}
+            for m in ZERO_SHOT_METHODS]
+    (tmp_path / "scores" / "seed0_without_carla_cola_gen8.json").write_text(json.dumps(
+        {"vehicle": "carla_cola", "seed": 0, "nearest": "mercedes_van", "rows": rows,
+         "generated": 8, "generated_used": 6, "plans": {}}))
+    run = [sys.executable, str(root / "studies" / "zero_shot.py"), "--seeds", "0",
+           "--vehicles", "carla_cola", "--out", str(tmp_path), "--stored"]
+    env = {**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"}
+    done = subprocess.run(run + ["--generated", "8"], capture_output=True, text=True,
+                          cwd=root, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr
+    assert "Generated training vehicles: 8 (used by the network without each vehicle, " \
+           "over seeds: carla_cola 6)" in done.stdout
+    assert (tmp_path / "zero_shot_gen8.png").exists()
+    without = subprocess.run(run, capture_output=True, text=True, cwd=root, timeout=300,
+                             env=env)
+    assert without.returncode != 0 and "no stored scores" in without.stderr
