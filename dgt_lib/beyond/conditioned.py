@@ -267,8 +267,9 @@ def train_conditioned(dataset: PatchDataset, cfg: TrainConfig, *,
     :func:`~dgt_lib.learning.run.train_model` trains a DGTNet: the same training set,
     seeding, input normalisation, loop and bookkeeping (``run``)."""
     data = TrainingSet.select(dataset, tuple(vehicles), cfg)
-    return _train(data, data.vehicles, cfg, seed=seed, film_hidden=film_hidden, device=device,
-                  progress=progress, rgb_weights=rgb_weights, **run)
+    device = resolve_device(device)
+    model = _new_model(data, data.vehicles, cfg, seed, film_hidden, rgb_weights)
+    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)
 
 
 def train_conditioned_specs(dataset: PatchDataset, specs: Sequence[VehicleSpec],
@@ -279,20 +280,19 @@ def train_conditioned_specs(dataset: PatchDataset, specs: Sequence[VehicleSpec],
     ones): ``dataset.vehicle`` is each sample's column among ``specs``
     (:func:`spec_training_set`); μ_s, σ_s are those of all of ``specs``."""
     data = spec_training_set(dataset, [v.name for v in specs], cfg)
-    return _train(data, tuple(specs), cfg, seed=seed, film_hidden=film_hidden, device=device,
-                  progress=progress, rgb_weights=rgb_weights, **run)
-
-
-def _train(data: TrainingSet, heads: Sequence[VehicleSpec | str], cfg: TrainConfig, *,
-           seed: int, film_hidden: int, device: str | torch.device | None, progress: bool,
-           rgb_weights: str | Path | None, **run: Any) -> TrainResult:
-    """A new ConditionedNet of ``heads`` trained on ``data`` (seeded, inputs normalised)."""
     device = resolve_device(device)
+    model = _new_model(data, tuple(specs), cfg, seed, film_hidden, rgb_weights)
+    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)
+
+
+def _new_model(data: TrainingSet, heads: Sequence[VehicleSpec | str], cfg: TrainConfig,
+               seed: int, film_hidden: int, rgb_weights: str | Path | None) -> ConditionedNet:
+    """A new ConditionedNet of ``heads`` (seeded) with ``data``'s input normalisation."""
     torch.manual_seed(seed)
     model = ConditionedNet(heads, width=cfg.width, fc_hidden=cfg.fc_hidden,
                            film_hidden=film_hidden, rgb_weights=rgb_weights, inputs=cfg.inputs)
     model.set_normalization(*channel_statistics(data.dataset.patches, data.train_index))
-    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)
+    return model
 
 
 def spec_training_set(dataset: PatchDataset, vehicles: Sequence[str],
