@@ -252,7 +252,7 @@ class ExperimentsConfig:
 @dataclass(frozen=True)
 class ConditionedConfig:
     """The vehicle-conditioned network's training data (``dgt_lib.stages.conditioned``,
-    docs/vehicles.md → Generated training vehicles)."""
+    docs/vehicles.md → Training the network on generated vehicles)."""
 
     # N procedurally generated vehicles (core/vehicle_generator.py, drawn by the run seed)
     # driven on the training world like the named ones and added to the conditioned

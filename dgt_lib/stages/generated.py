@@ -1,5 +1,5 @@
 """The procedurally generated training vehicles of the vehicle-conditioned network, through
-the cache (docs/vehicles.md → Generated training vehicles).
+the cache (docs/vehicles.md → Training the network on generated vehicles).
 
 ``conditioned.generated_vehicles`` = N > 0 adds N vehicles
 (:func:`~dgt_lib.core.vehicle_generator.generated_vehicles` drawn by the run seed: within and
