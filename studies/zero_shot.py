@@ -4,6 +4,7 @@ and scored against its measured ground truth, per run seed.
 
     .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2
     .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2 --stored
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2 --generated 8
 
 Per (seed, left-out vehicle) it builds through the cache (the profile's data directory,
 ``$DGT_DATA_DIR`` or ``data/``: the same collection, dataset, multi-task model and ground
@@ -17,6 +18,8 @@ map also plans the experiment's queries (the paper's 20 and 50; planned, not dri
 Each (seed, vehicle) is stored as ``<out>/scores/seed<S>_without_<vehicle>.json`` once
 done, so an interrupted run resumes; then it prints the tables over seeds and draws
 ``<out>/zero_shot.png``. ``--stored``: tables and figure from the stored scores only.
+``--generated N``: the conditioned networks also learn from N generated vehicles
+(``conditioned.generated_vehicles``, docs/vehicles.md); scores and figure get ``_gen<N>``.
 """
 
 from __future__ import annotations
@@ -32,24 +35,43 @@ from dgt_lib.stages.planned import CLAIMS, claim_share
 from dgt_lib.stages.zero_shot import ZERO_SHOT_METHODS
 
 
-def score_path(out: Path, seed: int, vehicle: str) -> Path:
-    return out / "scores" / f"seed{seed}_without_{vehicle}.json"
+def suffix(generated: int) -> str:
+    """``_gen<N>`` for the runs with N generated training vehicles, else nothing."""
+    return f"_gen{generated}" if generated else ""
 
 
-def run_one(profile: str, seed: int, vehicle: str, out: Path) -> dict:
+def score_path(out: Path, seed: int, vehicle: str, generated: int = 0) -> Path:
+    return out / "scores" / f"seed{seed}_without_{vehicle}{suffix(generated)}.json"
+
+
+def run_one(profile: str, seed: int, vehicle: str, out: Path, generated: int = 0) -> dict:
     """The stored scores of (seed, left-out vehicle), computed (through the cache) if missing."""
-    path = score_path(out, seed, vehicle)
+    path = score_path(out, seed, vehicle, generated)
     if path.exists():
         return json.loads(path.read_text())
     from dgt_lib.core.config import get_profile
     from dgt_lib.stages.zero_shot import zero_shot_scores
 
-    print(f"[zero_shot] seed {seed}, {vehicle} left out", flush=True)
+    print(f"[zero_shot] seed {seed}, {vehicle} left out, {generated} generated vehicles",
+          flush=True)
     prof = get_profile(profile).with_(seed=seed)
+    if generated:
+        prof = prof.with_overrides({"conditioned.generated_vehicles": generated})
     result = {"profile": profile, **zero_shot_scores(vehicle, prof)}
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(result, indent=1))
     return result
+
+
+def generated_line(scores: list[dict]) -> str:
+    """How many generated vehicles the conditioned networks learned from, and per left-out
+    vehicle how many of them its zero-shot network used (near copies skipped)."""
+    n = sorted({s.get("generated", 0) for s in scores})
+    used = {v: sorted({s.get("generated_used", 0) for s in scores if s["vehicle"] == v})
+            for v in VEHICLES if any(s["vehicle"] == v for s in scores)}
+    return (f"Generated training vehicles: {', '.join(map(str, n))} (used by the network "
+            "without each vehicle, over seeds: "
+            + "; ".join(f"{v} {', '.join(map(str, u))}" for v, u in used.items()) + ")\n")
 
 
 def mae_table(scores: list[dict]) -> str:
@@ -144,21 +166,27 @@ def main() -> None:
     parser.add_argument("--figure", type=Path, default=None, help="figure path (default: in --out)")
     parser.add_argument("--stored", action="store_true",
                         help="tables and figure from the scores already stored; compute nothing")
+    parser.add_argument("--generated", type=int, default=0, metavar="N",
+                        help="generated training vehicles for the conditioned networks "
+                             "(conditioned.generated_vehicles; default 0: the named only)")
     args = parser.parse_args()
     from dgt_lib.core import artifacts
 
     out = (args.out or artifacts.data_root() / "studies" / "zero_shot").resolve()
     if args.stored:
-        paths = [score_path(out, s, v) for s in args.seeds for v in args.vehicles]
+        paths = [score_path(out, s, v, args.generated) for s in args.seeds
+                 for v in args.vehicles]
         scores = [json.loads(p.read_text()) for p in paths if p.exists()]
         if not scores:
             raise SystemExit(f"no stored scores under {out / 'scores'}")
     else:
-        scores = [run_one(args.profile, s, v, out) for s in args.seeds for v in args.vehicles]
+        scores = [run_one(args.profile, s, v, out, args.generated) for s in args.seeds
+                  for v in args.vehicles]
+    print(generated_line(scores))
     print(mae_table(scores))
     print(patch_table(scores))
     print(plan_table(scores))
-    figure(scores, args.figure or out / "zero_shot.png")
+    figure(scores, args.figure or out / f"zero_shot{suffix(args.generated)}.png")
 
 
 if __name__ == "__main__":

@@ -107,8 +107,8 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
         get_profile("demo").with_overrides({"planner.bta": 50})
     assert "planner.beta" in str(err.value) and "planner.step_m" in str(err.value)
     with pytest.raises(InvalidOverrideError, match="worlds, collect, bev, train, costmap, planner, "
-                                                   "experiments, ground_truth, or one of "
-                                                   "seed, seeds, workers"):
+                                                   "experiments, ground_truth, conditioned, "
+                                                   "or one of seed, seeds, workers"):
         get_profile("demo").with_overrides({"plan.beta": 50})
     with pytest.raises(InvalidOverrideError, match="unknown setting 'name'"):
         get_profile("demo").with_overrides(parse_overrides(["name=paper"]))

@@ -37,6 +37,7 @@ def test_zero_shot_scores_every_comparison_for_each_left_out_vehicle(ramp_world,
         assert result["nearest"] == nearest_vehicle(vehicle, [v for v in VEHICLES
                                                               if v != vehicle])[0]
         assert result["nearest"] != vehicle
+        assert (result["generated"], result["generated_used"]) == (0, 0)
         for row in result["rows"]:
             assert row["vehicle"] == vehicle and row["n"] > 0 and 0 <= row["mae"] <= 1
         n_test = int(((dataset.split == 2) & (dataset.vehicle == VEHICLES.index(vehicle))).sum())

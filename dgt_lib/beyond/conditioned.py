@@ -27,6 +27,7 @@ spec, e.g. one read by :func:`~dgt_lib.core.vehicle_file.load_vehicle`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -37,7 +38,7 @@ import torch
 from torch import nn
 
 from dgt_lib.core.config import VEHICLES, TrainConfig
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicles import VEHICLE_SPECS, CameraMount, VehicleSpec, get_vehicle
 from dgt_lib.learning.checkpoints import TrainResult, load_checkpoint
 from dgt_lib.learning.model import HEAD_PRIOR_CLIP, ArchitectureMismatchError, DGTNet
 from dgt_lib.learning.run import train_network
@@ -132,10 +133,14 @@ class ConditionedNet(DGTNet):
         return torch.as_tensor(np.stack([spec_vector(v) for v in specs]), dtype=torch.float32)
 
     def architecture(self) -> dict[str, Any]:
-        """What a checkpoint must match to load into this model."""
-        return {**super().architecture(), "name": "ConditionedNet",
+        """What a checkpoint must match to load into this model; the heads' specs too when
+        one is not a named vehicle (a generated one), so the checkpoint rebuilds it."""
+        arch = {**super().architecture(), "name": "ConditionedNet",
                 "vehicles": list(self.vehicles), "film_hidden": self.film_hidden,
                 "features": list(FEATURES)}
+        if any(VEHICLE_SPECS.get(v.name) != v for v in self.specs):
+            arch["specs"] = [dataclasses.asdict(v) for v in self.specs]
+        return arch
 
     def normalise(self, raw: torch.Tensor) -> torch.Tensor:
         """c = (s − μ_s) / σ_s for spec vectors ``raw`` (V, D)."""
@@ -232,8 +237,15 @@ def conditioned_from_architecture(arch: dict[str, Any]) -> ConditionedNet:
     if arch.get("name") != "ConditionedNet" or arch.get("features") != list(FEATURES):
         raise ArchitectureMismatchError(
             f"not a ConditionedNet of the spec features {list(FEATURES)}: {arch}")
-    return ConditionedNet(arch["vehicles"], width=arch["width"], fc_hidden=arch["fc_hidden"],
+    heads = [spec_from_dict(d) for d in arch["specs"]] if "specs" in arch else arch["vehicles"]
+    return ConditionedNet(heads, width=arch["width"], fc_hidden=arch["fc_hidden"],
                           film_hidden=arch["film_hidden"], inputs=arch.get("inputs", "rgbd"))
+
+
+def spec_from_dict(d: dict[str, Any]) -> VehicleSpec:
+    """The :class:`VehicleSpec` of ``dataclasses.asdict(spec)`` (a checkpoint's heads)."""
+    return VehicleSpec(**{**d, "camera": CameraMount(**d["camera"]),
+                          "color": tuple(d["color"])})
 
 
 def load_conditioned(source: str | Path | dict[str, Any], *,
@@ -256,11 +268,31 @@ def train_conditioned(dataset: PatchDataset, cfg: TrainConfig, *,
     seeding, input normalisation, loop and bookkeeping (``run``)."""
     data = TrainingSet.select(dataset, tuple(vehicles), cfg)
     device = resolve_device(device)
-    torch.manual_seed(seed)
-    model = ConditionedNet(data.vehicles, width=cfg.width, fc_hidden=cfg.fc_hidden,
-                           film_hidden=film_hidden, rgb_weights=rgb_weights, inputs=cfg.inputs)
-    model.set_normalization(*channel_statistics(dataset.patches, data.train_index))
+    model = _new_model(data, data.vehicles, cfg, seed, film_hidden, rgb_weights)
     return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)
+
+
+def train_conditioned_specs(dataset: PatchDataset, specs: Sequence[VehicleSpec],
+                            cfg: TrainConfig, *, seed: int = 0, film_hidden: int = 64,
+                            device: str | torch.device | None = None, progress: bool = True,
+                            rgb_weights: str | Path | None = None, **run: Any) -> TrainResult:
+    """:func:`train_conditioned` for heads of any vehicles (``specs``: named and generated
+    ones): ``dataset.vehicle`` is each sample's column among ``specs``
+    (:func:`spec_training_set`); μ_s, σ_s are those of all of ``specs``."""
+    data = spec_training_set(dataset, [v.name for v in specs], cfg)
+    device = resolve_device(device)
+    model = _new_model(data, tuple(specs), cfg, seed, film_hidden, rgb_weights)
+    return train_network(model, data, cfg, seed=seed, device=device, progress=progress, **run)
+
+
+def _new_model(data: TrainingSet, heads: Sequence[VehicleSpec | str], cfg: TrainConfig,
+               seed: int, film_hidden: int, rgb_weights: str | Path | None) -> ConditionedNet:
+    """A new ConditionedNet of ``heads`` (seeded) with ``data``'s input normalisation."""
+    torch.manual_seed(seed)
+    model = ConditionedNet(heads, width=cfg.width, fc_hidden=cfg.fc_hidden,
+                           film_hidden=film_hidden, rgb_weights=rgb_weights, inputs=cfg.inputs)
+    model.set_normalization(*channel_statistics(data.dataset.patches, data.train_index))
+    return model
 
 
 def spec_training_set(dataset: PatchDataset, vehicles: Sequence[str],
@@ -291,5 +323,5 @@ def spec_training_set(dataset: PatchDataset, vehicles: Sequence[str],
     if cfg.label_weighting == "inverse_frequency":
         weights = label_weights(dataset.labels, column, train_idx, cfg.label_bins,
                                 cfg.max_label_weight)
-    return TrainingSet(dataset, tuple(vehicles),
-                       np.ones(len(column), bool), train_idx, val_idx, column, weights)
+    return TrainingSet(dataset, tuple(vehicles), np.ones(len(column), bool), train_idx,
+                       val_idx, column, weights, codes=tuple(range(n_vehicles)))

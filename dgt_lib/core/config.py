@@ -249,6 +249,17 @@ class ExperimentsConfig:
     controller: str = "paper"
 
 
+@dataclass(frozen=True)
+class ConditionedConfig:
+    """The vehicle-conditioned network's training data (``dgt_lib.stages.conditioned``,
+    docs/vehicles.md → Training the network on generated vehicles)."""
+
+    # N procedurally generated vehicles (core/vehicle_generator.py, drawn by the run seed)
+    # driven on the training world like the named ones and added to the conditioned
+    # network's training; 0 = the named vehicles only. Nothing else uses them.
+    generated_vehicles: int = 0
+
+
 EXECUTORS: tuple[str, ...] = ("process", "dask", "ray")
 """Valid ``ExecutionConfig.executor`` values (``dgt reproduce --executor``)."""
 
@@ -329,6 +340,7 @@ class Profile:
     # every cache key), so the same run on another executor or device is the same Profile
     execution: ExecutionConfig = field(default=ExecutionConfig(), compare=False)
     ground_truth: GroundTruthConfig = field(default_factory=GroundTruthConfig)
+    conditioned: ConditionedConfig = field(default_factory=ConditionedConfig)
     overrides: tuple[tuple[str, object], ...] = ()
     """The settings changed by :meth:`with_overrides`, ``(dotted name, value)`` in the order
     given: what the reports print beside the profile's name. No cache key reads it (each
@@ -346,7 +358,8 @@ class Profile:
         ``p.with_overrides({"planner.beta": 50, "collect.episodes": "10,10,10,10"})``.
 
         A name is ``section.field`` (a field of a section: ``worlds``, ``collect``, ``bev``,
-        ``train``, ``costmap``, ``planner``, ``experiments``, ``ground_truth``) or ``seed``,
+        ``train``, ``costmap``, ``planner``, ``experiments``, ``ground_truth``,
+        ``conditioned``) or ``seed``,
         ``seeds``, ``workers``. A value is converted to the field's type: a string as it
         would be typed on the command line, or a Python value of that type. An unknown name
         or a value that does not fit raises ``InvalidOverrideError`` naming the valid fields

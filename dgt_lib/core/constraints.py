@@ -112,6 +112,7 @@ def distance_range() -> Rule:
 
 
 COUNT, POSITIVE, NON_NEGATIVE = at_least(1, integer=True), above(0), at_least(0)
+MAX_GENERATED = 64  # generated training vehicles at most (each a head while training)
 SEED = at_least(0, integer=True)
 
 SETTING_RULES: dict[str, Rule] = {
@@ -159,6 +160,9 @@ SETTING_RULES: dict[str, Rule] = {
     "ground_truth.contrast_threshold": between(0, 1, high_open=True), "ground_truth.seed": SEED,
     "bev.pose_sigma_xy_m": NON_NEGATIVE, "bev.pose_sigma_yaw_deg": between(0, 180),
     "bev.pose_drift_m": NON_NEGATIVE, "bev.colour": one_of(*BEV_COLOURS),
+    "conditioned.generated_vehicles": Rule(
+        lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= MAX_GENERATED,
+        f"an integer in [0, {MAX_GENERATED}]", MAX_GENERATED + 1),
 }
 """Every setting's allowed values, by dotted name (``dgt settings`` lists the names)."""
 

@@ -23,7 +23,7 @@ TOP_LEVEL_SETTINGS: tuple[str, ...] = ("seed", "seeds", "workers")
 def _schema(profile_type: type) -> tuple[dict[str, object], tuple[str, ...]]:
     """The annotations of a :class:`Profile` class and its sections ``--set`` can change,
     one per pipeline stage: worlds, collect, bev, train, costmap, planner, experiments,
-    ground_truth. (``execution`` — where jobs run, not what they compute — is set by
+    ground_truth, conditioned. (``execution`` — where jobs run, not what they compute — is set by
     ``--executor``, ``--address`` and ``--device``.) The class comes from the profile being
     changed, so this module needs no import of :mod:`dgt_lib.core.config`."""
     types_ = typing.get_type_hints(profile_type)

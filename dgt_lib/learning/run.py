@@ -180,7 +180,8 @@ def train_network(
     device = resolve_device(device)
     rng = np.random.default_rng(seed)
     if cfg.head_init == "prior":
-        model.init_heads(head_prior(data.dataset, data.train_index, vehicles))
+        model.init_heads(head_prior(data.dataset, data.train_index, vehicles,
+                                    data.codes))
     live_taps = cfg.conv_taps == "live" and hasattr(model, "use_live_taps")
     if live_taps:
         model.use_live_taps()
@@ -226,7 +227,8 @@ def _result(model: MultiHeadNet, data: TrainingSet, cfg: TrainConfig, seed: int,
     model.load_state_dict(state.best_state)
     model.eval()
     ds = data.dataset
-    metrics = evaluate(model, ds.subset(data.chosen & (ds.split == TEST)))
+    metrics = evaluate(model, ds.subset(data.chosen & (ds.split == TEST)),
+                       codes=data.codes)
     for v in collapsed_heads(metrics):
         m = metrics[v]
         warnings.warn(f"{name}: the {v} head predicts a near-constant L̂ on the test set "

@@ -234,17 +234,19 @@ def collapsed_heads(metrics: dict[str, dict[str, float]]) -> list[str]:
             if m.get("pred_std", math.inf) < COLLAPSE_RATIO * m.get("label_std", 0.0)]
 
 
-def evaluate(model: DGTNet, part: PatchDataset,
-             batch_size: int = 1024) -> dict[str, dict[str, float]]:
+def evaluate(model: DGTNet, part: PatchDataset, batch_size: int = 1024,
+             codes: Sequence[int] | None = None) -> dict[str, dict[str, float]]:
     """Per-vehicle metrics of the model's own head on ``part`` (e.g. ``dataset.part("test")``).
 
     Returns ``{vehicle: {"n", "mse", "mae", "spearman"}}`` for every vehicle that
     has a head in ``model`` and samples in ``part``; each prediction is that
-    vehicle's head on that vehicle's patches.
+    vehicle's head on that vehicle's patches. ``codes``: each head's value in
+    ``part.vehicle`` (default its index into ``config.VEHICLES``).
     """
     out: dict[str, dict[str, float]] = {}
-    for name in model.vehicles:
-        index = np.flatnonzero(part.vehicle == VEHICLES.index(name))
+    codes = _codes(model.vehicles, codes)
+    for name, code in zip(model.vehicles, codes, strict=True):
+        index = np.flatnonzero(part.vehicle == code)
         if len(index) == 0:
             continue
         device = next(model.parameters()).device
@@ -253,19 +255,27 @@ def evaluate(model: DGTNet, part: PatchDataset,
     return out
 
 
+def _codes(vehicles: Sequence[str], codes: Sequence[int] | None) -> list[int]:
+    """Each vehicle's value in ``PatchDataset.vehicle``: ``codes`` when given (a
+    :attr:`TrainingSet.codes`), else its index into ``config.VEHICLES``."""
+    return [VEHICLES.index(v) for v in vehicles] if codes is None else list(codes)
+
+
 def head_prior(dataset: PatchDataset, index: np.ndarray,
-               vehicles: tuple[str, ...] | list[str]) -> list[float]:
+               vehicles: tuple[str, ...] | list[str],
+               codes: Sequence[int] | None = None) -> list[float]:
     """Mean label of each vehicle's samples among ``index``, in ``vehicles`` order.
 
     What :meth:`DGTNet.init_heads` starts each head at (``TrainConfig.head_init="prior"``);
     ``index`` is the training split. A vehicle without samples there (its head gets
-    no gradient) gets the mean of all of ``index``.
+    no gradient) gets the mean of all of ``index``. ``codes``: each vehicle's value in
+    ``dataset.vehicle`` (default its index into ``config.VEHICLES``).
     """
     labels = dataset.labels[index].astype(np.float64)
     vehicle = dataset.vehicle[index]
     overall = float(labels.mean()) if len(labels) else 0.5
-    return [float(labels[vehicle == VEHICLES.index(v)].mean())
-            if np.any(vehicle == VEHICLES.index(v)) else overall for v in vehicles]
+    return [float(labels[vehicle == c].mean()) if np.any(vehicle == c) else overall
+            for c in _codes(vehicles, codes)]
 
 
 
@@ -314,6 +324,8 @@ class TrainingSet:
     val_index: np.ndarray
     heads: np.ndarray  # (N,) int64
     weights: np.ndarray | None = None
+    # each vehicle's value in dataset.vehicle; None: its index into config.VEHICLES
+    codes: tuple[int, ...] | None = None
 
     @classmethod
     def select(cls, dataset: PatchDataset, vehicles: tuple[str, ...] | list[str] | str | None,

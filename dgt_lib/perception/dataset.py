@@ -217,17 +217,20 @@ def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None 
 
 
 def build_dataset(episodes: Sequence[Episode], bev: BEVMap,
-                  config: CollectConfig | None = None, seed: int = 0) -> PatchDataset:
+                  config: CollectConfig | None = None, seed: int = 0,
+                  vehicles: Sequence[str] = VEHICLES) -> PatchDataset:
     """The :class:`PatchDataset` of a list of episodes on the map ``bev``.
 
     The k-th episode gets trajectory id k (unique across vehicles); the split is
-    70/15/15 by trajectory per vehicle (:func:`split_by_trajectory`, seeded).
+    70/15/15 by trajectory per vehicle (:func:`split_by_trajectory`, seeded). A sample's
+    ``vehicle`` is its episode's vehicle's index in ``vehicles`` (default the named four;
+    the generated training vehicles, :mod:`dgt_lib.stages.generated`, pass their names).
     """
     parts = []
     for k, ep in enumerate(episodes):
         s = episode_patches(ep, bev, config)
         m = len(s["labels"])
-        parts.append((s, np.full(m, VEHICLES.index(ep.vehicle), np.int8),
+        parts.append((s, np.full(m, list(vehicles).index(ep.vehicle), np.int8),
                       np.full(m, k, np.int32)))
     if not parts:
         raise ValueError("build_dataset needs at least one episode")

@@ -14,6 +14,7 @@ Collection. Caching and parallel runs are :mod:`dgt_lib.stages.collect`'s job.
 from __future__ import annotations
 
 import math  # noqa: E402
+import zlib  # noqa: E402
 from collections import Counter  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
@@ -96,7 +97,7 @@ def _avoid_trees(steer: float, x: float, y: float, yaw: float, trees: np.ndarray
     return -1.0 if left[i] >= 0 else 1.0
 
 
-def spawn_pose(world: World, vehicle: str, rng: np.random.Generator,
+def spawn_pose(world: World, vehicle: str | VehicleSpec, rng: np.random.Generator,
                config: CollectConfig | None = None, max_tries: int = 10_000) -> np.ndarray:
     """A random free start pose (x [m], y [m], yaw [rad]) on ``world``.
 
@@ -203,11 +204,13 @@ class Episode:
         )
 
 
-def episode_seed(profile_seed: int, vehicle: str, index: int) -> int:
+def episode_seed(profile_seed: int, vehicle: str | VehicleSpec, index: int) -> int:
     """The seed of episode ``index`` of ``vehicle``: independent streams per vehicle,
-    so changing one vehicle's episode count changes no other episode."""
-    ss = np.random.SeedSequence([int(profile_seed), VEHICLES.index(get_vehicle(vehicle).name),
-                                 int(index)])
+    so changing one vehicle's episode count changes no other episode. A named vehicle's
+    stream is its index in ``VEHICLES``, any other's (a generated one) its name's CRC-32."""
+    name = get_vehicle(vehicle).name
+    stream = VEHICLES.index(name) if name in VEHICLES else zlib.crc32(name.encode())
+    ss = np.random.SeedSequence([int(profile_seed), stream, int(index)])
     return int(ss.generate_state(1)[0])
 
 
@@ -222,7 +225,7 @@ def _random_steer(st: VehicleState, ou: OUSteering, world: World, trees: np.ndar
 
 def run_episode(
     world: World,
-    vehicle: str,
+    vehicle: str | VehicleSpec,
     seed: int,
     config: CollectConfig | None = None,
     *,
@@ -243,11 +246,11 @@ def run_episode(
     cfg = config or CollectConfig()
     spec = get_vehicle(vehicle)
     rng = np.random.default_rng(seed)
-    pose0 = spawn_pose(world, spec.name, rng, cfg) if start_pose is None else np.asarray(
+    pose0 = spawn_pose(world, spec, rng, cfg) if start_pose is None else np.asarray(
         start_pose, np.float64)
     ou = OUSteering(cfg.steer_tau_s, cfg.steer_sigma, rng)
     trees = np.asarray(world.trees, np.float64).reshape(-1, 4)
-    sim = simulator(world, spec.name)
+    sim = simulator(world, spec)
     grid = bev_grid(world.grid.extent)
     acc = BEVAccumulator(grid) if render else None
     renderer = terrain_renderer(world, cfg.frame_max_depth_m) if render else None

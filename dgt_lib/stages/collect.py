@@ -37,7 +37,7 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, BEVConfig, CollectConfig, Profile, as_profile
 from dgt_lib.core.executors import SerialExecutor, current_executor, limit_threads, run_jobs
-from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
 from dgt_lib.perception.colour_shuffle import shuffled_colours
 from dgt_lib.perception.episodes import (
@@ -84,7 +84,8 @@ def episode_relpath(vehicle: str, index: int) -> str:
     return f"episodes/{vehicle}_{index:04d}.npz"
 
 
-def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, object]:
+def episode_config(profile: Profile, vehicle: str | VehicleSpec, index: int
+                   ) -> dict[str, object]:
     """What one episode depends on (its artifact's cache key); the pose noise only when
     there is any, so the episodes of true poses keep their keys."""
     cfg = {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
@@ -95,7 +96,7 @@ def episode_config(profile: Profile, vehicle: str, index: int) -> dict[str, obje
     return cfg if noise is None else {**cfg, "pose_noise": noise}
 
 
-def _run_training_episode(profile: Profile, vehicle: str, index: int) -> Episode:
+def _run_training_episode(profile: Profile, vehicle: str | VehicleSpec, index: int) -> Episode:
     """One collection run on the training world, its frames mapped at the poses the
     profile's localisation gives (``bev`` settings)."""
     seed = episode_seed(profile.seed, vehicle, index)
@@ -104,13 +105,15 @@ def _run_training_episode(profile: Profile, vehicle: str, index: int) -> Episode
                        index=index, localise=noise.localiser(seed) if noise.active else None)
 
 
-def _episode_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:
+def _episode_job(profile: Profile, vehicle: str | VehicleSpec, index: int
+                 ) -> dict[str, np.ndarray]:
     """Worker entry point: run one episode of the training world, return its arrays."""
     limit_threads()  # a Dask/Ray worker has no initializer of ours
     return _run_training_episode(profile, vehicle, index).to_arrays()
 
 
-def _serial_job(profile: Profile, vehicle: str, index: int) -> dict[str, np.ndarray]:
+def _serial_job(profile: Profile, vehicle: str | VehicleSpec, index: int
+                ) -> dict[str, np.ndarray]:
     """:func:`_episode_job` in this process (its thread settings stay as they are)."""
     return _run_training_episode(profile, vehicle, index).to_arrays()
 
@@ -140,12 +143,25 @@ def collect_episodes(
     prof = as_profile(profile)
     jobs = [(v, i) for v, n in zip(VEHICLES, prof.collect.episodes, strict=True)
             for i in range(n)]
+    return collect_jobs(prof, jobs, episode_relpath, executor=executor, progress=progress,
+                        on_episode=on_episode, max_in_flight=max_in_flight,
+                        desc=f"episodes ({prof.name})")
+
+
+def collect_jobs(prof: Profile, jobs: list[tuple[str | VehicleSpec, int]],
+                 relpath: Callable[[str, int], str], *, executor: Executor | None = None,
+                 progress: bool = True, on_episode: Callable[[Episode], None] | None = None,
+                 max_in_flight: int | None = None, desc: str = "episodes") -> list[Episode]:
+    """The episodes ``jobs`` ((vehicle or spec, index) pairs) of the training world, each
+    stored as ``relpath(vehicle name, index)`` and keyed by :func:`episode_config`: loaded
+    when there, run otherwise (:func:`collect_episodes`' rules); returned in ``jobs``
+    order."""
     key = cache_dir(prof)
     root = artifacts.profile_dir(key)
     done: dict[tuple[str, int], Episode] = {}
     todo, reasons = [], []
     for v, i in jobs:
-        rel = episode_relpath(v, i)
+        rel = relpath(get_vehicle(v).name, i)
         why = artifacts.staleness(rel, episode_config(prof, v, i), profile=key)
         if why is None:
             try:
@@ -155,11 +171,11 @@ def collect_episodes(
                 why = f"corrupt ({type(exc).__name__})"
         todo.append((v, i))
         reasons.append(why)
-    artifacts.report_rebuilds(reasons, f"episodes ({prof.name})")
+    artifacts.report_rebuilds(reasons, desc)
 
     def save(job: tuple, arrays: dict[str, np.ndarray]) -> None:
         _, v, i = job
-        artifacts.ensure(episode_relpath(v, i), episode_config(prof, v, i),
+        artifacts.ensure(relpath(get_vehicle(v).name, i), episode_config(prof, v, i),
                          lambda: arrays, profile=key, log=lambda _: None)  # reported above
         done[(v, i)] = ep = Episode.from_arrays(arrays, with_bev=False)
         if on_episode is not None:
@@ -171,7 +187,7 @@ def collect_episodes(
     run_jobs(_serial_job if serial else _episode_job, [(prof, v, i) for v, i in todo],
              executor=executor, workers=prof.workers, backend=prof.execution.executor,
              address=prof.execution.address, max_in_flight=max_in_flight,
-             on_result=save, progress=progress, desc=f"episodes ({prof.name})", unit="ep")
+             on_result=save, progress=progress, desc=desc, unit="ep")
     return [done[job] for job in jobs]
 
 

@@ -8,6 +8,8 @@ then predicted from its spec alone), keyed like the multi-task model
 weights, checkpoint layout) plus what is left out and the FiLM generator's size.
 :func:`ensure_conditioned_costmaps` runs the kit's costmap inference
 (:func:`~dgt_lib.mapping.costmap.directional_costmap`) with it for any specs on a world.
+With ``conditioned.generated_vehicles`` = N > 0 the models also learn from N generated
+vehicles (:mod:`dgt_lib.stages.generated`), stored apart as ``models/<stem>_gen<N>.pt``.
 Nothing here changes the keys of the multi-task and single-task models or their maps.
 """
 
@@ -26,6 +28,14 @@ from dgt_lib.mapping.costmap import directional_costmap
 from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.stages.costmaps import costmap_config, world_bev, world_key
 from dgt_lib.stages.dataset import dataset_digest, ensure_dataset
+from dgt_lib.stages.generated import (
+    NEAR_COPY_FRACTION,
+    combined_dataset,
+    ensure_generated_dataset,
+    generated_digest,
+    profile_generated,
+    training_generated,
+)
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.train import SNAPSHOT_EVERY_S, model_config, rgb_weights_for
 from dgt_lib.world.worlds import World
@@ -47,15 +57,17 @@ def seen_vehicles(leave_out: str | None) -> tuple[str, ...]:
     return tuple(v for v in VEHICLES if v != leave_out)
 
 
-def conditioned_stem(leave_out: str | None) -> str:
-    """``conditioned`` (trained on all four) or ``conditioned_without_<vehicle>``."""
+def conditioned_stem(leave_out: str | None, generated: int = 0) -> str:
+    """``conditioned`` (trained on all four) or ``conditioned_without_<vehicle>``, with
+    ``_gen<N>`` when N > 0 generated vehicles joined its training."""
     seen_vehicles(leave_out)
-    return "conditioned" if leave_out is None else f"conditioned_without_{leave_out}"
+    stem = "conditioned" if leave_out is None else f"conditioned_without_{leave_out}"
+    return stem if generated == 0 else f"{stem}_gen{generated}"
 
 
-def conditioned_relpath(leave_out: str | None) -> Path:
+def conditioned_relpath(leave_out: str | None, generated: int = 0) -> Path:
     """Where a conditioned model lives in the seed's data directory: ``models/<stem>.pt``."""
-    return Path("models") / f"{conditioned_stem(leave_out)}.pt"
+    return Path("models") / f"{conditioned_stem(leave_out, generated)}.pt"
 
 
 def conditioned_config(profile: Profile, dataset: PatchDataset | None,
@@ -64,12 +76,30 @@ def conditioned_config(profile: Profile, dataset: PatchDataset | None,
                        dataset_hash: str | None = None) -> dict[str, Any]:
     """The cache key of a conditioned model: the multi-task model's
     (:func:`~dgt_lib.stages.train.model_config`) with its own kind, heads, the vehicle
-    left out, the FiLM size and :data:`CONDITIONED_FORMAT`. Computed without torch."""
-    base = model_config(profile, dataset, "multitask", seed=seed, rgb_weights=rgb_weights,
+    left out, the FiLM size and :data:`CONDITIONED_FORMAT`; with generated vehicles
+    (``conditioned.generated_vehicles`` > 0 only, so the others keep their keys) their
+    number, their dataset's fingerprint and the near-copy rule. Computed without torch."""
+    prof = as_profile(profile)
+    base = model_config(prof, dataset, "multitask", seed=seed, rgb_weights=rgb_weights,
                         dataset_hash=dataset_hash)
-    return {**base, "kind": "conditioned", "vehicles": list(seen_vehicles(leave_out)),
-            "leave_out": leave_out, "film_hidden": FILM_HIDDEN,
-            "conditioned_format": CONDITIONED_FORMAT}
+    config = {**base, "kind": "conditioned", "vehicles": list(seen_vehicles(leave_out)),
+              "leave_out": leave_out, "film_hidden": FILM_HIDDEN,
+              "conditioned_format": CONDITIONED_FORMAT}
+    n = prof.conditioned.generated_vehicles
+    if n == 0:
+        return config
+    return {**config, "generated": {"vehicles": n, "dataset": generated_digest(prof),
+                                    "near_copy_fraction": NEAR_COPY_FRACTION}}
+
+
+def conditioned_heads(profile: Profile, leave_out: str | None) -> list[VehicleSpec]:
+    """The heads a conditioned model trains: the named vehicles but ``leave_out``, then
+    the generated vehicles it learns from (:func:`~dgt_lib.stages.generated.training_generated`;
+    none while ``conditioned.generated_vehicles`` is 0)."""
+    named = [get_vehicle(v) for v in seen_vehicles(leave_out)]
+    if as_profile(profile).conditioned.generated_vehicles == 0:
+        return named
+    return named + training_generated(profile, leave_out)
 
 
 def ensure_conditioned_model(profile: Profile, dataset: PatchDataset,
@@ -81,7 +111,11 @@ def ensure_conditioned_model(profile: Profile, dataset: PatchDataset,
     from the cache, trained if needed, as :func:`~dgt_lib.stages.train.ensure_model`
     trains the multi-task model: the same settings, seed, snapshots and resume, the
     same fingerprint rule (its prediction digest)."""
-    from dgt_lib.beyond.conditioned import load_conditioned, train_conditioned  # torch
+    from dgt_lib.beyond.conditioned import (  # torch
+        load_conditioned,
+        train_conditioned,
+        train_conditioned_specs,
+    )
     from dgt_lib.learning.training import resolve_device
 
     prof = as_profile(profile)
@@ -90,20 +124,29 @@ def ensure_conditioned_model(profile: Profile, dataset: PatchDataset,
     rgb_weights = rgb_weights_for(prof.train, rgb_weights)
     config = conditioned_config(prof, dataset, leave_out, seed=seed, rgb_weights=rgb_weights,
                                 dataset_hash=dataset_hash)
-    relpath = conditioned_relpath(leave_out)
+    n_generated = prof.conditioned.generated_vehicles
+    relpath = conditioned_relpath(leave_out, n_generated)
     snapshot = data_dir(prof) / relpath.with_suffix(".resume.pt")
+    heads = conditioned_heads(prof, leave_out)
+    run = {"seed": seed, "film_hidden": FILM_HIDDEN, "device": device, "progress": progress,
+           "rgb_weights": rgb_weights, "keep_best_on_interrupt": False,
+           "snapshot_path": snapshot, "snapshot_key": config,
+           "snapshot_every_s": SNAPSHOT_EVERY_S}
 
     def build() -> dict[str, Any]:
-        return checkpoint_dict(train_conditioned(
-            dataset, prof.train, vehicles=seen_vehicles(leave_out), seed=seed,
-            film_hidden=FILM_HIDDEN, device=device, progress=progress, rgb_weights=rgb_weights,
-            keep_best_on_interrupt=False, snapshot_path=snapshot, snapshot_key=config,
-            snapshot_every_s=SNAPSHOT_EVERY_S))
+        if n_generated == 0:
+            return checkpoint_dict(train_conditioned(
+                dataset, prof.train, vehicles=seen_vehicles(leave_out), **run))
+        seen = seen_vehicles(leave_out)
+        data = combined_dataset(dataset, seen, ensure_generated_dataset(prof, progress=progress),
+                                [s.name for s in profile_generated(prof)],
+                                [s.name for s in heads[len(seen):]])
+        return checkpoint_dict(train_conditioned_specs(data, heads, prof.train, **run))
 
     ckpt = artifacts.ensure(relpath, config, build, profile=cache_dir(prof),
                             fingerprint=prediction_digest)
     snapshot.unlink(missing_ok=True)
-    return load_conditioned(ckpt, vehicles=seen_vehicles(leave_out), device=device)
+    return load_conditioned(ckpt, vehicles=[h.name for h in heads], device=device)
 
 
 def conditioned_digest(profile: Profile, leave_out: str | None = None, *,
@@ -112,7 +155,7 @@ def conditioned_digest(profile: Profile, leave_out: str | None = None, *,
     the cache's metadata; trained first when missing or stale."""
     prof = as_profile(profile)
     dataset_hash = dataset_hash or dataset_digest(prof, progress=progress)
-    relpath = conditioned_relpath(leave_out)
+    relpath = conditioned_relpath(leave_out, prof.conditioned.generated_vehicles)
     config = conditioned_config(prof, None, leave_out, dataset_hash=dataset_hash)
     if not artifacts.is_fresh(relpath, config, profile=cache_dir(prof)):
         ensure_conditioned_model(prof, ensure_dataset(prof, progress=progress), leave_out,
@@ -135,7 +178,7 @@ def ensure_conditioned_costmaps(world: World | str, specs: tuple[VehicleSpec | s
     specs = tuple(get_vehicle(s) for s in specs)
     names = [s.name for s in specs]
     bev, bev_path = world_bev(world, prof, progress=progress)
-    stem = conditioned_stem(leave_out)
+    stem = conditioned_stem(leave_out, prof.conditioned.generated_vehicles)
     config = {**costmap_config(prof, bev_path, "conditioned",
                                conditioned_digest(prof, leave_out, progress=progress)),
               "specs": list(specs)}

@@ -36,6 +36,7 @@ from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.baselines import SlopePredictor, climb_slope_model, slope_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.stages.conditioned import (
+    conditioned_heads,
     ensure_conditioned_costmaps,
     ensure_conditioned_model,
     seen_vehicles,
@@ -110,8 +111,10 @@ def zero_shot_scores(vehicle: str, profile: Profile | str | None = None, *,
     """One left-out vehicle in the profile's run seed: ``rows`` (world, vehicle, method,
     excluded and :func:`~dgt_lib.evaluation.accuracy.costmap_accuracy`'s scores) per
     scored world and :data:`ZERO_SHOT_METHODS`, the ``nearest`` vehicle and its spec
-    ``distance``, the :func:`patch_scores` as ``patches``, and with ``plans`` the
-    :data:`~dgt_lib.stages.planned.PLANNED` experiments of this vehicle as
+    ``distance``, the number of ``generated`` training vehicles and of those
+    ``generated_used`` without this one (near copies skipped), the :func:`patch_scores`
+    as ``patches``, and with ``plans`` the :data:`~dgt_lib.stages.planned.PLANNED`
+    experiments of this vehicle as
     ``{experiment: {method: {label: {route: n}}}}``."""
     prof = as_profile(profile)
     if vehicle not in VEHICLES:
@@ -129,6 +132,9 @@ def zero_shot_scores(vehicle: str, profile: Profile | str | None = None, *,
             if plans and (world, planned_vehicle) == (w, vehicle):
                 routes[name] = {m: planned_routes(name, planning_profile(prof), cost)
                                 for m, cost in costs.items()}
+    n_seen = len(seen_vehicles(vehicle))
     return {"vehicle": vehicle, "seed": prof.seed, "nearest": nearest, "distance": distance,
+            "generated": prof.conditioned.generated_vehicles,
+            "generated_used": len(conditioned_heads(prof, vehicle)) - n_seen,
             "rows": rows, "patches": patch_scores(vehicle, prof, progress=progress),
             "plans": routes}

@@ -18,7 +18,7 @@ import numpy as np  # noqa: E402
 
 from dgt_lib.core.camera import RGBDFrame
 from dgt_lib.core.config import CollectConfig
-from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.world.mujoco_model import CAMERA, MAX_DEPTH_M
 from dgt_lib.world.simulator import FrameRenderers, Simulator, look_at
 from dgt_lib.world.worlds import World, from_heightmap
@@ -28,10 +28,11 @@ from dgt_lib.world.worlds import World, from_heightmap
 _SIMS: dict[tuple, tuple[World, Simulator]] = {}
 
 
-def simulator(world: World, vehicle: str = "jeep") -> Simulator:
-    """A :class:`~dgt_lib.world.simulator.Simulator` of ``vehicle`` on ``world``, cached per process
-    (building the model and the renderer's GL context is paid once per worker)."""
-    key = (id(world), get_vehicle(vehicle).name)
+def simulator(world: World, vehicle: str | VehicleSpec = "jeep") -> Simulator:
+    """A :class:`~dgt_lib.world.simulator.Simulator` of ``vehicle`` (a name or any spec) on
+    ``world``, cached per process by the spec itself (two generated vehicles may share a
+    name) — building the model and the renderer's GL context is paid once per worker."""
+    key = (id(world), get_vehicle(vehicle))
     if key not in _SIMS:
         _SIMS[key] = (world, Simulator(world, vehicle))
     return _SIMS[key][1]
