@@ -98,7 +98,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
 
-    trials, names = [], []  # names: as replay_trial.py's --seed/--method/--label/--index
+    trials, names, profs = [], [], []  # names: as replay_trial.py's --seed/--method/--label/--index
     for seed in range(args.seeds):
         prof = get_profile(args.profile).with_(seed=seed)
         path = data_dir(prof) / "experiments" / f"{args.experiment}.pkl"
@@ -111,6 +111,7 @@ def main() -> None:
                     and (args.label is None or r.task.query.label == args.label)
                     and (args.method is None or r.task.method == args.method)):
                 trials.append(r)
+                profs.append(prof)  # the run's profile (a pickled task's may be older code's)
                 names.append(f"seed {seed} {key[0]} {key[1]} #{index[key]}")
             index[key] += 1
     if not trials:
@@ -126,8 +127,9 @@ def main() -> None:
     with ProcessPoolExecutor(args.workers, mp_context=ctx, initializer=limit_threads) as pool:
         for settings in variants:
             t0 = time.perf_counter()
-            jobs = [(r.task.profile, r.task.world, r.task.method, r.task.vehicle, r.path,
-                     r.task.query.goal, r.task.seed, settings) for r in trials]
+            jobs = [(prof, r.task.world, r.task.method, r.task.vehicle, r.path,
+                     r.task.query.goal, r.task.seed, settings)
+                    for r, prof in zip(trials, profs, strict=True)]
             out = list(pool.map(_drive, jobs))
             rows = [(r.task.query.label, *o) for r, o in zip(trials, out, strict=True)]
             name = (f"controller {settings}" if isinstance(settings, str) else

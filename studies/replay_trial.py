@@ -12,7 +12,8 @@ the pose, the height of the chassis origin above the terrain, pitch and roll, th
 MPPI's speed command and steering (a fraction of the lock, + left), the wheels in contact
 and how long the vehicle has been immobile: what a person wants to see to tell a physical
 limit (a wheel off the ground, a roll past the tipping angle) from a controller's choice (a
-crawl commanded, full lock at full speed). ``--mppi FIELD=VALUE[,…]`` drives the same plan
+crawl commanded, full lock at full speed). ``--controller NAME`` replays the experiment
+recorded with ``experiments.controller=NAME``. ``--mppi FIELD=VALUE[,…]`` drives the same plan
 with other MPPI settings (``controller_variants.py`` names the trials they change).
 ``--critics`` adds what MPPI's last call saw among its sampled sequences: the share whose
 footprint collides with the occupancy map (cost ≥ ``collision_weight``), the same share among
@@ -33,11 +34,12 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
-from dgt_lib.evaluation.trials import trial_time_limit_s
+from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
+from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.navigation.drive import drive
-from dgt_lib.stages.experiments import trial_maps
+from dgt_lib.stages.experiments import experiment_stem, trial_maps
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.simulator import VehicleState
 from dgt_lib.world.terrain import get_world
@@ -101,17 +103,22 @@ def main() -> None:
     ap.add_argument("--every-s", type=float, default=0.5, help="print interval [s]")
     ap.add_argument("--mppi", default=None, type=mppi_settings, metavar="FIELD=VALUE[,…]",
                     help="drive with these MPPIConfig settings instead of the recorded ones")
+    ap.add_argument("--controller", choices=CONTROLLERS, default="paper",
+                    help="the trials' controller (experiments.controller) whose recorded "
+                         "experiment to replay, driven with it")
     ap.add_argument("--critics", action="store_true",
                     help="also print what MPPI's sampled sequences cost (see above)")
     ap.add_argument("--fast-mps", type=float, default=1.5,
                     help="--critics: a sequence is fast from this mean speed [m/s]")
     args = ap.parse_args()
 
-    prof = get_profile(args.profile).with_(seed=args.seed)
-    path = data_dir(prof) / "experiments" / f"{args.experiment}.pkl"
+    prof = get_profile(args.profile).with_(seed=args.seed).with_overrides(
+        {"experiments.controller": args.controller})
+    path = data_dir(prof) / "experiments" / f"{experiment_stem(args.experiment, prof)}.pkl"
     if not path.exists():
         raise SystemExit(f"no cached {args.experiment} at {path}: run `dgt reproduce "
-                         f"--profile {args.profile} --seeds {args.seed + 1}` first")
+                         f"--profile {args.profile} --seed {args.seed} --set "
+                         f"experiments.controller={args.controller}` first")
     result = artifacts.load(path)
     trials = [r for r in result.results if r.task.method == args.method
               and (args.label is None or r.task.query.label == args.label)
@@ -129,7 +136,10 @@ def main() -> None:
     if len(rec.path) == 0:
         raise SystemExit("the trial has no plan to drive")
     world = get_world(task.world, prof)
-    maps = trial_maps(task.world, task.method, task.vehicle, task.profile)
+    maps = trial_maps(task.world, task.method, task.vehicle, prof)
+    control = trial_controller(prof, method_costmap(maps, task.method, task.vehicle))
+    if args.mppi:
+        control["mppi_settings"] = {**control.get("mppi_settings", {}), **args.mppi}
     length_m = float(np.hypot(*np.diff(rec.path[:, :2], axis=0).T).sum())
     next_print = [args.from_s]
     print(f"{'t [s]':>6} {'x [m]':>6} {'y [m]':>6} {'z-h':>5} {'yaw':>4} {'pitch':>6} "
@@ -159,7 +169,7 @@ def main() -> None:
                                  occupancy=maps.occupancy, grid=maps.grid,
                                  time_limit_s=trial_time_limit_s(prof.experiments, length_m),
                                  mppi_batch_size=prof.experiments.mppi_batch_size,
-                                 seed=task.seed, on_command=show, mppi_settings=args.mppi)
+                                 seed=task.seed, on_command=show, **control)
     same = (outcome.reason == rec.outcome.reason
             and np.allclose(traj[-1, 1:3], rec.trajectory[-1, 1:3], atol=0.05))
     verdict = ("as recorded" if same else "otherwise than recorded" if args.mppi
