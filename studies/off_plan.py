@@ -67,8 +67,8 @@ def _drive(job: tuple) -> tuple[str, float]:
 
 
 def starts(args: argparse.Namespace) -> list[tuple]:
-    """Every pushed start of the recorded plans: (profile, world, method, vehicle, rest of the
-    plan, goal, seed, start pose)."""
+    """Every pushed start of the recorded plans: (experiment, profile, world, method, vehicle,
+    rest of the plan, goal, seed, start pose)."""
     out = []
     for seed in range(args.seeds):
         prof = get_profile(args.profile).with_(seed=seed)
@@ -86,8 +86,8 @@ def starts(args: argparse.Namespace) -> list[tuple]:
                     row, col = maps.grid.xy_to_cell(start[0], start[1])
                     h, w = maps.occupancy.shape
                     if 0 <= row < h and 0 <= col < w and maps.occupancy[row, col] == 0:
-                        out.append((prof, r.task.world, r.task.method, r.task.vehicle, rest,
-                                    r.task.query.goal, r.task.seed, start))
+                        out.append((name, prof, r.task.world, r.task.method, r.task.vehicle,
+                                    rest, r.task.query.goal, r.task.seed, start))
     return out
 
 
@@ -125,7 +125,9 @@ def main() -> None:
         ap.error(f"--at must be in [0, 1), got {args.at}")
     args.experiment = args.experiment or ["experiment1", "experiment2"]
     controllers = args.controller or list(CONTROLLERS)
-    jobs = starts(args)
+    found = starts(args)
+    experiment_of = [job[0] for job in found]
+    jobs = [job[1:] for job in found]
     print(f"{len(jobs)} starts {args.offset} m beside {args.method}'s plans at {args.at:.0%} "
           f"of their length ({', '.join(args.experiment)}; {args.profile} seeds "
           f"0–{args.seeds - 1})")
@@ -136,6 +138,11 @@ def main() -> None:
             t0 = time.perf_counter()
             out[c] = list(pool.map(_drive, [(*job, c) for job in jobs]))
             print(f"  [{c}: {time.perf_counter() - t0:.0f} s]", flush=True)
+    for name in args.experiment:
+        mine = [i for i, e in enumerate(experiment_of) if e == name]
+        print(f"{name} ({len(mine)} starts):")
+        report(controllers, {c: [rows[i] for i in mine] for c, rows in out.items()})
+    print("all:")
     report(controllers, out)
 
 
