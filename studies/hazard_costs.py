@@ -1,0 +1,44 @@
+"""Does a learned costmap price the hazards of ``eval_hazard``? Its cost on the cells the
+ditches add (cells a vehicle cannot cross there, by the query rule's test, that ``eval`` does
+not have) beside its cost on the cells the vehicle can cross, per run seed.
+
+    .venv/bin/python studies/hazard_costs.py --profile demo --seeds 3
+
+Reads (or builds) the ``eval_hazard`` costmaps of the profile's models; the cost of a cell is
+its maximum over the heading layers.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from dgt_lib.core.config import get_profile
+from dgt_lib.evaluation.hazards import vehicle_hazards
+from dgt_lib.stages.experiments import trial_maps
+from dgt_lib.world.terrain import get_world
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default="demo")
+    ap.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    ap.add_argument("--vehicle", action="append", default=None,
+                    help="Experiment 3's vehicles (default: jeep and vw_van)")
+    ap.add_argument("--method", action="append", default=None,
+                    help="default: dgt and single-task")
+    args = ap.parse_args()
+    for seed in range(args.seeds):
+        prof = get_profile(args.profile).with_(seed=seed)
+        hazard_world, eval_world = get_world("eval_hazard", prof), get_world("eval", prof)
+        for vehicle in args.vehicle or ["jeep", "vw_van"]:
+            hazard = vehicle_hazards(hazard_world, vehicle)
+            ditches = hazard & ~vehicle_hazards(eval_world, vehicle)
+            for method in args.method or ["dgt", "single-task"]:
+                cost = trial_maps("eval_hazard", method, vehicle, prof).costmap(
+                    method, vehicle).max(axis=0)
+                print(f"seed {seed} {vehicle:<7} {method:<12} crossable {cost[~hazard].mean():.3f}"
+                      f"  ditch cells {cost[ditches].mean():.3f} ({int(ditches.sum())} cells)")
+
+
+if __name__ == "__main__":
+    main()
