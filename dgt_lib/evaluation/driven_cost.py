@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from dgt_lib.core.geometry import GridSpec, nearest_heading_bin
+from dgt_lib.evaluation.accuracy import cost_at
 
 MIN_STEP_M = 0.05
 """Logged positions closer than this [m] to the previous counted one have no direction of
@@ -36,7 +37,5 @@ def driven_cost(trajectory: np.ndarray, cost: np.ndarray, grid: GridSpec) -> flo
     pts = xy[kept]
     step = np.diff(pts, axis=0)
     k = nearest_heading_bin(np.arctan2(step[:, 1], step[:, 0]), cost.shape[0])
-    rows, cols = grid.xy_to_cell(pts[1:, 0], pts[1:, 1])
-    rows = np.clip(rows, 0, cost.shape[1] - 1)
-    cols = np.clip(cols, 0, cost.shape[2] - 1)
-    return float(np.mean(cost[k, rows, cols]))
+    per_heading = cost_at(cost, grid, pts[1:], cost.shape[0])  # (N, K)
+    return float(np.mean(per_heading[np.arange(len(k)), k]))
