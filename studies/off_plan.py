@@ -12,7 +12,9 @@ is driven with every controller (``experiments.controller``; ``terrain`` reads t
 costmap) with the trial's seed, batch size and time-limit rule. Printed per controller:
 arrivals, immobilized, flipped, and the mean cost of the driven path on the vehicle's DGT-Map
 costmap (:func:`dgt_lib.evaluation.driven_cost.driven_cost`), and the paired difference of
-the driven cost between controllers on the same starts.
+the driven cost between controllers on the same starts; then every start that did not arrive
+with some controller, with the true terrain's grade and cross-slope under it and where and
+when each controller's drive ended.
 """
 
 from __future__ import annotations
@@ -50,8 +52,20 @@ def pushed_start(path: np.ndarray, at: float, offset_m: float
     return start, path[i:]
 
 
-def _drive(job: tuple) -> tuple[str, float]:
-    """Worker: one pushed start driven with one controller; (reason, driven cost)."""
+def start_grades_deg(world, start: np.ndarray) -> tuple[float, float]:
+    """(grade along the start heading, cross-slope to its left) [deg] of the true terrain at a
+    start pose (x, y, yaw): uphill ahead and left side high are positive."""
+    gx, gy = world.gradient()
+    row, col = world.grid.xy_to_cell(start[0], start[1])
+    dx, dy = gx[row, col], gy[row, col]
+    c, s = np.cos(start[2]), np.sin(start[2])
+    return (float(np.degrees(np.arctan(dx * c + dy * s))),
+            float(np.degrees(np.arctan(-dx * s + dy * c))))
+
+
+def _drive(job: tuple) -> tuple[str, float, float, np.ndarray]:
+    """Worker: one pushed start driven with one controller; (reason, driven cost, time it
+    ended [s], where it ended (x, y) [m])."""
     profile, world_name, method, vehicle, rest, goal, seed, start, controller = job
     world = get_world(world_name, profile)
     maps = trial_maps(world_name, method, vehicle, profile)
@@ -63,7 +77,8 @@ def _drive(job: tuple) -> tuple[str, float]:
         mppi_batch_size=profile.experiments.mppi_batch_size, seed=seed, start_pose=start,
         **trial_controller(named, method_costmap(maps, method, vehicle)))
     dgt = trial_maps(world_name, "dgt", vehicle, profile)
-    return outcome.reason, driven_cost(traj, dgt.costmap("dgt", vehicle), dgt.grid)
+    return (outcome.reason, driven_cost(traj, dgt.costmap("dgt", vehicle), dgt.grid),
+            outcome.duration_s, traj[-1, 1:3])
 
 
 def starts(args: argparse.Namespace) -> list[tuple]:
@@ -91,19 +106,34 @@ def starts(args: argparse.Namespace) -> list[tuple]:
     return out
 
 
-def report(controllers: list[str], out: dict[str, list[tuple[str, float]]]) -> None:
+def failures(controllers: list[str], found: list[tuple], out: dict[str, list[tuple]]) -> None:
+    """Print every start that did not arrive with some controller: where it started, the true
+    terrain's grade and cross-slope there, and how each controller's drive ended."""
+    for i, job in enumerate(found):
+        if all(out[c][i][0] == "success" for c in controllers):
+            continue
+        name, prof, world_name, _, vehicle, _, _, _, start = job
+        grade, cross = start_grades_deg(get_world(world_name, prof), start)
+        ends = "; ".join(f"{c} {out[c][i][0]} at {out[c][i][2]:.1f} s "
+                         f"({out[c][i][3][0]:.1f}, {out[c][i][3][1]:.1f})" for c in controllers)
+        print(f"  {name} seed {prof.seed} {vehicle} start ({start[0]:.1f}, {start[1]:.1f}) "
+              f"heading {np.degrees(start[2]):.0f}°, grade {grade:+.1f}°, cross-slope "
+              f"{cross:+.1f}°: {ends}")
+
+
+def report(controllers: list[str], out: dict[str, list[tuple]]) -> None:
     """Print arrivals, failure reasons and driven cost per controller, then paired costs."""
     for c in controllers:
         rows = out[c]
-        k, n = sum(reason == "success" for reason, _ in rows), len(rows)
+        k, n = sum(row[0] == "success" for row in rows), len(rows)
         lo, hi = wilson_interval(k, n)
-        why = Counter(reason for reason, _ in rows if reason != "success")
-        cost = np.nanmean([v for _, v in rows])
+        why = Counter(row[0] for row in rows if row[0] != "success")
+        cost = np.nanmean([row[1] for row in rows])
         print(f"  {c:<8} arrived {k}/{n} ({100 * k / n:.0f} %, 95 % {100 * lo:.0f}–"
               f"{100 * hi:.0f}); " + ", ".join(f"{v} {r}" for r, v in why.most_common())
               + f"; mean driven cost {cost:.3f}")
     for a, b in zip(controllers, controllers[1:], strict=False):
-        d = np.array([cb - ca for (_, ca), (_, cb) in zip(out[a], out[b], strict=True)])
+        d = np.array([rb[1] - ra[1] for ra, rb in zip(out[a], out[b], strict=True)])
         d = d[np.isfinite(d)]
         print(f"  driven cost {b} − {a}: mean {d.mean():+.3f}, lower on {int((d < 0).sum())}"
               f", higher on {int((d > 0).sum())} of {len(d)} starts")
@@ -144,6 +174,8 @@ def main() -> None:
         report(controllers, {c: [rows[i] for i in mine] for c, rows in out.items()})
     print("all:")
     report(controllers, out)
+    print("starts that did not arrive with some controller:")
+    failures(controllers, found, out)
 
 
 if __name__ == "__main__":
