@@ -81,6 +81,23 @@ def test_a_vehicle_started_beside_its_plan_rejoins_it_and_arrives():
     assert abs(traj[-1, 2] - 20.0) < 1.0  # back on the line by the goal
 
 
+def test_off_plan_reports_the_grade_and_cross_slope_under_a_start():
+    # studies/off_plan.py's failure list: on a plane rising 0.2 m per m to the east, a start
+    # facing east is on a +11.3° grade, one facing north has its left (west) side low
+    spec = importlib.util.spec_from_file_location(
+        "off_plan", Path(__file__).resolve().parent.parent / "studies" / "off_plan.py")
+    off_plan = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(off_plan)
+    x = np.arange(200) * 0.4
+    world = from_heightmap(np.tile(0.2 * x, (100, 1)).astype(np.float32), 0.4, name="tilted")
+    x0, x1, y0, y1 = world.extent
+    centre = ((x0 + x1) / 2, (y0 + y1) / 2)
+    grade, cross = off_plan.start_grades_deg(world, np.array([*centre, 0.0]))
+    assert grade == pytest.approx(11.31, abs=0.05) and cross == pytest.approx(0.0, abs=0.05)
+    grade, cross = off_plan.start_grades_deg(world, np.array([*centre, np.pi / 2]))
+    assert grade == pytest.approx(0.0, abs=0.05) and cross == pytest.approx(-11.31, abs=0.05)
+
+
 def test_watching_a_trials_commands_does_not_change_the_trial():
     """`studies/replay_trial.py` prints every command MPPI gives through `on_command`:
     one per ~50 ms control period, the speed command and the steering within the
