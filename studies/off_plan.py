@@ -7,7 +7,9 @@ trials' controller — where a terrain-aware controller should matter.
 For every recorded plan of ``--method`` (default DGT-Map) in the cached experiments of run
 seeds ``0 … seeds-1``, the vehicle starts at rest ``--offset`` metres to the left and to the
 right of the plan's pose at ``--at`` of its length, with the plan's heading there, and tracks
-the rest of the plan to the query's goal (a start on an occupied cell is skipped). Each start
+the rest of the plan to the query's goal (a start on an occupied cell is skipped, and so is
+one where the vehicle would stand across terrain steeper than its static rollover angle, e.g.
+a cut bank beside a ramp). Each start
 is driven with every controller (``experiments.controller``; ``terrain`` reads the method's
 costmap) with the trial's seed, batch size and time-limit rule. Printed per controller:
 arrivals, immobilized, flipped, and the mean cost of the driven path on the vehicle's DGT-Map
@@ -30,6 +32,7 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.executors import limit_threads
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.driven_cost import driven_cost
 from dgt_lib.evaluation.statistics import wilson_interval
 from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
@@ -63,6 +66,34 @@ def start_grades_deg(world, start: np.ndarray) -> tuple[float, float]:
             float(np.degrees(np.arctan(-dx * s + dy * c))))
 
 
+def footprint_max_slope_deg(world, start: np.ndarray, length_m: float, width_m: float
+                            ) -> float:
+    """Steepest true-terrain slope [deg] under a vehicle of ``length_m`` × ``width_m`` [m]
+    standing at a start pose (x, y, yaw): the cells whose centres lie in its footprint."""
+    slope = world.slope_deg()
+    res = world.grid.resolution
+    reach = int(np.ceil(0.5 * np.hypot(length_m, width_m) / res)) + 1
+    row, col = world.grid.xy_to_cell(start[0], start[1])
+    h, w = slope.shape
+    rows = np.arange(max(row - reach, 0), min(row + reach + 1, h))
+    cols = np.arange(max(col - reach, 0), min(col + reach + 1, w))
+    xs, ys = world.grid.cell_to_xy(rows[:, None], cols[None, :])
+    dx, dy = xs - start[0], ys - start[1]
+    c, s = np.cos(start[2]), np.sin(start[2])
+    inside = (np.abs(dx * c + dy * s) <= 0.5 * length_m) & (np.abs(-dx * s + dy * c)
+                                                            <= 0.5 * width_m)
+    return float(slope[np.ix_(rows, cols)][inside].max())
+
+
+def can_stand(world, vehicle: str, start: np.ndarray) -> bool:
+    """Whether the vehicle can be put at rest at a start pose: no terrain under its footprint
+    steeper than its static rollover angle, atan(track / 2 / centre-of-mass height). A start
+    beside a plan can fall across a cut bank that the start cell alone does not show."""
+    spec = get_vehicle(vehicle)
+    limit = np.degrees(np.arctan(spec.rollover_accel_mps2 / 9.81))
+    return footprint_max_slope_deg(world, start, spec.length_m, spec.width_m) <= limit
+
+
 def _drive(job: tuple) -> tuple[str, float, float, np.ndarray]:
     """Worker: one pushed start driven with one controller; (reason, driven cost, time it
     ended [s], where it ended (x, y) [m])."""
@@ -84,7 +115,7 @@ def _drive(job: tuple) -> tuple[str, float, float, np.ndarray]:
 def starts(args: argparse.Namespace) -> list[tuple]:
     """Every pushed start of the recorded plans: (experiment, profile, world, method, vehicle,
     rest of the plan, goal, seed, start pose)."""
-    out = []
+    out, unstandable = [], Counter()
     for seed in range(args.seeds):
         prof = get_profile(args.profile).with_(seed=seed)
         for name in args.experiment:
@@ -100,9 +131,16 @@ def starts(args: argparse.Namespace) -> list[tuple]:
                                                side * args.offset)
                     row, col = maps.grid.xy_to_cell(start[0], start[1])
                     h, w = maps.occupancy.shape
-                    if 0 <= row < h and 0 <= col < w and maps.occupancy[row, col] == 0:
-                        out.append((name, prof, r.task.world, r.task.method, r.task.vehicle,
-                                    rest, r.task.query.goal, r.task.seed, start))
+                    if not (0 <= row < h and 0 <= col < w and maps.occupancy[row, col] == 0):
+                        continue
+                    if not can_stand(get_world(r.task.world, prof), r.task.vehicle, start):
+                        unstandable[name] += 1
+                        continue
+                    out.append((name, prof, r.task.world, r.task.method, r.task.vehicle,
+                                rest, r.task.query.goal, r.task.seed, start))
+    for name, k in unstandable.items():
+        print(f"  {name}: {k} starts left out, where the vehicle would stand across terrain "
+              "steeper than its rollover angle")
     return out
 
 
