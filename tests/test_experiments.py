@@ -81,7 +81,7 @@ def test_a_vehicle_started_beside_its_plan_rejoins_it_and_arrives():
     assert abs(traj[-1, 2] - 20.0) < 1.0  # back on the line by the goal
 
 
-def test_off_plan_reports_the_grade_and_cross_slope_under_a_start():
+def test_off_plan_reports_the_terrain_under_a_start_and_leaves_out_starts_across_a_bank():
     # studies/off_plan.py's failure list: on a plane rising 0.2 m per m to the east, a start
     # facing east is on a +11.3° grade, one facing north has its left (west) side low
     spec = importlib.util.spec_from_file_location(
@@ -96,6 +96,12 @@ def test_off_plan_reports_the_grade_and_cross_slope_under_a_start():
     assert grade == pytest.approx(11.31, abs=0.05) and cross == pytest.approx(0.0, abs=0.05)
     grade, cross = off_plan.start_grades_deg(world, np.array([*centre, np.pi / 2]))
     assert grade == pytest.approx(0.0, abs=0.05) and cross == pytest.approx(-11.31, abs=0.05)
+    # a 1 m bank across the plane: carla_cola cannot be put at rest across it, beside it can
+    bank = np.tile(np.where(x < 40.0, 0.0, 1.0), (100, 1)).astype(np.float32)
+    banked = from_heightmap(bank, 0.4, name="bank")
+    assert not off_plan.can_stand(banked, "carla_cola", np.array([40.0, centre[1], np.pi / 2]))
+    assert off_plan.can_stand(banked, "carla_cola", np.array([46.0, centre[1], np.pi / 2]))
+    assert off_plan.can_stand(world, "carla_cola", np.array([*centre, 0.0]))  # 11° is no bank
 
 
 def test_watching_a_trials_commands_does_not_change_the_trial():
