@@ -167,9 +167,9 @@ def report(controllers: list[str], out: dict[str, list[tuple]]) -> None:
         lo, hi = wilson_interval(k, n)
         why = Counter(row[0] for row in rows if row[0] != "success")
         cost = np.nanmean([row[1] for row in rows])
+        ended = "".join(f"; {v} {r}" for r, v in why.most_common())
         print(f"  {c:<8} arrived {k}/{n} ({100 * k / n:.0f} %, 95 % {100 * lo:.0f}–"
-              f"{100 * hi:.0f}); " + ", ".join(f"{v} {r}" for r, v in why.most_common())
-              + f"; mean driven cost {cost:.3f}")
+              f"{100 * hi:.0f}){ended}; mean driven cost {cost:.3f}")
     for a, b in zip(controllers, controllers[1:], strict=False):
         d = np.array([rb[1] - ra[1] for ra, rb in zip(out[a], out[b], strict=True)])
         d = d[np.isfinite(d)]
@@ -212,8 +212,9 @@ def main() -> None:
         report(controllers, {c: [rows[i] for i in mine] for c, rows in out.items()})
     print("all:")
     report(controllers, out)
-    print("starts that did not arrive with some controller:")
-    failures(controllers, found, out)
+    if any(reason != "success" for rows in out.values() for reason, *_ in rows):
+        print("starts that did not arrive with some controller:")
+        failures(controllers, found, out)
 
 
 if __name__ == "__main__":
