@@ -97,6 +97,36 @@ def mae_table(scores: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+WITHIN = 1.25
+"""The issue's aim: zero-shot MAE at most 25 % above the own head's (ratio ≤ 1.25)."""
+
+
+def ratio_table(scores: list[dict]) -> str:
+    """Markdown: zero-shot MAE ÷ own-head MAE per (world, vehicle) and seed, and per seed how
+    many vehicles are within :data:`WITHIN` on every world they are scored on."""
+    seeds = sorted({s["seed"] for s in scores})
+    lines = ["Zero-shot MAE ÷ own head's MAE (≤ 1.25: within 25 %), per seed:", "",
+             "| world | vehicle | " + " | ".join(f"seed {k}" for k in seeds) + " |",
+             "|---" * (len(seeds) + 2) + "|"]
+    within = {k: [] for k in seeds}
+    for vehicle in VEHICLES:
+        mine = {s["seed"]: s for s in scores if s["vehicle"] == vehicle}
+        if not mine:
+            continue
+        ratios = {k: {r["world"]: r["mae"] for r in s["rows"] if r["method"] == "zero-shot"}
+                  for k, s in mine.items()}
+        for k, s in mine.items():
+            own = {r["world"]: r["mae"] for r in s["rows"] if r["method"] == "own head"}
+            ratios[k] = {w: z / own[w] for w, z in ratios[k].items()}
+            within[k].append(all(x <= WITHIN for x in ratios[k].values()))
+        for world in dict.fromkeys(w for k in ratios for w in ratios[k]):
+            cells = [f"{ratios[k][world]:.2f}" if k in ratios else "–" for k in seeds]
+            lines.append(f"| {world} | {vehicle} | " + " | ".join(cells) + " |")
+    lines.append("| **vehicles within 25 %** | | " + " | ".join(
+        f"{sum(within[k])} of {len(within[k])}" for k in seeds) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def patch_table(scores: list[dict]) -> str:
     """Markdown: MAE on each left-out vehicle's test patches, mean ± std over seeds."""
     lines = ["MAE on the vehicle's test patches against their labels L (mean ± std over seeds):",
@@ -184,6 +214,7 @@ def main() -> None:
                   for v in args.vehicles]
     print(generated_line(scores))
     print(mae_table(scores))
+    print(ratio_table(scores))
     print(patch_table(scores))
     print(plan_table(scores))
     figure(scores, args.figure or out / f"zero_shot{suffix(args.generated)}.png")
