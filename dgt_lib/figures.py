@@ -184,6 +184,10 @@ OTHER_FIGURES: dict[str, str] = {
     "scarcity.png": "`python studies/scarcity.py --profile demo --seeds 0 1 2 --stored --figure "
                     "docs/figures/scarcity.png`: when multi-task learning helps, error against "
                     "one vehicle's training patches (docs/scarcity.md).",
+    "zero_shot_gen8.png": "`python studies/zero_shot.py --profile demo --seeds 0 1 2 --generated 8 "
+                          "--stored --figure docs/figures/zero_shot_gen8.png`: a vehicle never "
+                          "driven, its zero-shot costmap against the alternatives, with 8 "
+                          "generated training vehicles (docs/vehicles.md).",
 }
 """Figures in the same folder drawn by scripts of their own, listed in its README."""
 
