@@ -9,9 +9,9 @@ seeds ``0 … seeds-1``, the vehicle starts at rest ``--offset`` metres to the l
 right of the plan's pose at ``--at`` of its length, with the plan's heading there, and tracks
 the rest of the plan to the query's goal (a start on an occupied cell is skipped, and so is
 one where the vehicle would stand across terrain steeper than its static rollover angle, e.g.
-a cut bank beside a ramp). Each start
-is driven with every controller (``experiments.controller``; ``terrain`` reads the method's
-costmap) with the trial's seed, batch size and time-limit rule. Printed per controller:
+a cut bank beside a ramp). Each start is driven with every controller
+(``experiments.controller``; ``terrain`` reads the method's costmap) with the trial's seed,
+batch size and time-limit rule. Printed per controller:
 arrivals, immobilized, flipped, and the mean cost of the driven path on the vehicle's DGT-Map
 costmap (:func:`dgt_lib.evaluation.driven_cost.driven_cost`), and the paired difference of
 the driven cost between controllers on the same starts; then every start that did not arrive
