@@ -5,15 +5,15 @@ changes, with the plans held fixed.
         --experiment experiment1 --route A \\
         --variant lateral_accel_max=2.0 --variant constraint_weight=20
 
-Every trial of the cached experiments of run seeds ``0 … seeds-1`` that matches the filters
-(``--route``, ``--label``, ``--method``) is driven again from its recorded plan — the plan
-does not depend on the controller — once per ``--variant`` (``FIELD=VALUE[,FIELD=VALUE]``
-of :class:`dgt_lib.navigation.control.mppi_config.MPPIConfig`; several fields in one variant are
-changed together), with the trial's own seed, time limit and occupancy map, in a pool of
-``--workers`` processes; ``--controller NAME`` adds a variant driven as the trials drive
-with ``experiments.controller=NAME`` (``terrain``: MPPI reads the method's own costmap).
-It prints, per variant and query label, how many arrived and how
-the others ended, beside the recorded outcomes, and which trials ended otherwise than
+Every trial of the cached experiments of run seeds ``0 … seeds-1`` (or ``--seed S``) that
+matches the filters (``--route``, ``--label``, ``--method``) is driven again from its
+recorded plan — the plan does not depend on the controller — once per ``--variant``
+(``FIELD=VALUE[,FIELD=VALUE]`` of :class:`dgt_lib.navigation.control.mppi_config.MPPIConfig`;
+several fields in one variant are changed together), with the trial's own seed, time limit
+and occupancy map, in a pool of ``--workers`` processes; ``--controller NAME`` adds a
+variant driven as the trials drive with ``experiments.controller=NAME`` (``terrain``: MPPI
+reads the method's own costmap). It prints, per variant and query label, how many arrived
+and how the others ended, beside the recorded outcomes, and which trials ended otherwise than
 recorded (named as ``replay_trial.py --mppi`` replays them); ``--check`` also drives the
 defaults again (none should end otherwise on the machine that recorded them).
 An exploration tool: the experiments keep the default settings.
@@ -85,7 +85,9 @@ def summary(rows: list[tuple[str, str, bool, float]]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--profile", default="demo")
-    ap.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    which = ap.add_mutually_exclusive_group()
+    which.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    which.add_argument("--seed", type=int, default=None, help="run seed S alone")
     ap.add_argument("--experiment", default="experiment1")
     ap.add_argument("--route", default=None, help="only plans of this route, e.g. A")
     ap.add_argument("--label", default=None, help="only these queries, e.g. ascent")
@@ -99,7 +101,8 @@ def main() -> None:
     args = ap.parse_args()
 
     trials, names, profs = [], [], []  # names: as replay_trial.py's --seed/--method/--label/--index
-    for seed in range(args.seeds):
+    seeds = range(args.seeds) if args.seed is None else [args.seed]
+    for seed in seeds:
         prof = get_profile(args.profile).with_(seed=seed)
         path = data_dir(prof) / "experiments" / f"{args.experiment}.pkl"
         if not path.exists():
@@ -119,8 +122,8 @@ def main() -> None:
     recorded = [(r.task.query.label, r.outcome.reason, r.outcome.success,
                  r.outcome.duration_s) for r in trials]
     print(f"{len(trials)} recorded trials of {args.experiment} ({args.profile}, seeds "
-          f"0–{args.seeds - 1}, route {args.route or 'any'}, label {args.label or 'any'}, "
-          f"method {args.method or 'any'})")
+          f"{', '.join(map(str, seeds))}, route {args.route or 'any'}, "
+          f"label {args.label or 'any'}, method {args.method or 'any'})")
     print(f"  recorded: {summary(recorded)}")
     variants = ([{}] if args.check else []) + args.variant + args.controller
     ctx = multiprocessing.get_context("fork")

@@ -31,9 +31,10 @@ def path_errors(x, y, yaw, v, window: tuple[np.ndarray, ...], length_m: float,
     """Every ``path_point_step``-th rollout point ``(T', B)`` projected on the tangent of
     its nearest window point: the distance to the path [m] (lateral, plus any overshoot
     before its start or past its end), the yaw error ψ − ψ_path [rad], the speed error
-    (v − v_ref)/v_target with v_ref = min(v_target, √(2·a_goal·d_remaining)), and the
-    points' x, y [m]."""
-    wx, wy, tx, ty, s_win, path_yaw = window
+    (v − v_ref)/v_target with v_ref = min(v_target, √(2·a_goal·d_remaining), v_cap) (v_cap
+    the window's corner cap, ∞ unless ``corner_accel_mps2`` is set), and the points'
+    x, y [m]."""
+    wx, wy, tx, ty, s_win, path_yaw, v_cap = window
     sel = slice(cfg.path_point_step - 1, None, cfg.path_point_step)
     px, py = x[sel], y[sel]  # (T', B)
     # argmin_j |p − w_j|² = argmin_j (|w_j|² − 2 p·w_j): one product, no BLAS
@@ -49,6 +50,7 @@ def path_errors(x, y, yaw, v, window: tuple[np.ndarray, ...], length_m: float,
     cross = np.sqrt(lateral * lateral + beyond * beyond)
     remaining = np.maximum(f32(length_m) - s, 0.0)
     v_ref = np.minimum(f32(cfg.target_speed), np.sqrt(2.0 * cfg.goal_decel * remaining))
+    v_ref = np.minimum(v_ref, v_cap[j])
     speed_err = (v[sel] - v_ref) * f32(1.0 / cfg.target_speed)
     return cross, yaw[sel] - path_yaw[j], speed_err, px, py
 
@@ -65,7 +67,8 @@ def path_angle_critic(angle_err: np.ndarray, cfg: MPPIConfig) -> np.ndarray:
 
 
 def speed_critic(speed_err: np.ndarray, cfg: MPPIConfig) -> np.ndarray:
-    """w_speed · mean_t ((v̂_t − v_ref)/v_target)²: the commanded 5 m/s, slowing for the goal."""
+    """w_speed · mean_t ((v̂_t − v_ref)/v_target)²: the commanded 5 m/s, slowing for the goal
+    (and, with ``corner_accel_mps2``, for the plan's corners)."""
     return cfg.speed_weight * (speed_err * speed_err).mean(axis=0)
 
 

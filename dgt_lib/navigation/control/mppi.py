@@ -218,6 +218,8 @@ class MPPIController:
         its last point. The warm start is kept (replanning should not jerk the car)."""
         cfg = self.cfg
         self._ref = ReferencePath(path, cfg.path_resolution_m, cfg.v_max * cfg.horizon_s)
+        if cfg.corner_accel_mps2 > 0:
+            self._ref.limit_corner_speed(cfg.corner_accel_mps2, cfg.goal_decel)
 
     @property
     def path(self) -> np.ndarray:
@@ -301,7 +303,8 @@ class MPPIController:
         v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid, terrain)  # steps 1–3
         if cfg.first_step_weight > 0:
             remaining = ref.remaining_m(i_robot)
-            v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining))
+            v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining),
+                        float(ref.v_cap[i_robot]))
             cost = cost + critics.first_step_critic(v[0], v_ref, cfg)
         self.last_costs = cost
         weights = self.weighting(cost, cfg.temperature)  # step 4

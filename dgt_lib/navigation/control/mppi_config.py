@@ -55,6 +55,8 @@ class MPPIConfig:
     breakaway_speed_mps: float = 0.0  # the model stands still while |v_cmd| is below this
     first_step_weight: float = 0.0  # ((v_0 − v_ref) / target_speed)² of the sent step
     roll_limit_fraction: float = 0.0  # slow corners to this × the vehicle's rollover a_lat
+    corner_accel_mps2: float = 0.0  # v_ref ≤ √(a/|κ|) of the plan's corners, braked into
+                                    # at goal_decel (reference_path.corner_speed_cap); 0 = off
 
     def __post_init__(self):
         if self.batch_size < 2 or self.time_steps < 2 or self.model_dt <= 0:
@@ -69,9 +71,10 @@ class MPPIConfig:
             raise ValueError("need 0 < collision_radius_m < inflation_radius_m")
         if self.terrain_weight < 0 or self.terrain_beta < 0:
             raise ValueError("terrain_weight and terrain_beta must be ≥ 0")
-        if min(self.breakaway_speed_mps, self.first_step_weight, self.roll_limit_fraction) < 0:
-            raise ValueError("breakaway_speed_mps, first_step_weight and roll_limit_fraction "
-                             "must be ≥ 0")
+        if min(self.breakaway_speed_mps, self.first_step_weight, self.roll_limit_fraction,
+               self.corner_accel_mps2) < 0:
+            raise ValueError("breakaway_speed_mps, first_step_weight, roll_limit_fraction and "
+                             "corner_accel_mps2 must be ≥ 0")
 
     @property
     def horizon_s(self) -> float:
