@@ -579,3 +579,21 @@ def test_corner_braking_enters_and_holds_a_corner_at_the_plans_corner_speed():
         arc_speed[accel] = out["speed"][on_arc][:40].max()  # entering: the first 2 s
     assert arc_speed[0.0] > 4.0
     assert arc_speed[limit] < 1.15 * math.sqrt(limit * radius)  # 3.5 m/s, and braked into
+
+
+def test_the_robust_controller_weaves_less_on_a_straight_than_the_papers():
+    # a steering lag the model does not know (0.3 s): the paper's yaw-rate noise makes the
+    # car weave about the path; robust's half of it steers about half as much
+    from dgt_lib.navigation.control.profiles import controller_settings
+
+    rms = {}
+    for name in ("paper", "robust"):
+        cfg = dataclasses.replace(MPPIConfig(), **controller_settings(name))
+        ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
+        plant = KinematicBicycle(WHEELBASE, MAX_STEER, pose=(0.0, 0.0, 0.0), seed=1,
+                                 steer_noise_std_rad=0.02, steer_time_constant_s=0.3,
+                                 speed_time_constant_s=0.5)
+        out = simulate_tracking(ctrl, plant, straight(80.0), 12.0)
+        cruising = out["t"] > 4.0
+        rms[name] = float(np.sqrt(np.mean(out["steer"][cruising] ** 2)))
+    assert rms["robust"] < 0.7 * rms["paper"], rms

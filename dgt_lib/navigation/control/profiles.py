@@ -1,9 +1,10 @@
 """The trials' controllers by name (``ExperimentsConfig.controller``, docs/controller.md).
 
 - ``"paper"``: MPPI as the paper runs it (every :class:`MPPIConfig` default; no terrain term).
-- ``"robust"``: the same MPPI that does not crawl and does not corner past the roll limit:
-  its model stands still below a breakaway speed, the sent speeds are slowed below half
-  the vehicle's rollover acceleration, and its model step is the executed control period.
+- ``"robust"``: the same MPPI that does not crawl, does not weave and does not corner past
+  the roll limit: its model stands still below a breakaway speed, its sampled yaw rates
+  vary half as much, the sent speeds are slowed below half the vehicle's rollover
+  acceleration, and its model step is the executed control period.
 - ``"terrain"``: ``"robust"`` plus the terrain critic reading the trial method's own
   costmap (Binary's is zero: no terrain term).
 """
@@ -21,6 +22,7 @@ ROBUST: dict[str, object] = {
     "breakaway_speed_mps": 0.5,  # a command below this does not move a truck on a grade
     "roll_limit_fraction": 0.5,  # corners at most half the static rollover acceleration
     "model_dt": EXECUTED_PERIOD_S,  # each call's warm-start shift = the time that passed
+    "w_rate_std": 0.75,  # half the yaw-rate noise: no weaving into the corners
 }  # first_step_weight stays 0: it carries speed into corners (docs/controller.md)
 TERRAIN: dict[str, object] = {**ROBUST, "terrain_weight": 0.05}  # docs/controller.md
 
