@@ -2,6 +2,7 @@
 ended, and the mean cost of the driven paths, pooled over run seeds.
 
     .venv/bin/python studies/controller_ablation.py --profile demo --seeds 3
+    .venv/bin/python studies/controller_ablation.py --profile demo --seed 0 --seed 4
     .venv/bin/python studies/controller_ablation.py --profile demo --seeds 3 --hazard \\
         --out docs/controller_ablation.md
 
@@ -78,7 +79,8 @@ def experiment_table(name: str, by_controller: dict[str, list[tuple[int, Experim
 
     first = [res for _, res in next(iter(by_controller.values()))]
     world = first[0].world
-    lines = [f"**{name}** ({world}, {profile}, seeds pooled: {len(first)})", "",
+    seeds = ", ".join(str(seed) for seed, _ in next(iter(by_controller.values())))
+    lines = [f"**{name}** ({world}, {profile}, seeds pooled: {seeds})", "",
              "| vehicle | method | controller | arrived (SR, 95 %) | immobilized | flipped "
              "| other | driven cost |", "|---|---|---|---|---|---|---|---|"]
     vehicles = sorted({r.task.vehicle for res in first for r in res.results})
@@ -116,7 +118,10 @@ def failures(runs: dict[str, list[tuple[int, ExperimentResult]]], method: str = 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--profile", default="demo")
-    ap.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    which = ap.add_mutually_exclusive_group()
+    which.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    which.add_argument("--seed", type=int, action="append", default=None,
+                       help="these run seeds instead (repeatable)")
     ap.add_argument("--controller", action="append", choices=CONTROLLERS, default=None,
                     help="controllers to compare (default: all)")
     ap.add_argument("--hazard", action="store_true",
@@ -126,9 +131,10 @@ def main() -> None:
     args = ap.parse_args()
     controllers = args.controller or list(CONTROLLERS)
     names = args.experiment or (["experiment3"] if args.hazard else list(EXPERIMENTS))
+    seeds = args.seed or list(range(args.seeds))
     parts = []
     for name in names:
-        seeded = {c: [(s, res) for s in range(args.seeds)
+        seeded = {c: [(s, res) for s in seeds
                       if (res := stored(name, s, args.profile, c, args.hazard)) is not None]
                   for c in controllers}
         if not all(seeded.values()) or len({len(v) for v in seeded.values()}) != 1:
