@@ -106,19 +106,23 @@ def main() -> None:
     ap.add_argument("--controller", choices=CONTROLLERS, default="paper",
                     help="the trials' controller (experiments.controller) whose recorded "
                          "experiment to replay, driven with it")
+    ap.add_argument("--hazard", action="store_true",
+                    help="the experiment run with experiments.eval_hazard_world=true")
     ap.add_argument("--critics", action="store_true",
                     help="also print what MPPI's sampled sequences cost (see above)")
     ap.add_argument("--fast-mps", type=float, default=1.5,
                     help="--critics: a sequence is fast from this mean speed [m/s]")
     args = ap.parse_args()
 
-    prof = get_profile(args.profile).with_(seed=args.seed).with_overrides(
-        {"experiments.controller": args.controller})
+    overrides: dict[str, object] = {"experiments.controller": args.controller}
+    if args.hazard:
+        overrides["experiments.eval_hazard_world"] = True
+    prof = get_profile(args.profile).with_(seed=args.seed).with_overrides(overrides)
     path = data_dir(prof) / "experiments" / f"{experiment_stem(args.experiment, prof)}.pkl"
     if not path.exists():
+        sets = " ".join(f"--set {k}={str(v).lower()}" for k, v in overrides.items())
         raise SystemExit(f"no cached {args.experiment} at {path}: run `dgt reproduce "
-                         f"--profile {args.profile} --seed {args.seed} --set "
-                         f"experiments.controller={args.controller}` first")
+                         f"--profile {args.profile} --seed {args.seed} {sets}` first")
     result = artifacts.load(path)
     trials = [r for r in result.results if r.task.method == args.method
               and (args.label is None or r.task.query.label == args.label)
