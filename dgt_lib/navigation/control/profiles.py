@@ -1,10 +1,12 @@
 """The trials' controllers by name (``ExperimentsConfig.controller``, docs/controller.md).
 
 - ``"paper"``: MPPI as the paper runs it (every :class:`MPPIConfig` default; no terrain term).
-- ``"robust"``: the same MPPI that does not crawl, does not weave and does not corner past
-  the roll limit: its model stands still below a breakaway speed, its sampled yaw rates
-  vary half as much, the sent speeds are slowed below half the vehicle's rollover
-  acceleration, and its model step is the executed control period.
+- ``"robust"``: the same MPPI that does not crawl on a grade, does not weave into corners
+  and does not corner past the roll limit: its model stands still below a breakaway speed,
+  its sampled yaw rates vary half as much, the sent speeds are slowed below half the
+  vehicle's rollover acceleration, and its model step is the executed control period. The
+  halved yaw-rate noise has a cost: from a standstill on a plan that turns at full lock at
+  once, too few samples turn hard enough and it can crawl (docs/controller.md, seed 3).
 - ``"terrain"``: ``"robust"`` plus the terrain critic reading the trial method's own
   costmap (Binary's is zero: no terrain term).
 """
