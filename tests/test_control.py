@@ -597,3 +597,63 @@ def test_the_robust_controller_weaves_less_on_a_straight_than_the_papers():
         cruising = out["t"] > 4.0
         rms[name] = float(np.sqrt(np.mean(out["steer"][cruising] ** 2)))
     assert rms["robust"] < 0.7 * rms["paper"], rms
+
+
+def test_biased_samples_are_drawn_around_the_pure_pursuit_rollout():
+    # zero noise: the last ancillary_fraction of the samples are pure pursuit's sequence,
+    # the others the warm start; pure pursuit speeds up at accel_max and turns within r_min
+    from dgt_lib.navigation.control.ancillary import (
+        ancillary_count,
+        bias_noise,
+        pure_pursuit_rollout,
+    )
+    from dgt_lib.navigation.control.reference_path import ReferencePath
+    from dgt_lib.navigation.control.sampling import sample_controls
+
+    cfg = dataclasses.replace(MPPIConfig(batch_size=40), ancillary_fraction=0.25)
+    count = ancillary_count(cfg)
+    assert count == 10
+    ref = ReferencePath(arc(6.0, 0.5 * math.pi), cfg.path_resolution_m, 15.0)
+    anc = pure_pursuit_rollout(ref, 0, (0.0, 0.0, 0.0), 1.0, cfg, R_MIN)
+    np.testing.assert_allclose(anc[:5, 0], 1.0 + cfg.accel_max * cfg.model_dt
+                               * np.arange(1, 6), rtol=1e-5)
+    assert np.all(anc[:, 0] <= cfg.target_speed + 1e-6)
+    assert np.all(np.abs(anc[:, 1]) <= anc[:, 0] / R_MIN + 1e-6)
+    kappa = anc[10:30, 1] / anc[10:30, 0]  # on the arc: its curvature, within 15 %
+    np.testing.assert_allclose(kappa, 1 / 6.0, rtol=0.15)
+    T, B = cfg.time_steps, cfg.batch_size
+    nominal = np.zeros((T, 2), np.float32)
+    nominal[:, 0] = 1.0
+    ev, ew = np.zeros((T, B), np.float32), np.zeros((T, B), np.float32)
+    bias_noise(ev, ew, nominal, 1.0, anc, cfg, count)
+    v, w = sample_controls(ev, ew, nominal, 1.0, cfg, R_MIN, np.empty((T, B), np.float32),
+                           np.empty((T, B), np.float32))
+    np.testing.assert_allclose(v[:, -count:], np.repeat(anc[:, :1], count, 1), atol=1e-4)
+    np.testing.assert_allclose(w[:, -count:], np.repeat(anc[:, 1:], count, 1), atol=1e-4)
+    np.testing.assert_array_equal(v[:, :-count], 1.0)
+    np.testing.assert_array_equal(w[:, :-count], 0.0)
+
+
+def test_from_rest_on_a_full_lock_start_the_biased_samples_turn_from_the_first_call():
+    # a vehicle at rest on a plan that turns at full lock at once (seed 3's Experiment 3
+    # starts): robust's halved yaw-rate noise leaves its first commands nearly straight, or
+    # turning the wrong way; with a tenth of the samples around pure pursuit (robust's own
+    # setting) it steers the plan's curvature from the first call
+    from dgt_lib.navigation.control.profiles import ROBUST
+
+    assert ROBUST["ancillary_fraction"] == 0.1
+
+    lock = {}
+    for frac in (0.0, 0.1):
+        first = []
+        for seed in range(3):
+            cfg = dataclasses.replace(MPPIConfig(batch_size=300),
+                                      **{**ROBUST, "ancillary_fraction": frac})
+            ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER,
+                                  seed=seed)
+            ctrl.set_path(arc(1.05 * R_MIN, 0.5 * math.pi))
+            cmds = np.array([ctrl.compute((0.0, 0.0, 0.0), 0.0) for _ in range(3)])
+            first.append(cmds[:, 1] / np.maximum(cmds[:, 0], 0.05) * R_MIN)  # 1 = full lock
+        lock[frac] = np.array(first)
+    assert lock[0.1].min() > 0.6, lock[0.1]
+    assert lock[0.0].mean() < 0.4 and lock[0.0].min() < 0.0, lock[0.0]

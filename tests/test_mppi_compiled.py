@@ -135,6 +135,7 @@ def test_compiled_backend_matches_the_reference_with_the_robust_controller():
     from dgt_lib.navigation.control.profiles import ROBUST
 
     # (corner_accel_mps2 = 1 caps the s-curve's corners at 3.2 m/s)
-    every = {**ROBUST, "first_step_weight": 20.0, "corner_accel_mps2": 1.0}
+    every = {**ROBUST, "first_step_weight": 20.0, "corner_accel_mps2": 1.0,
+             "ancillary_fraction": 0.1}
     assert_same_calls(with_footprint(dataclasses.replace(MPPIConfig(batch_size=200), **every)),
                       30, speed=0.3)

@@ -6,7 +6,9 @@ a PID whose feed-forward compensates rolling resistance and drag. One MPPI itera
 :meth:`MPPIController.compute` runs it:
 
 1. **sample** B noisy (v, ω) sequences of T steps around the warm start
-   (:func:`~dgt_lib.navigation.control.sampling.sample_controls`);
+   (:func:`~dgt_lib.navigation.control.sampling.sample_controls`; with
+   ``cfg.ancillary_fraction`` > 0 that share of them around pure pursuit's rollout along the
+   path instead, :mod:`~dgt_lib.navigation.control.ancillary`);
 2. **roll out** each through the vehicle's speed lag and the unicycle/bicycle kinematics
    (:func:`~dgt_lib.navigation.control.sampling.vehicle_response`,
    :func:`~dgt_lib.navigation.control.bicycle.rollout_unicycle`);
@@ -43,6 +45,7 @@ from scipy.signal import savgol_coeffs
 
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.control import critics
+from dgt_lib.navigation.control.ancillary import ancillary_count, bias_noise, pure_pursuit_rollout
 from dgt_lib.navigation.control.bicycle import rollout_unicycle
 from dgt_lib.navigation.control.mppi_config import MPPIConfig
 from dgt_lib.navigation.control.reference_path import ReferencePath
@@ -264,9 +267,18 @@ class MPPIController:
         """Whether this call runs the terrain critic: a costmap given, a weight above 0."""
         return costmap is not None and self.cfg.terrain_weight > 0
 
-    def _noise(self) -> tuple[np.ndarray, np.ndarray]:
-        """Standard normal noise ``(T, B)`` for speeds and yaw rates; sample 0 none."""
-        return draw_noise(self._rng, self._eps_v, self._eps_w)
+    def _noise(self, pose: tuple[float, float, float], i_robot: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """Standard normal noise ``(T, B)`` for speeds and yaw rates; sample 0 none; the
+        last ``ancillary_fraction`` of the samples shifted to pure pursuit's rollout from
+        ``pose`` at progress ``i_robot`` (:mod:`~dgt_lib.navigation.control.ancillary`)."""
+        ev, ew = draw_noise(self._rng, self._eps_v, self._eps_w)
+        count = ancillary_count(self.cfg)
+        if count:
+            ancillary = pure_pursuit_rollout(self._ref, i_robot, pose, self._last_v, self.cfg,
+                                             self.min_turn_radius_m)
+            bias_noise(ev, ew, self._nominal, self._last_v, ancillary, self.cfg, count)
+        return ev, ew
 
     # -- the controller --------------------------------------------------------
 
@@ -342,7 +354,7 @@ class MPPIController:
         one's cost S ``(B,)``; the occupancy critic when ``grid`` is given, the terrain
         critic with ``terrain``."""
         cfg = self.cfg
-        ev, ew = self._noise()
+        ev, ew = self._noise((x0, y0, yaw0), i_robot)
         v, w = sample_controls(ev, ew, self._nominal, self._last_v, cfg,
                                self.min_turn_radius_m, self._v, self._w)
         v_act, w_act = vehicle_response(v, w, speed, self._alpha, cfg.breakaway_speed_mps)
@@ -371,7 +383,7 @@ class MPPIController:
                                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`_sampled_costs` with numba's kernels, the same float32 operations in the
         same order (:func:`~dgt_lib.navigation.control.mppi_compiled.sampled_costs`)."""
-        ev, ew = self._noise()
+        ev, ew = self._noise((x0, y0, yaw0), i_robot)
         return self._kernels.sampled_costs(
             ev, ew, self._nominal, self._last_v, speed, (x0, y0, yaw0),
             self._ref.window(i_robot, x0, y0), self._ref.length_m,

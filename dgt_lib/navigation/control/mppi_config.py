@@ -57,6 +57,10 @@ class MPPIConfig:
     roll_limit_fraction: float = 0.0  # slow corners to this × the vehicle's rollover a_lat
     corner_accel_mps2: float = 0.0  # v_ref ≤ √(a/|κ|) of the plan's corners, braked into
                                     # at goal_decel (reference_path.corner_speed_cap); 0 = off
+    # Biased sampling (ours, control/ancillary.py): this share of the samples is drawn
+    # around a pure-pursuit rollout along the plan instead of the warm start. 0 = off.
+    ancillary_fraction: float = 0.0
+    ancillary_lookahead_m: float = 6.0  # pure pursuit's look-ahead distance l_d [m]
 
     def __post_init__(self):
         if self.batch_size < 2 or self.time_steps < 2 or self.model_dt <= 0:
@@ -75,6 +79,11 @@ class MPPIConfig:
                self.corner_accel_mps2) < 0:
             raise ValueError("breakaway_speed_mps, first_step_weight, roll_limit_fraction and "
                              "corner_accel_mps2 must be ≥ 0")
+        if not 0 <= self.ancillary_fraction < 1 or self.ancillary_lookahead_m <= 0:
+            raise ValueError("need 0 ≤ ancillary_fraction < 1 and ancillary_lookahead_m > 0, "
+                             f"got {self.ancillary_fraction}, {self.ancillary_lookahead_m}")
+        if self.ancillary_fraction > 0 and min(self.accel_std, self.w_rate_std) <= 0:
+            raise ValueError("ancillary_fraction > 0 needs accel_std > 0 and w_rate_std > 0")
 
     @property
     def horizon_s(self) -> float:

@@ -4,9 +4,10 @@
 - ``"robust"``: the same MPPI that does not crawl on a grade, does not weave into corners
   and does not corner past the roll limit: its model stands still below a breakaway speed,
   its sampled yaw rates vary half as much, the sent speeds are slowed below half the
-  vehicle's rollover acceleration, and its model step is the executed control period. The
-  halved yaw-rate noise has a cost: from a standstill on a plan that turns at full lock at
-  once, too few samples turn hard enough and it can crawl (docs/controller.md, seed 3).
+  vehicle's rollover acceleration, and its model step is the executed control period. With
+  half the yaw-rate noise alone, too few samples turn hard enough from a standstill on a plan
+  that turns at full lock at once, and it can crawl (docs/controller.md, seed 3); so a tenth
+  of its samples are drawn around pure pursuit's rollout along the plan (biased sampling).
 - ``"terrain"``: ``"robust"`` plus the terrain critic reading the trial method's own
   costmap (Binary's is zero: no terrain term).
 """
@@ -25,6 +26,9 @@ ROBUST: dict[str, object] = {
     "roll_limit_fraction": 0.5,  # corners at most half the static rollover acceleration
     "model_dt": EXECUTED_PERIOD_S,  # each call's warm-start shift = the time that passed
     "w_rate_std": 0.75,  # half the yaw-rate noise: no weaving into the corners
+    # a tenth of the samples around pure pursuit: no crawl at starts that need full lock at
+    # once (control/ancillary.py)
+    "ancillary_fraction": 0.1,
 }  # first_step_weight stays 0: it carries speed into corners (docs/controller.md)
 TERRAIN: dict[str, object] = {**ROBUST, "terrain_weight": 0.05}  # docs/controller.md
 
