@@ -12,10 +12,11 @@ drawn around the rollout of pure pursuit along the reference path:
     v_t = min(v_{t−1} + a_max·dt, v_ref(s_t)),                         v_{−1} = the last command
     ω_t = clip(v_t · 2 sin α_t / l_d,  ±min(ω_max, v_t / r_min))
 
-(α_t the bearing, from the rolled-out pose, of the path point ``l_d`` = ``ancillary_lookahead_m``
-beyond the nearest one, the law :class:`~dgt_lib.navigation.control.pure_pursuit.PurePursuit`
-steers the ground-truth drives with; v_ref the speed critic's reference: the target speed, braked for the
-goal and capped at the path's ``v_cap``). The samples keep their own noise; they are moved by
+(α_t the bearing, from the rolled-out pose, of the path point ``l_d`` =
+``ancillary_lookahead_m`` beyond the nearest one: the law
+:class:`~dgt_lib.navigation.control.pure_pursuit.PurePursuit` steers the ground-truth drives
+with; v_ref the speed critic's reference: the target speed, braked for the goal and capped at
+the path's ``v_cap``). The samples keep their own noise; they are moved by
 shifting their noise (:func:`bias_noise`), so both backends — which share the noise — score
 the same sequences. The weighting then decides: a biased sample that costs less than waiting
 wins the weight, one that costs more is ignored.
