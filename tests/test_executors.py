@@ -2,11 +2,13 @@
 
 import os
 import signal
+import threading
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from dgt_lib.core.executors import run_jobs
+from dgt_lib.core.executors import run_jobs, stop_workers
 
 
 def _sleep_then_return(index: int, seconds: float, pid_dir: str) -> int:
@@ -56,3 +58,19 @@ def test_workers_leave_a_terminal_ctrl_c_to_the_parent():
     except KeyboardInterrupt:
         pytest.fail("the worker's Ctrl-C came back as the job's exception")
     assert out == {(): "still working"}
+
+
+def test_a_stopped_pool_leaves_no_thread_to_race_the_interpreters_exit(tmp_path):
+    """After Ctrl-C or SIGTERM stops a pool, its manager thread has ended too: a thread
+    still closing the pool's pipes while the interpreter exits printed a "Bad file
+    descriptor" traceback after a clean stop."""
+    before = set(threading.enumerate())
+    pool = ProcessPoolExecutor(2)
+    futures = [pool.submit(_sleep_then_return, i, 60.0, str(tmp_path)) for i in range(3)]
+    while len(list(tmp_path.iterdir())) < 2:  # both workers are inside a job
+        time.sleep(0.05)
+    t0 = time.perf_counter()
+    stop_workers(pool)
+    assert time.perf_counter() - t0 < 15
+    assert [t for t in threading.enumerate() if t not in before and t.is_alive()] == []
+    assert all(f.done() for f in futures)
