@@ -29,8 +29,12 @@ from dgt_lib.core.config import get_profile  # noqa: E402
 from dgt_lib.evaluation.experiments import EXPERIMENTS  # noqa: E402
 from dgt_lib.evaluation.trials import TrialResult, _planner, run_trial  # noqa: E402
 from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E402
-from dgt_lib.stages.experiments import ensure_experiment, experiment_stem, trial_maps  # noqa: E402
-from dgt_lib.stages.paths import data_dir  # noqa: E402
+from dgt_lib.stages.experiments import (  # noqa: E402
+    ensure_experiment,
+    experiment_path,
+    reproduce_command,
+    trial_maps,
+)
 
 
 class TimedMPPI(MPPIController):
@@ -65,9 +69,9 @@ def main() -> None:
     drive_module.MPPIController = TimedMPPI
     recorded: list[TrialResult] = []
     for name in EXPERIMENTS:
-        if not (data_dir(prof) / "experiments" / f"{experiment_stem(name, prof)}.pkl").exists():
+        if not experiment_path(name, prof).exists():
             raise SystemExit(f"{name} of {args.profile} seed {args.seed} is not cached: run "
-                             f"`dgt reproduce --profile {args.profile} --seed {args.seed}` first")
+                             f"`{reproduce_command(prof)}` first")
         recorded += ensure_experiment(name, prof, progress=False).results[::args.every]
     for t in {(r.task.world, r.task.method, r.task.vehicle, r.task.profile) for r in recorded}:
         _planner(*t, trial_maps)  # every costmap and planner loaded outside the timing

@@ -22,15 +22,18 @@ from pathlib import Path
 
 import numpy as np
 
-from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.driven_cost import driven_cost
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.statistics import wilson_interval
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.navigation.control.profiles import CONTROLLERS
-from dgt_lib.stages.experiments import experiment_stem, trial_maps
-from dgt_lib.stages.paths import data_dir
+from dgt_lib.stages.experiments import (
+    experiment_path,
+    reproduce_command,
+    stored_experiment,
+    trial_maps,
+)
 
 FAILURE_COLUMNS = ("immobilized", "flipped")
 """Failure reasons with a column of their own; the rest are summed as 'other'."""
@@ -39,17 +42,14 @@ FAILURE_COLUMNS = ("immobilized", "flipped")
 def stored(name: str, seed: int, profile: str, controller: str, hazard: bool
            ) -> ExperimentResult | None:
     """A cached experiment of one run seed and controller, or None (with the command)."""
-    overrides = {"experiments.controller": controller}
+    overrides: dict[str, object] = {"experiments.controller": controller}
     if hazard:
         overrides["experiments.eval_hazard_world"] = True
     prof = get_profile(profile).with_(seed=seed).with_overrides(overrides)
-    path = data_dir(prof) / "experiments" / f"{experiment_stem(name, prof)}.pkl"
-    if path.exists():
-        return artifacts.load(path)
-    sets = " ".join(f"--set {k}={str(v).lower()}" for k, v in overrides.items())
-    print(f"missing: {path}\n  dgt reproduce --profile {profile} --seed {seed} "
-          f"--stages experiments {sets}")
-    return None
+    result = stored_experiment(name, prof)
+    if result is None:
+        print(f"missing: {experiment_path(name, prof)}\n  {reproduce_command(prof)}")
+    return result
 
 
 def row_cells(results: list, dgt_cost) -> list[str]:

@@ -32,15 +32,18 @@ from contextlib import contextmanager, nullcontext
 
 import numpy as np
 
-from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
 from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.navigation.drive import drive
-from dgt_lib.stages.experiments import experiment_stem, trial_maps
-from dgt_lib.stages.paths import data_dir
+from dgt_lib.stages.experiments import (
+    experiment_path,
+    reproduce_command,
+    stored_experiment,
+    trial_maps,
+)
 from dgt_lib.world.simulator import VehicleState
 from dgt_lib.world.terrain import get_world
 
@@ -118,12 +121,11 @@ def main() -> None:
     if args.hazard:
         overrides["experiments.eval_hazard_world"] = True
     prof = get_profile(args.profile).with_(seed=args.seed).with_overrides(overrides)
-    path = data_dir(prof) / "experiments" / f"{experiment_stem(args.experiment, prof)}.pkl"
-    if not path.exists():
-        sets = " ".join(f"--set {k}={str(v).lower()}" for k, v in overrides.items())
-        raise SystemExit(f"no cached {args.experiment} at {path}: run `dgt reproduce "
-                         f"--profile {args.profile} --seed {args.seed} {sets}` first")
-    result = artifacts.load(path)
+    path = experiment_path(args.experiment, prof)
+    result = stored_experiment(args.experiment, prof)
+    if result is None:
+        raise SystemExit(f"no cached {args.experiment} at {path}: run "
+                         f"`{reproduce_command(prof)}` first")
     trials = [r for r in result.results if r.task.method == args.method
               and (args.label is None or r.task.query.label == args.label)
               and (args.vehicle is None or r.task.vehicle == args.vehicle)]

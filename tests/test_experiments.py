@@ -26,7 +26,13 @@ from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import MPPIConfig
 from dgt_lib.navigation.drive import MPPI_DT_S, drive
 from dgt_lib.navigation.outcome import TrialOutcome
-from dgt_lib.stages.experiments import experiment_stem, trial_maps
+from dgt_lib.stages.experiments import (
+    experiment_path,
+    experiment_stem,
+    reproduce_command,
+    stored_experiment,
+    trial_maps,
+)
 from dgt_lib.world.terrain import get_world
 from dgt_lib.world.worlds import from_heightmap
 
@@ -310,6 +316,24 @@ def test_a_customised_profile_travels_with_its_trials():
     assert result.expansions <= 1
     planner, _, _ = trials._planner("hill", "binary", "carla_cola", PROFILE, trial_maps)
     assert planner.plan(query.start, query.goal).expansions > 1  # the default plans on
+
+
+def test_the_command_printed_for_a_missing_experiment_builds_that_very_experiment(
+        tmp_path, monkeypatch):
+    """A study that finds no cached experiment prints the ``dgt reproduce`` command; run as
+    printed, it must build the file the study looks for (seed and overrides included)."""
+    from dgt_lib.cli import _profile, build_parser
+
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    prof = get_profile("smoke").with_(seed=3).with_overrides(
+        {"experiments.controller": "robust", "experiments.eval_hazard_world": True})
+    assert stored_experiment("experiment3", prof) is None
+    command = reproduce_command(prof)
+    assert command.startswith("dgt reproduce --profile smoke --seed 3 --stages experiments")
+    args = build_parser().parse_args(command.split()[1:])
+    rebuilt = _profile(args).with_(seed=args.seed)
+    assert experiment_path("experiment3", rebuilt) == experiment_path("experiment3", prof)
+    assert experiment_path("experiment3", prof).name.startswith("experiment3.")
 
 
 def test_a_variant_keeps_its_results_apart_from_the_profiles_own(tmp_path, monkeypatch):

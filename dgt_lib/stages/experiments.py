@@ -12,10 +12,12 @@ The stage's figures, report and recordings are written by the top level
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import BEVConfig, Profile, as_profile, get_profile
 from dgt_lib.core.faults import report_writes
+from dgt_lib.core.overrides import format_setting
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult, run_experiment
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import classify_route
@@ -81,6 +83,25 @@ def experiment_stem(name: str, prof: Profile) -> str:
             seed=prof.seed)):
         return name
     return f"{name}.{artifacts.config_hash(cfg)[:8]}"
+
+
+def experiment_path(name: str, prof: Profile) -> Path:
+    """Where an experiment of ``prof`` (seed and overrides included) is cached."""
+    return data_dir(prof) / "experiments" / f"{experiment_stem(name, prof)}.pkl"
+
+
+def reproduce_command(prof: Profile, stage: str = "experiments") -> str:
+    """The ``dgt reproduce`` command that builds ``stage`` for ``prof``, overrides included:
+    what a study prints for a result it does not find cached."""
+    sets = "".join(f" --set {k}={format_setting(v)}" for k, v in prof.overrides)
+    return f"dgt reproduce --profile {prof.name} --seed {prof.seed} --stages {stage}{sets}"
+
+
+def stored_experiment(name: str, prof: Profile) -> ExperimentResult | None:
+    """The cached experiment of ``prof``, or None — never runs one (studies that read
+    what ``dgt reproduce`` recorded)."""
+    path = experiment_path(name, prof)
+    return artifacts.load(path) if path.exists() else None
 
 
 def ensure_experiment(name: str, profile: Profile | str | None = None, *,
