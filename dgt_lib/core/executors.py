@@ -1,12 +1,12 @@
 """Running independent jobs in parallel: one harness for collection episodes, ground-truth
 samples and closed-loop trials (docs/ARCHITECTURE.md → Scale).
 
-Any :class:`concurrent.futures.Executor` works — a process pool of spawned workers by
-default (:func:`default_executor`), a :class:`SerialExecutor` for one worker, or a
-Dask/Ray executor. :func:`run_jobs` submits at most ``max_in_flight`` jobs at a
-time, hands every finished result to ``on_result`` *in this process* as soon as it is
-there (so the caller can save or journal it: an interruption loses only the jobs in
-flight) and shows a progress bar with an ETA. Results do not depend on the executor.
+Any :class:`concurrent.futures.Executor` works — a process pool of spawned workers by default
+(:func:`default_executor`), a :class:`SerialExecutor` for one worker, or a Dask/Ray executor.
+:func:`run_jobs` submits at most ``max_in_flight`` jobs at a time, hands every finished result
+to ``on_result`` *in this process* as soon as it is there (so the caller can save or journal
+it: an interruption loses only the jobs in flight) and shows a progress bar with an ETA.
+Results do not depend on the executor.
 
 The choice of executor is made here only: :func:`make_executor` opens one of
 :data:`~dgt_lib.core.config.EXECUTORS` — ``"process"``, ``"dask"`` (``distributed``) or
@@ -68,12 +68,11 @@ class SerialExecutor(Executor):
 
 
 def init_worker() -> None:
-    """Initializer of the kit's pool workers: one thread (:func:`limit_threads`), and
-    SIGINT ignored — a terminal's Ctrl-C reaches every process of the group, and the
-    parent, not each worker, decides what happens (:func:`run_jobs` stops the pool).
-    SIGTERM is the default's again (a forked worker inherits :func:`sigterm_as_interrupt`):
-    it is how the parent terminates a worker. A worker whose parent is gone — killed by
-    SIGKILL or the out-of-memory killer, which no handler sees — ends itself
+    """Initializer of the kit's pool workers: one thread (:func:`limit_threads`), and SIGINT
+    ignored — a terminal's Ctrl-C reaches every process of the group, and the parent, not each
+    worker, decides (:func:`run_jobs` stops the pool). SIGTERM is the default's again (a forked
+    worker inherits :func:`sigterm_as_interrupt`): it is how the parent terminates a worker. A
+    worker whose parent is gone (SIGKILL, the out-of-memory killer) ends itself
     (:func:`exit_with_parent`)."""
     limit_threads()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -81,8 +80,7 @@ def init_worker() -> None:
     exit_with_parent()
 
 
-PARENT_POLL_S = 0.5
-"""How often a pool worker checks that its parent is alive [s]."""
+PARENT_POLL_S = 0.5  # how often a pool worker checks that its parent is alive [s]
 
 
 def exit_with_parent(poll_s: float = PARENT_POLL_S) -> threading.Thread:
@@ -139,21 +137,17 @@ def interrupted_status(exc: KeyboardInterrupt) -> int:
 def stop_workers(executor: Executor) -> None:
     """Shut ``executor`` down without waiting for the jobs it is running: pending jobs
     are cancelled and the processes of a :class:`ProcessPoolExecutor` terminated (what
-    Ctrl-C needs: stop within seconds, not when the longest job ends).
-
-    The pool's manager thread is joined too: it closes its wake-up pipe as it ends, and
-    left running it races the interpreter's exit hook, which writes to that pipe — a
-    "Bad file descriptor" traceback after a clean stop (CPython 3.11)."""
+    Ctrl-C needs: stop within seconds, not when the longest job ends). Its manager thread
+    is joined too: left running, it closes its wake-up pipe while the interpreter's exit
+    hook writes to it (a "Bad file descriptor" traceback at exit, CPython 3.11)."""
     processes = dict(getattr(executor, "_processes", None) or {})  # shutdown clears these
     manager = getattr(executor, "_executor_manager_thread", None)
     executor.shutdown(wait=False, cancel_futures=True)
     for proc in processes.values():
         if proc.is_alive():
             proc.terminate()
-    for proc in processes.values():
-        proc.join(timeout=5)
-    if manager is not None:
-        manager.join(timeout=5)
+    for waited in [*processes.values(), *([manager] if manager else [])]:
+        waited.join(timeout=5)
 
 
 @contextlib.contextmanager
