@@ -262,9 +262,16 @@ def figure(scores: list[dict], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     fig, axes = plt.subplots(1, len(STUDIED), figsize=(10, 3.8), constrained_layout=True)
     for ax, v in zip(axes, STUDIED, strict=True):
+        ax.set_title(v)
+        if not any(s["vehicle"] == v for s in scores):
+            ax.text(0.5, 0.5, "no scores of this vehicle", ha="center", va="center",
+                    transform=ax.transAxes)
+            ax.set_axis_off()
+            continue
         for m, colour, label in (("dgt", "C0", "multi-task"), ("single-task", "C3",
                                                                 "single-task")):
             xs, means, halves = [], [], []
@@ -281,9 +288,9 @@ def figure(scores: list[dict], path: Path) -> None:
             ax.errorbar(xs, means, yerr=halves, color=colour, marker="o", capsize=3,
                         label=label)
         ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # decades only: no crowded labels
         ax.set_xlabel(f"{v} training patches (kept runs' patches)")
         ax.set_ylabel("MAE vs measured ground truth")
-        ax.set_title(v)
         ax.legend(fontsize=8)
     fig.suptitle("When does multi-task help? Error against vehicle data (mean ± 95 % interval "
                  "over seeds)", fontsize=10)
