@@ -39,7 +39,7 @@ from dgt_lib.core.config import (
     get_profile,
     profile_name,
 )
-from dgt_lib.core.executors import Terminated, interrupted_status, sigterm_as_interrupt
+from dgt_lib.core.faults import Terminated, interrupted_status, sigterm_as_interrupt
 from dgt_lib.core.overrides import (
     InvalidOverrideError,
     parse_overrides,
@@ -438,7 +438,7 @@ def main(argv: list[str] | None = None) -> int:
             UsageError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (executors.Terminated)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (faults.Terminated)
         how = "terminated" if isinstance(exc, Terminated) else "interrupted"
         print(_stopped_message(args, how), file=sys.stderr)
         return interrupted_status(exc)

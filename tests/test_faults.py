@@ -75,7 +75,7 @@ def test_sigterm_stops_a_pool_stage_in_seconds_keeps_its_results_and_exits_143(
 def test_sigterm_outside_a_command_keeps_its_usual_meaning():
     """The handler is only installed while a command runs, and not where SIGTERM is
     ignored on purpose."""
-    from dgt_lib.core.executors import Terminated, interrupted_status, sigterm_as_interrupt
+    from dgt_lib.core.faults import Terminated, interrupted_status, sigterm_as_interrupt
 
     before = signal.getsignal(signal.SIGTERM)
     with sigterm_as_interrupt(), pytest.raises(Terminated):
@@ -90,6 +90,30 @@ def test_sigterm_outside_a_command_keeps_its_usual_meaning():
             assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGTERM, before)
+
+
+def test_a_worker_forked_under_the_handler_dies_of_sigterm_without_a_traceback():
+    """A pool worker forked while ``dgt`` has SIGTERM as Ctrl-C, and signalled before its
+    initializer restores the default (a batch scheduler signals the whole group at once),
+    ends as SIGTERM ends a process: no ``Terminated`` traceback from inside multiprocessing."""
+    from dgt_lib.core.faults import sigterm_as_interrupt
+
+    read_end, write_end = os.pipe()
+    with sigterm_as_interrupt():
+        pid = os.fork()
+        if pid == 0:  # the child: what a worker does before init_worker
+            os.dup2(write_end, 2)
+            try:
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(5)
+            finally:
+                os._exit(3)  # reached only if the handler raised or returned
+        os.close(write_end)
+        _, status = os.waitpid(pid, 0)
+    stderr = os.read(read_end, 65536).decode()
+    os.close(read_end)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGTERM, status
+    assert "Traceback" not in stderr
 
 
 # ---------------------------------------------------------------- the data directory

@@ -70,10 +70,10 @@ class SerialExecutor(Executor):
 def init_worker() -> None:
     """Initializer of the kit's pool workers: one thread (:func:`limit_threads`), and SIGINT
     ignored — a terminal's Ctrl-C reaches every process of the group, and the parent, not each
-    worker, decides (:func:`run_jobs` stops the pool). SIGTERM is the default's again (a forked
-    worker inherits :func:`sigterm_as_interrupt`): it is how the parent terminates a worker. A
-    worker whose parent is gone (SIGKILL, the out-of-memory killer) ends itself
-    (:func:`exit_with_parent`)."""
+    worker, decides (:func:`run_jobs` stops the pool). SIGTERM is the default's again (a
+    forked worker inherits :func:`~dgt_lib.core.faults.sigterm_as_interrupt`): it is how the
+    parent terminates a worker. A worker whose parent is gone (SIGKILL, the out-of-memory
+    killer) ends itself (:func:`exit_with_parent`)."""
     limit_threads()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
@@ -98,40 +98,6 @@ def exit_with_parent(poll_s: float = PARENT_POLL_S) -> threading.Thread:
     thread = threading.Thread(target=watch, name="dgt-exit-with-parent", daemon=True)
     thread.start()
     return thread
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (``kill``, a batch scheduler ending a job, a container stopping) raised as
-    Ctrl-C is, so every path that stops on Ctrl-C — workers terminated, clusters stopped,
-    finished work kept — stops on it too (:func:`sigterm_as_interrupt`)."""
-
-    signum = signal.SIGTERM
-
-
-@contextlib.contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """While inside, SIGTERM raises :class:`Terminated` in the main thread instead of
-    killing the process outright. Left alone where SIGTERM is ignored on purpose, or off
-    the main thread (only it may set handlers)."""
-    if threading.current_thread() is not threading.main_thread() or \
-            signal.getsignal(signal.SIGTERM) is signal.SIG_IGN:
-        yield
-        return
-
-    def raise_terminated(signum: int, frame: object) -> None:
-        raise Terminated()
-
-    previous = signal.signal(signal.SIGTERM, raise_terminated)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-def interrupted_status(exc: KeyboardInterrupt) -> int:
-    """The exit status after Ctrl-C or SIGTERM, as a shell reports a process the signal
-    killed: 128 + the signal's number (130, 143)."""
-    return 128 + int(getattr(exc, "signum", signal.SIGINT))
 
 
 def stop_workers(executor: Executor) -> None:

@@ -1,7 +1,8 @@
 """Faults from outside the kit said in one line (docs/reliability.md): a data directory
 that cannot be made, is not a directory, is read-only or full, and a cluster that gave up
 on a job after its workers kept dying. ``dgt`` prints the line, what it kept, and exits 1
-instead of showing a traceback.
+instead of showing a traceback. SIGTERM stops a command as Ctrl-C does
+(:func:`sigterm_as_interrupt`), with the exit status a shell expects (143).
 """
 
 from __future__ import annotations
@@ -10,7 +11,9 @@ import contextlib
 import errno
 import os
 import shutil
+import signal
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -138,3 +141,44 @@ def report_writes(what: str) -> Iterator[None]:
             raise
         print(f"[dgt] {what} not written: {exc.strerror} ({exc.filename}); the cached "
               "results stand", file=sys.stderr)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a batch scheduler ending a job, a container stopping) raised as
+    Ctrl-C is, so every path that stops on Ctrl-C — workers terminated, clusters stopped,
+    finished work kept — stops on it too (:func:`sigterm_as_interrupt`)."""
+
+    signum = signal.SIGTERM
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """While inside, SIGTERM raises :class:`Terminated` in the main thread instead of
+    killing the process outright. Left alone where SIGTERM is ignored on purpose, or off
+    the main thread (only it may set handlers). A process forked inside (a pool worker
+    between its fork and its initializer) that gets SIGTERM dies of it, as by default."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGTERM) is signal.SIG_IGN:
+        yield
+        return
+
+    owner = os.getpid()
+
+    def raise_terminated(signum: int, frame: object) -> None:
+        if os.getpid() != owner:  # a forked worker, hit before its initializer ran
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)  # dies as SIGTERM kills, no traceback
+            return
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def interrupted_status(exc: KeyboardInterrupt) -> int:
+    """The exit status after Ctrl-C or SIGTERM, as a shell reports a process the signal
+    killed: 128 + the signal's number (130, 143)."""
+    return 128 + int(getattr(exc, "signum", signal.SIGINT))
