@@ -292,8 +292,11 @@ def figure(scores: list[dict], path: Path) -> None:
         ax.set_xlabel(f"{v} training patches (kept runs' patches)")
         ax.set_ylabel("MAE vs measured ground truth")
         ax.legend(fontsize=8)
-    fig.suptitle("When does multi-task help? Error against vehicle data (mean ± 95 % interval "
-                 "over seeds)", fontsize=10)
+    n_seeds = len({s["seed"] for s in scores})
+    spread = (f"mean ± 95 % interval over {n_seeds} seeds" if n_seeds > 1 else
+              "one seed: no interval over seeds")
+    fig.suptitle(f"When does multi-task help? Error against vehicle data ({spread})",
+                 fontsize=10)
     fig.savefig(path, dpi=110)
     print(f"[scarcity] wrote {path}")
 
