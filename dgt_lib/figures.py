@@ -184,6 +184,9 @@ OTHER_FIGURES: dict[str, str] = {
     "scarcity.png": "`python studies/scarcity.py --profile demo --seeds 0 1 2 --stored --figure "
                     "docs/figures/scarcity.png`: when multi-task learning helps, error against "
                     "one vehicle's training patches (docs/scarcity.md).",
+    "scarcity_paper.png": "`DGT_DATA_DIR=… python studies/scarcity.py --profile paper --seeds 0 "
+                          "--stored --figure docs/figures/scarcity_paper.png`: the same on "
+                          "`paper`-sized data, one seed (docs/scarcity.md).",
     "zero_shot_gen8.png": "`python studies/zero_shot.py --profile demo --seeds 0 1 2 --generated 8 "
                           "--stored --figure docs/figures/zero_shot_gen8.png`: a vehicle never "
                           "driven, its zero-shot costmap against the alternatives, with 8 "
