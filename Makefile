@@ -2,6 +2,7 @@
 #   make reproduce   run the whole pipeline (DGT_PROFILE, default demo)
 #   make test        unit tests + every notebook under nbmake (smoke profile)
 #   make figures     the README's figures from the demo run (docs/figures/)
+#   make docs        the README's and docs' result tables from the committed run records
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV ?= .venv
@@ -9,7 +10,7 @@ PY := $(VENV)/bin/python
 PROFILE ?= $(or $(DGT_PROFILE),demo)
 STAMP := $(VENV)/.installed
 
-.PHONY: reproduce test lint figures venv clean-data
+.PHONY: reproduce test lint figures docs venv clean-data
 
 venv: $(STAMP)
 
@@ -46,6 +47,11 @@ test: $(STAMP)
 # artifacts are read, missing ones built as `make reproduce` would.
 figures: $(STAMP)
 	MUJOCO_GL=egl $(PY) -m dgt_lib.figures --profile demo
+
+# Every generated block of README.md and docs/ from the run records in docs/runs/ (the runs
+# named in docs/runs/cited.json). Publish a run first: python -m dgt_lib.records publish.
+docs: $(STAMP)
+	$(PY) -m dgt_lib.records render
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check dgt_lib tests benchmarks studies examples

@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import argparse
 import io
-import subprocess
+import json
 from collections.abc import Callable
+from functools import lru_cache
 from pathlib import Path
 
 import matplotlib
@@ -35,6 +36,7 @@ from dgt_lib.evaluation.paper import PAPER  # noqa: E402
 from dgt_lib.evaluation.queries import classify_route, hill_queries, ridge_queries  # noqa: E402
 from dgt_lib.mapping.methods import METHOD_LABELS  # noqa: E402
 from dgt_lib.navigation.planner import HybridAStar, PlanResult  # noqa: E402
+from dgt_lib.records.provenance import processor_label, provenance  # noqa: E402
 from dgt_lib.stages.costmaps import ensure_world_costmaps, world_bev  # noqa: E402
 from dgt_lib.stages.experiments import ensure_experiment  # noqa: E402
 from dgt_lib.viz.common import COST_CMAP, COST_LABEL  # noqa: E402
@@ -42,6 +44,9 @@ from dgt_lib.world.terrain import get_world  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "docs" / "figures"
+FACTS = "figures.json"
+"""Beside the figures: the run they were drawn from and what the hero figure shows (the
+route of each plan), for the README's caption (``make docs``)."""
 MAX_BYTES = 300_000
 """The largest PNG the repository takes [bytes]."""
 DPI = 80
@@ -81,6 +86,29 @@ def _named(world, plans: dict[str, PlanResult]) -> dict[str, PlanResult]:
     return out
 
 
+@lru_cache(maxsize=2)
+def hero_plans(prof: Profile) -> dict[str, PlanResult]:
+    """The hero figure's plans, by DGT-Map: Experiment 1's first ascent and descent for
+    carla_cola, and Experiment 2's first northbound query for the jeep and for the
+    mercedes_van (the queries the experiments draw first, not picked)."""
+    hill, ridge = get_world("hill", prof), get_world("ridge", prof)
+    hill_maps = ensure_world_costmaps("hill", ("carla_cola",), prof, progress=False)
+    ridge_maps = ensure_world_costmaps("ridge", ("mercedes_van", "jeep"), prof, progress=False)
+    ascent, descent = hill_queries(hill, 2, prof.experiments, prof.seed)
+    north = ridge_queries(ridge, 1, prof.experiments, prof.seed)[0]
+    return {"ascent": _plan(hill_maps, "carla_cola", ascent, prof),
+            "descent": _plan(hill_maps, "carla_cola", descent, prof),
+            "jeep": _plan(ridge_maps, "jeep", north, prof),
+            "mercedes_van": _plan(ridge_maps, "mercedes_van", north, prof)}
+
+
+def hero_routes(prof: Profile) -> dict[str, str]:
+    """Which way each of :func:`hero_plans` went (:func:`classify_route`; "no path")."""
+    worlds = {"ascent": "hill", "descent": "hill", "jeep": "ridge", "mercedes_van": "ridge"}
+    return {name: classify_route(get_world(worlds[name], prof), plan.path) if plan.success
+            else "no path" for name, plan in hero_plans(prof).items()}
+
+
 def hero(prof: Profile):
     """Experiment 1's first ascent and descent on carla_cola's DGT-Map layer for heading
     north (uphill on Route B), and Experiment 2's first northbound query planned for the
@@ -89,18 +117,14 @@ def hero(prof: Profile):
     hill, ridge = get_world("hill", prof), get_world("ridge", prof)
     hill_maps = ensure_world_costmaps("hill", ("carla_cola",), prof, progress=False)
     ridge_maps = ensure_world_costmaps("ridge", ("mercedes_van", "jeep"), prof, progress=False)
-    ascent, descent = hill_queries(hill, 2, prof.experiments, prof.seed)
-    north = ridge_queries(ridge, 1, prof.experiments, prof.seed)[0]
+    plans = hero_plans(prof)
     fig, axes = plt.subplots(1, 3, figsize=(18, 6.2), gridspec_kw={"width_ratios": [1.4, 1, 1]},
                              layout="constrained")
-    plans = {"ascent": _plan(hill_maps, "carla_cola", ascent, prof),
-             "descent": _plan(hill_maps, "carla_cola", descent, prof)}
-    viz.plot_plans(hill, _named(hill, plans), axes[0],
+    viz.plot_plans(hill, _named(hill, {k: plans[k] for k in ("ascent", "descent")}), axes[0],
                    background=hill_maps.costmap("dgt", "carla_cola")[k_north],
                    title="Hill, carla_cola: DGT-Map cost heading north")
     for ax, vehicle in zip(axes[1:], ("jeep", "mercedes_van"), strict=True):
-        plan = {vehicle: _plan(ridge_maps, vehicle, north, prof)}
-        viz.plot_plans(ridge, _named(ridge, plan), ax,
+        viz.plot_plans(ridge, _named(ridge, {vehicle: plans[vehicle]}), ax,
                        background=ridge_maps.costmap("dgt", vehicle)[k_north],
                        title=f"Ridge, {vehicle}: DGT-Map cost heading north")
     fig.colorbar(ScalarMappable(Normalize(0, 1), cmap=COST_CMAP), ax=list(axes), shrink=0.8,
@@ -157,20 +181,6 @@ FIGURES: dict[str, Callable[[Profile], object]] = {
 """Each figure's file stem and the function that draws it from a profile's run."""
 
 
-def _commit() -> str:
-    """The commit of the library that drew the figures (``git rev-parse --short HEAD``, with
-    '+ changes' when ``dgt_lib/`` differs from it), or 'unknown' outside a git checkout."""
-    try:
-        def git(*args: str) -> str:
-            return subprocess.run(["git", *args], cwd=ROOT, check=True, capture_output=True,
-                                  text=True).stdout.strip()
-
-        changed = git("status", "--porcelain", "--", "dgt_lib")
-        return git("rev-parse", "--short", "HEAD") + (" + changes" if changed else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 OTHER_FIGURES: dict[str, str] = {
     "jacksboro_plans.png": "`python examples/real_dem.py --figure docs/figures/jacksboro_plans.png`"
                            " (`smoke`): carla_cola's plans up and down a real DEM, the Jacksboro "
@@ -203,10 +213,15 @@ def make_figures(profile: str | Profile = "demo", out: Path = OUT,
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = [save_png(FIGURES[name](prof), out / f"{name}.png") for name in names]
+    made = {**provenance(), "profile": prof.name, "seed": prof.seed}
+    if "hero" in names:
+        made["hero_routes"] = hero_routes(prof)
+    (out / FACTS).write_text(json.dumps(made, indent=1) + "\n")
     lines = ["# Figures", "",
              f"Drawn by `python -m dgt_lib.figures --profile {prof.name} --seed {prof.seed}` "
              f"from the `{prof.name}` profile's run seed {prof.seed}, with the code at commit "
-             f"`{_commit()}` (`make figures` draws `demo` seed 0). Methods: "
+             f"`{made['commit'][:7]}` on {processor_label(made['processor'])} (`make figures` "
+             f"draws `demo` seed 0; what they show: `figures.json`). Methods: "
              f"{', '.join(METHOD_LABELS.values())}.", ""]
     lines += [f"- [`{p.name}`]({p.name}): {' '.join(FIGURES[p.stem].__doc__.split())}"
               for p in paths]

@@ -11,7 +11,6 @@ failed trials ended (marker by reason), and the ground truth on the learned laye
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib
@@ -19,11 +18,10 @@ import matplotlib.pyplot as plt
 
 from dgt_lib import recording, recording_layout, viz
 from dgt_lib.core.config import Profile, as_profile
-from dgt_lib.core.overrides import format_setting
 from dgt_lib.evaluation import accuracy, seeds
-from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
+from dgt_lib.evaluation.experiments import EXPERIMENT_TITLES, EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.paper import PAPER
-from dgt_lib.learning.training import collapsed_heads
+from dgt_lib.records.record import seed_summaries, write_seed_record
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.stages.experiments import experiment_stem
 from dgt_lib.stages.ground_truth import (
@@ -33,12 +31,7 @@ from dgt_lib.stages.ground_truth import (
 )
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import data_dir, profile_root
-from dgt_lib.stages.train import cached_model_metrics
 from dgt_lib.world.terrain import get_world
-
-TITLES = {"experiment1": "Experiment 1 — hill, carla_cola (paper Table I, left)",
-          "experiment2": "Experiment 2 — ridge, mercedes_van (paper Table I, right)",
-          "experiment3": "Experiment 3 — random queries, jeep and vw_van (paper Table II)"}
 
 
 def _title(prof: Profile) -> str:
@@ -123,7 +116,7 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
              "Every number below was measured by `dgt reproduce` on this machine; the paper's "
              "numbers stand beside ours. Intervals are Wilson 95 %.", ""]
     for result in results:
-        parts += [f"## {TITLES.get(result.name, result.name)}", "",
+        parts += [f"## {EXPERIMENT_TITLES.get(result.name, result.name)}", "",
                   result.markdown(PAPER.get(result.name)), ""]
         parts += [f"![{p.stem}]({p.name})" for p in _figures(result, prof, out)] + [""]
     parts += _accuracy_section(prof, out)
@@ -152,52 +145,16 @@ def write_recording(result: ExperimentResult, prof: Profile) -> Path:
 def report_stage(name: str, profile: Profile, output: StageOutput) -> StageOutput:
     """The report step of a stage with ``report`` set (:mod:`dgt_lib.stages.registry`),
     run by ``dgt reproduce`` after it: for ``experiments``, every experiment's recording
-    in ``runs/``, ``results/README.md`` with every table and figure, and the seed's
-    ``results/summary.json``; returns the stage's output with what it wrote first."""
+    in ``runs/``, ``results/README.md`` with every table and figure, and the seed's run
+    record ``results/summary.json`` (:mod:`dgt_lib.records.record`); returns the stage's
+    output with what it wrote first."""
     if name != "experiments":
         raise ValueError(f"no report step for stage {name!r}")
     prof = as_profile(profile)
     results = output.value
-    paths = [write_results(results, prof), write_seed_summary(results, prof)]
+    paths = [write_results(results, prof), write_seed_record(results, prof)]
     paths += [write_recording(res, prof) for res in results]
     return StageOutput(paths + output.paths, output.summary)
-
-
-SUMMARY_RELPATH = "results/summary.json"
-"""One seed's summary for the pooled report, under the seed's data directory."""
-
-
-def write_seed_summary(results: list[ExperimentResult], prof: Profile) -> Path:
-    """``results/summary.json`` of the run seed: every experiment's counts and routes, the
-    models' test metrics and their collapsed heads (:mod:`dgt_lib.evaluation.seeds`), and
-    the costmaps' accuracy against the ground truth when the stage has run."""
-    models = cached_model_metrics(prof)
-    scores = cached_costmap_accuracy(prof)
-    summary = {"seed": prof.seed,
-               "overrides": {k: format_setting(v) for k, v in prof.overrides},
-               "experiments": {r.name: seeds.experiment_summary(r) for r in results},
-               "models": models,
-               "collapsed": {kind: collapsed_heads(m) for kind, m in models.items()},
-               "accuracy": None if scores is None else scores["rows"],
-               "multitask": None if scores is None else scores["multitask"]}
-    path = data_dir(prof) / SUMMARY_RELPATH
-    path.write_text(json.dumps(summary, indent=1))
-    return path
-
-
-def seed_summaries(profile: Profile, *, require_all: bool = False) -> list[dict]:
-    """The ``results/summary.json`` of each of the profile's seeds that has one (all of
-    them, or a FileNotFoundError naming the first missing seed, with ``require_all``)."""
-    prof = as_profile(profile)
-    summaries = []
-    for p in prof.seed_profiles():
-        path = data_dir(p) / SUMMARY_RELPATH
-        if path.exists():
-            summaries.append(json.loads(path.read_text()))
-        elif require_all:
-            raise FileNotFoundError(f"no results for seed {p.seed} ({path}): run "
-                                    f"`dgt reproduce --profile {prof.name}` first")
-    return summaries
 
 
 def write_seeds_report(profile: Profile) -> Path:
@@ -217,7 +174,7 @@ def write_seeds_report(profile: Profile) -> Path:
              + ", ".join(f"[seed {s}](../seed-{s}/results/README.md)" for s in ids) + ".", "",
              "## Claims, seed by seed", "", seeds.claims_table(summaries)]
     for name in EXPERIMENTS:
-        parts += [f"## {TITLES.get(name, name)}", "",
+        parts += [f"## {EXPERIMENT_TITLES.get(name, name)}", "",
                   seeds.experiment_over_seeds(summaries, name, PAPER.get(name))]
     parts += ["## Learned locomotion (test split)", "", seeds.learning_table(summaries)]
     scored = [s for s in summaries if s.get("accuracy")]

@@ -8,7 +8,7 @@ import dgt_lib
 
 PACKAGE = Path(dgt_lib.__file__).parent
 LAYERS = ("core", "world", "perception", "learning", "mapping", "navigation", "beyond",
-          "evaluation", "stages")
+          "evaluation", "stages", "records")
 """Sub-packages in pipeline order; modules at the top level (viz, recording, report,
 plan_one, cli, exercises) sit above them all. ``beyond`` holds what goes beyond the paper."""
 

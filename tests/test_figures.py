@@ -1,6 +1,7 @@
 """`make figures`: the README's figures drawn from a profile's run, each small enough for the
 repository, and the committed ones the ones the README shows."""
 
+import json
 import re
 from pathlib import Path
 
@@ -58,4 +59,9 @@ def test_make_figures_draws_every_figure_of_the_smoke_run(tmp_path):
         assert Image.open(path).size[0] >= 400
     text = (tmp_path / "README.md").read_text()
     assert "`smoke` profile's run seed 0" in text
+    facts = json.loads((tmp_path / figures.FACTS).read_text())  # what the README's caption says
+    assert (facts["profile"], facts["seed"]) == ("smoke", 0) and facts["processor"]["cpus"]
+    assert set(facts["hero_routes"]) == {"ascent", "descent", "jeep", "mercedes_van"}
+    assert {facts["hero_routes"][k] for k in ("jeep", "mercedes_van")} <= {
+        "sharp", "smooth", "no path"}
     assert all(f"[`{p.name}`]({p.name})" in text for p in paths)

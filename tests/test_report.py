@@ -39,7 +39,7 @@ def test_a_report_made_with_changed_settings_says_which(tmp_path, monkeypatch):
     title says so, and so does the seed's summary that the pooled report reads."""
     import json
 
-    from dgt_lib.report import SUMMARY_RELPATH, write_seed_summary
+    from dgt_lib.records.record import SUMMARY_RELPATH, write_seed_record
     from dgt_lib.stages.paths import data_dir
 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
@@ -48,7 +48,7 @@ def test_a_report_made_with_changed_settings_says_which(tmp_path, monkeypatch):
     prof = get_profile("smoke").with_overrides({"planner.beta": 50})
     text = write_results([_experiment3()], prof).read_text()
     assert text.splitlines()[0] == "# Results — profile `smoke` with planner.beta=50.0"
-    write_seed_summary([_experiment3()], prof)
+    write_seed_record([_experiment3()], prof)
     summary = json.loads((data_dir(prof) / SUMMARY_RELPATH).read_text())
     assert summary["overrides"] == {"planner.beta": "50.0"}
 
@@ -117,7 +117,8 @@ def test_the_seeds_report_pools_the_accuracy_and_checks_claim_4_per_seed(tmp_pat
                                                                           monkeypatch):
     import json
 
-    from dgt_lib.report import SUMMARY_RELPATH, write_seeds_report
+    from dgt_lib.records.record import SUMMARY_RELPATH
+    from dgt_lib.report import write_seeds_report
     from dgt_lib.stages.paths import data_dir
 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))

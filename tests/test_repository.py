@@ -116,11 +116,31 @@ def test_the_documentation_tells_no_development_history(document):
     assert [w for w in HISTORY if re.search(w, text, flags=re.IGNORECASE)] == []
 
 
-def test_the_readme_is_short_and_names_no_commit():
+def test_the_readme_is_short_and_names_no_commit_by_hand():
+    """Commits appear only where `make docs` renders them from run records."""
     text = (ROOT / "README.md").read_text()
     assert len(text.splitlines()) <= 250
-    hashes = re.findall(r"`([0-9a-f]{7,40})`", text)
+    typed = re.sub(r"<!-- generated: ([\w-]+) -->.*?<!-- end generated: \1 -->", "", text,
+                   flags=re.S)
+    hashes = re.findall(r"`([0-9a-f]{7,40})`", typed)
     assert hashes == []
+
+
+def _linked_pages(document: Path) -> set[Path]:
+    """The files a document links to (a folder stands for its README.md)."""
+    out = set()
+    for target in re.findall(r"\]\(([^)#\s]+)", document.read_text()):
+        if "://" in target:
+            continue
+        path = (document.parent / target).resolve()
+        out.add(path / "README.md" if path.is_dir() else path)
+    return out
+
+
+def test_every_page_of_the_docs_is_linked_from_the_readme_or_another_page():
+    pages = sorted((ROOT / "docs").rglob("*.md"))
+    linked = set().union(*(_linked_pages(d) for d in [ROOT / "README.md", *pages]))
+    assert [p.relative_to(ROOT).as_posix() for p in pages if p.resolve() not in linked] == []
 
 
 def test_architecture_document_names_every_sub_package():

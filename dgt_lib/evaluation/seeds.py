@@ -126,6 +126,9 @@ CLAIMS: dict[str, tuple[str, Callable[[Summary], tuple[int, int]]]] = {
                        lambda s: _route_share(s, "experiment1", "dgt", "descent", "B")),
     "ridge_smooth": ("DGT-Map's mercedes_van plans crossing at the smoothed section",
                      lambda s: _route_share(s, "experiment2", "dgt", None, "smooth")),
+    "ridge_jeep_sharp": ("DGT-Map's jeep plans crossing the sharp ridge directly, on the "
+                         "same queries (the paper's text; not in its tables)",
+                         lambda s: _route_share(s, "experiment2_jeep", "dgt", None, "sharp")),
     "multitask_closer": ("vehicles whose multi-task costmap is closer to the measured ground "
                          "truth than its single-task one (MAE lower by ≥ 0.005, paired test "
                          "p < 0.05; Claim 4 without the closed loop)",

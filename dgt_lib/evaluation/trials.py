@@ -35,9 +35,10 @@ from dgt_lib.evaluation.queries import Query, classify_route
 from dgt_lib.mapping.baselines import binary_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.navigation.control.profiles import controller_settings, reads_costmap
-from dgt_lib.navigation.drive import drive
-from dgt_lib.navigation.outcome import TrialOutcome
+from dgt_lib.navigation.drive import MPPI_DT_S, DriveStep, drive, drive_steps, start_trial
+from dgt_lib.navigation.outcome import OutcomeRule, TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar
+from dgt_lib.world.simulator import Simulator
 from dgt_lib.world.terrain import get_world
 
 MapsLoader = Callable[[str, str, str, Profile], WorldMaps]
@@ -146,6 +147,34 @@ def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
         detail = "".join(traceback.format_exception(exc))
         return TrialResult(task, TrialOutcome.failure("error", detail=detail),
                            wall_s=time.perf_counter() - t0)
+
+
+def step_trial(result: TrialResult, maps: WorldMaps, *, keep_every: int = 60
+               ) -> tuple[list[DriveStep], dict[float, np.ndarray], OutcomeRule]:
+    """Drive a recorded trial's plan again as :func:`run_trial` did (its controller, seed
+    and time limit), one 50 ms control period at a time: for a notebook to look inside.
+
+    Returns every :class:`~dgt_lib.navigation.drive.DriveStep`, MPPI's predicted
+    trajectory (T, ≥ 2) [m] every ``keep_every`` periods keyed by the time [s], and the
+    outcome rule that judged the steps."""
+    task = result.task
+    prof = task.profile
+    length_m = float(np.hypot(*np.diff(result.path[:, :2], axis=0).T).sum())
+    rule = OutcomeRule(time_limit_s=trial_time_limit_s(prof.experiments, length_m))
+    sim = Simulator(get_world(task.world, prof), task.vehicle)
+    try:
+        policy = start_trial(sim, result.path, occupancy=maps.occupancy, grid=maps.grid,
+                             mppi_batch_size=prof.experiments.mppi_batch_size, seed=task.seed,
+                             **trial_controller(prof, method_costmap(maps, task.method,
+                                                                     task.vehicle)))
+        steps, plans = [], {}
+        for step in drive_steps(sim, policy, rule, goal=task.query.goal, dt_s=MPPI_DT_S):
+            steps.append(step)
+            if len(steps) % keep_every == 1 and hasattr(policy, "controller"):
+                plans[step.state.time_s] = policy.controller.optimal_trajectory.copy()
+    finally:
+        sim.close()
+    return steps, plans, rule
 
 
 def _start_method() -> str:

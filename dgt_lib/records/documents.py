@@ -1,0 +1,160 @@
+"""``make docs``: the result tables of the README and docs rendered from published runs.
+
+A generated block in a Markdown file sits between two comments::
+
+    <!-- generated: claims -->
+    … rendered text …
+    <!-- end generated: claims -->
+
+:data:`BLOCKS` says which function renders each block of each file, from the runs that
+``docs/runs/cited.json`` names (per profile, the folder whose records the README and
+docs rest on) and from every published run (the cross-machine table). ``check`` renders
+without writing and lists the files whose committed text differs: a test runs it, so a
+hand-edited number inside a block fails the suite, and so does a stale one.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from statistics import median
+
+from dgt_lib.records import tables
+from dgt_lib.records.provenance import ROOT
+from dgt_lib.records.tables import Run
+
+CITED = "docs/runs/cited.json"
+"""Which published run each profile's tables rest on: ``{"demo": "<run folder>", …}``."""
+
+
+def load_runs(root: Path = ROOT) -> tuple[list[Run], list[Run]]:
+    """(the cited runs in ``cited.json``'s order, every published run)."""
+    runs_dir = root / "docs" / "runs"
+    every = [Run.load(d) for d in sorted(runs_dir.iterdir())
+             if d.is_dir() and any(d.glob("seed-*.json"))] if runs_dir.exists() else []
+    cited_names = json.loads((root / CITED).read_text()) if (root / CITED).exists() else {}
+    by_name = {r.name: r for r in every}
+    missing = [n for n in cited_names.values() if n not in by_name]
+    if missing:
+        raise FileNotFoundError(f"{CITED} names runs with no records: {', '.join(missing)}")
+    return [by_name[n] for n in cited_names.values()], every
+
+
+def _captions(runs: Sequence[Run], prefix: str) -> str:
+    return "\n".join(f"- {tables.caption(r, prefix)}" for r in runs) + "\n"
+
+
+def _results(cited: Sequence[Run], _every, _root: Path) -> str:
+    return ("Pooled over the seeds of:\n\n" + _captions(cited, "docs/") + "\n"
+            + tables.results_table(cited))
+
+
+def _claims(cited: Sequence[Run], _every, _root: Path) -> str:
+    return tables.claims_table(cited)
+
+
+def _bottom_line(cited: Sequence[Run], _every, _root: Path) -> str:
+    return "\n".join(tables.bottom_line(r) for r in cited) + "\n"
+
+
+FIGURE_FACTS = "docs/figures/figures.json"
+"""What ``make figures`` drew, from which run (:data:`dgt_lib.figures.FACTS`)."""
+
+ROUTE_WORDS = {"A": "by Route A", "B": "by Route B", "other": "by neither route",
+               "sharp": "straight across the sharp ridge",
+               "smooth": "round by the smoothed section", "no path": "finds no path"}
+
+
+def _hero(cited: Sequence[Run], _every, root: Path) -> str:
+    facts = json.loads((root / FIGURE_FACTS).read_text())
+    run = next((r for r in cited if r.profile == facts["profile"]
+                and facts["seed"] in r.seeds
+                and r.records[0]["processor"] == facts["processor"]), None)
+    if run is None:
+        raise ValueError(f"{FIGURE_FACTS}: the figures were drawn from a `{facts['profile']}` "
+                         "run the README does not cite: run `make figures` on the cited run")
+    routes = {k: ROUTE_WORDS.get(v, v) for k, v in facts["hero_routes"].items()}
+    jeep, van = (tables.verdicts_by_key(run)[k] for k in ("ridge_jeep_sharp", "ridge_smooth"))
+    return (f"*Drawn by `make figures` from `{run.profile}` seed {facts['seed']} of the run the "
+            f"tables below cite. Left: carla_cola's DGT-Map cost layer for heading north on "
+            f"the hill (bright = costly) and DGT-Map's plans for Experiment 1's first ascent, "
+            f"{routes['ascent']}, and first descent, {routes['descent']}. Middle and right: "
+            f"the same ridge through two heads of the same network, the jeep's and the "
+            f"mercedes_van's, and each vehicle's plan for Experiment 2's first northbound "
+            f"query: the jeep goes {routes['jeep']}, the van {routes['mercedes_van']}. Over "
+            f"the run's {tables.n_seeds(len(run.seeds))} the jeep's plans went straight across in "
+            f"{jeep.measured}, the van's round in {van.measured}.*\n")
+
+
+def _times(cited: Sequence[Run], _every, _root: Path) -> str:
+    lines = ["| profile | processor | one seed's stages, median over its seeds |",
+             "| --- | --- | --- |"]
+    for run in cited:
+        totals = [sum(t["seconds"] for t in r.get("stage_times", [])) for r in run.records]
+        if totals:
+            lines.append(f"| `{run.profile}` ({tables.n_seeds(len(run.seeds))}) | "
+                         f"{run.processor} | {median(totals) / 60:.0f} min |")
+    return "\n".join(lines) + "\n"
+
+
+def _per_run(cited: Sequence[Run], _every, _root: Path) -> str:
+    return "\n".join(f"## `{r.profile}`\n\n" + tables.seeds_sections(r) for r in cited)
+
+
+def _cross_machine(_cited, every: Sequence[Run], _root: Path) -> str:
+    return tables.cross_machine_table(every)
+
+
+def _index(_cited, every: Sequence[Run], _root: Path) -> str:
+    return _captions(every, "../") if every else "No run published yet.\n"
+
+
+Renderer = Callable[[Sequence[Run], Sequence[Run], Path], str]
+"""(cited runs, every run, the checkout's root) → the block's Markdown."""
+BLOCKS: dict[str, dict[str, Renderer]] = {
+    "README.md": {"bottom-line": _bottom_line, "hero": _hero, "results": _results,
+                  "claims": _claims, "times": _times},
+    "docs/results.md": {"per-run": _per_run, "cross-machine": _cross_machine},
+    "docs/runs/README.md": {"index": _index},
+}
+"""Each file's generated blocks and the function that renders each."""
+
+_BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)"
+                    r"(<!-- end generated: (?P=name) -->)", re.S)
+
+
+def render_text(text: str, renderers: dict[str, Renderer], cited, every, root: Path,
+                path: str) -> str:
+    """``text`` with each generated block replaced by its renderer's output; ValueError
+    for a block without a renderer or a renderer whose block is missing."""
+    found = [m["name"] for m in _BLOCK.finditer(text)]
+    unknown, missing = set(found) - set(renderers), set(renderers) - set(found)
+    if unknown or missing:
+        raise ValueError(f"{path}: generated blocks without a renderer {sorted(unknown)}, "
+                         f"renderers without a block {sorted(missing)}")
+    return _BLOCK.sub(lambda m: m.group(1) + renderers[m["name"]](cited, every, root) + m.group(4),
+                      text)
+
+
+def render_all(root: Path = ROOT) -> dict[Path, str]:
+    """{file: its text with every generated block rendered} for :data:`BLOCKS`."""
+    cited, every = load_runs(root)
+    return {root / rel: render_text((root / rel).read_text(), renderers, cited, every, root, rel)
+            for rel, renderers in BLOCKS.items()}
+
+
+def stale(root: Path = ROOT) -> list[Path]:
+    """The files whose committed text differs from what their records render."""
+    return [p for p, text in render_all(root).items() if p.read_text() != text]
+
+
+def write_all(root: Path = ROOT) -> list[Path]:
+    """Render every generated block in place; returns the files that changed."""
+    changed = []
+    for path, text in render_all(root).items():
+        if path.read_text() != text:
+            path.write_text(text)
+            changed.append(path)
+    return changed

@@ -1,0 +1,227 @@
+"""Markdown tables rendered from published run records (``docs/runs/<run>/seed-*.json``).
+
+A :class:`Run` is one published run: one profile, one processor, its seeds' records.
+Every table names what it pools (:func:`caption`): profile, seeds, processor, commit and
+the folder of its records. Nothing here measures anything; everything here formats what
+the records hold, so the same records always render the same text.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from dgt_lib.evaluation import accuracy, seeds
+from dgt_lib.evaluation.experiments import EXPERIMENT_TITLES, EXPERIMENTS
+from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
+from dgt_lib.records.claims import CLAIMS, Verdict, pooled, route_claim
+from dgt_lib.records.provenance import processor_label
+
+EXPERIMENT_ROWS: tuple[tuple[str, str, str], ...] = (
+    ("experiment1", "carla_cola", "1 · hill, carla_cola"),
+    ("experiment2", "mercedes_van", "2 · ridge, mercedes_van"),
+    ("experiment2_jeep", "jeep", "2 · ridge, jeep (ours: the same queries)"),
+    ("experiment3", "jeep", "3 · random, jeep"),
+    ("experiment3", "vw_van", "3 · random, vw_van"),
+)
+"""The README results table's rows: (experiment, vehicle, label)."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One published run: its folder's name and its seeds' records, by seed."""
+
+    name: str
+    records: tuple[dict, ...]
+
+    @classmethod
+    def load(cls, folder: Path) -> Run:
+        """The run in ``folder`` (every ``seed-*.json``); ValueError for an empty one."""
+        paths = sorted(folder.glob("seed-*.json"), key=lambda p: int(p.stem.split("-")[1]))
+        if not paths:
+            raise ValueError(f"{folder}: no seed-*.json run records")
+        return cls(folder.name, tuple(json.loads(p.read_text()) for p in paths))
+
+    @property
+    def profile(self) -> str:
+        return self.records[0]["profile"]
+
+    @property
+    def seeds(self) -> list[int]:
+        return [r["seed"] for r in self.records]
+
+    @property
+    def processor(self) -> str:
+        return processor_label(self.records[0]["processor"])
+
+    @property
+    def commits(self) -> list[str]:
+        return sorted({r["commit"][:7] + ("+changes" if "+" in r["commit"] else "")
+                       for r in self.records})
+
+
+def seed_text(ids: Sequence[int]) -> str:
+    """``8 seeds (0–7)``, ``3 seeds (0, 2, 5)``, ``1 seed (0)``."""
+    ids = sorted(ids)
+    if len(ids) > 2 and ids == list(range(ids[0], ids[-1] + 1)):
+        span = f"{ids[0]}–{ids[-1]}"
+    else:
+        span = ", ".join(map(str, ids))
+    return f"{n_seeds(len(ids))} ({span})"
+
+
+def n_seeds(n: int) -> str:
+    """``1 seed``, ``8 seeds``."""
+    return f"{n} seed{'s' if n != 1 else ''}"
+
+
+def caption(run: Run, link_prefix: str = "docs/") -> str:
+    """What a table of ``run`` pools: profile, seeds, processor, commit(s), records."""
+    return (f"`{run.profile}`, {seed_text(run.seeds)}, {run.processor}, commit "
+            f"{', '.join(f'`{c}`' for c in run.commits)}; records: "
+            f"[`docs/runs/{run.name}/`]({link_prefix}runs/{run.name}/)")
+
+
+def _kn(kn: tuple[int, int] | None) -> str:
+    return "—" if kn is None else f"{kn[0]}/{kn[1]}"
+
+
+def results_table(runs: Sequence[Run]) -> str:
+    """k/n per method: the paper's Tables I and II beside each run's pooled arrivals;
+    the best of a row in bold."""
+    head = ["experiment", "source", *(METHOD_LABELS[m] for m in METHODS)]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    for experiment, vehicle, label in EXPERIMENT_ROWS:
+        paper = PAPER.get(experiment, {}).get(vehicle)
+        rows = []
+        if paper is not None:
+            rows.append(("the paper", {m: (k, paper.n) for m, k in paper.k.items()}))
+        elif experiment == "experiment2_jeep":
+            rows.append(("the paper", {}))
+        for run in runs:
+            rows.append((f"ours, `{run.profile}`, {n_seeds(len(run.seeds))}",
+                         {m: pooled(run.records, experiment, vehicle, m) for m in METHODS}))
+        for i, (source, counts) in enumerate(rows):
+            rates = [k / n for k, n in (c for c in counts.values() if c)]
+            best = max(rates, default=None)
+            cells = []
+            for m in METHODS:
+                kn = counts.get(m)
+                text = _kn(kn)
+                cells.append(f"**{kn[0]}**/{kn[1]}" if kn and kn[0] / kn[1] == best else text)
+            lines.append(f"| {label if i == 0 else ''} | {source} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def claims_table(runs: Sequence[Run]) -> str:
+    """Each claim of :data:`~dgt_lib.records.claims.CLAIMS`: the paper's numbers, what each
+    run measured, and the verdict by the claim's rule."""
+    head = ["claim", "the paper"]
+    for run in runs:
+        head += [f"`{run.profile}`, {n_seeds(len(run.seeds))}", "verdict"]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    for claim in CLAIMS:
+        cells = [claim.text + (" (ours)" if claim.ours else ""), claim.paper]
+        for run in runs:
+            v = claim.check(run.records)
+            cells += [v.measured, v.word]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def verdicts(run: Run) -> list[tuple[str, Verdict, bool]]:
+    """(short name, verdict, ours) of every claim in ``run``."""
+    return [(c.short, c.check(run.records), c.ours) for c in CLAIMS]
+
+
+def verdicts_by_key(run: Run) -> dict[str, Verdict]:
+    """The route claims' verdicts in ``run`` by their key in
+    :data:`dgt_lib.evaluation.seeds.CLAIMS`."""
+    return {key: route_claim(key)(run.records) for key in seeds.CLAIMS}
+
+
+def bottom_line(run: Run) -> str:
+    """Two sentences: which of the paper's claims ``run`` reproduces and which not."""
+    paper = [(s, v) for s, v, ours in verdicts(run) if not ours and v.reproduced is not None]
+    yes = [s for s, v in paper if v.reproduced]
+    no = [s for s, v in paper if not v.reproduced]
+    text = (f"On `{run.profile}` ({seed_text(run.seeds)}, {run.processor}) "
+            f"{len(yes)} of the {len(paper)} claims of the paper checked here reproduce: "
+            + "; ".join(yes) + ".")
+    if no:
+        text += " Not reproduced: " + "; ".join(no) + "."
+    return text
+
+
+def provenance_table(run: Run) -> str:
+    """Seed by seed: commit, date, processor, library versions."""
+    lines = ["| seed | commit | date (UTC) | processor | Python / numpy / torch / mujoco |",
+             "|---|---|---|---|---|"]
+    for r in run.records:
+        v = r["versions"]
+        lines.append(f"| {r['seed']} | `{r['commit'][:7]}` | {r['date_utc'][:10]} | "
+                     f"{processor_label(r['processor'])} | {v['python']} / {v['numpy']} / "
+                     f"{v['torch']} / {v['mujoco']} |")
+    return "\n".join(lines) + "\n"
+
+
+def stage_time_table(run: Run) -> str:
+    """Each stage's wall time per seed [s], summed over the invocations that ran it (a
+    cached stage counts under a second), with the highest 1-minute load seen at a start."""
+    stages = list(dict.fromkeys(t["stage"] for r in run.records for t in r.get("stage_times", [])))
+    if not stages:
+        return "No stage times in these records.\n"
+    lines = ["| seed | " + " | ".join(stages) + " | total | load at start |",
+             "|---|" + "---|" * (len(stages) + 2)]
+    for r in run.records:
+        times = r.get("stage_times", [])
+        per = [sum(t["seconds"] for t in times if t["stage"] == s) for s in stages]
+        loads = [t["load_1min_before"] for t in times if t.get("load_1min_before") is not None]
+        lines.append(f"| {r['seed']} | " + " | ".join(f"{x:.0f}" for x in per)
+                     + f" | {sum(per):.0f} | ≤ {max(loads, default=float('nan')):.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def seeds_sections(run: Run) -> str:
+    """docs/results.md's section of one run: claims seed by seed, every experiment over
+    the seeds, the models' test errors, the costmaps' accuracy."""
+    recs = list(run.records)
+    parts = [f"Pooled: {caption(run, '')}.", "", "### Claims, seed by seed", "",
+             seeds.claims_table(recs)]
+    for name in EXPERIMENTS:
+        parts += [f"### {EXPERIMENT_TITLES[name]}", "",
+                  seeds.experiment_over_seeds(recs, name, PAPER.get(name))]
+    parts += ["### Learned locomotion (test split)", "", seeds.learning_table(recs)]
+    scored = [r for r in recs if r.get("accuracy")]
+    if scored:
+        parts += ["### Costmaps against the driven ground truth (open loop)", "",
+                  "Multi-task against single-task per vehicle, seed by seed:", "",
+                  accuracy.multitask_over_seeds({r["seed"]: r["multitask"] for r in scored}),
+                  "Every method, per seed (MAE / Spearman ρ):", "",
+                  accuracy.accuracy_over_seeds({r["seed"]: r["accuracy"] for r in scored})]
+    parts += ["### Where and when each seed ran", "", provenance_table(run),
+              "### Stage wall times [s]", "", stage_time_table(run)]
+    return "\n".join(parts)
+
+
+def cross_machine_table(runs: Sequence[Run]) -> str:
+    """The same profile and seed run on more than one processor: DGT-Map's arrivals per
+    experiment in each, side by side (physics' last bits follow the processor family)."""
+    lines = []
+    for profile in dict.fromkeys(r.profile for r in runs):
+        mine = [r for r in runs if r.profile == profile]
+        shared = sorted(set.intersection(*(set(r.seeds) for r in mine))) if len(mine) > 1 else []
+        for seed in shared:
+            for run in mine:
+                rec = next(x for x in run.records if x["seed"] == seed)
+                cells = [_kn(pooled([rec], e, v, "dgt")) for e, v, _ in EXPERIMENT_ROWS]
+                lines.append(f"| `{profile}` | {seed} | {run.processor} | " + " | ".join(cells)
+                             + " |")
+    if not lines:
+        return ("No seed of a profile has records from more than one processor yet; when one "
+                "has, this table sets them side by side.\n")
+    head = "| profile | seed | processor | " + " | ".join(x for _, _, x in EXPERIMENT_ROWS)
+    return "\n".join([head + " |", "|" + "---|" * (3 + len(EXPERIMENT_ROWS)), *lines]) + "\n"

@@ -1,0 +1,133 @@
+"""Run records and the docs rendered from them: every result number in the README's and
+docs' generated tables comes from committed records, and the verdicts follow stated rules."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from dgt_lib.core import artifacts
+from dgt_lib.core.config import get_profile
+from dgt_lib.records import claims, documents, tables
+from dgt_lib.records.publish import MAX_RECORD_BYTES, publish, run_name
+from dgt_lib.records.record import seed_record, write_seed_record
+from tests.test_report import _experiment3
+
+ROOT = Path(__file__).resolve().parent.parent
+PROC = {"model": "Test CPU", "family": "1", "model_id": "2", "flags": ["avx2"], "cpus": 2}
+
+
+def _record(seed: int, hill: dict[str, tuple[int, int]], *, ascents_a=(3, 3),
+            processor=PROC, profile="demo") -> dict:
+    """A seed's record with Experiment 1's counts and its ascent-route check."""
+    return {"schema": 1, "commit": "abcdef0123", "processor": processor,
+            "versions": {"python": "3", "numpy": "2", "torch": "2", "mujoco": "4"},
+            "date_utc": "2026-01-02T03:04:05Z", "profile": profile, "seed": seed,
+            "experiments": {"experiment1": {"counts": {"carla_cola": {
+                m: list(kn) for m, kn in hill.items()}}}},
+            "claims": {"hill_ascent_A": [*ascents_a, ascents_a[0] == ascents_a[1]]},
+            "models": {}, "collapsed": {}, "accuracy": None, "multitask": None}
+
+
+def test_more_arrivals_is_reproduced_only_when_the_intervals_are_apart():
+    apart = [_record(s, {"dgt": (20, 20), "isotropic": (5, 20), "binary": (4, 20)})
+             for s in range(3)]
+    v = claims.more_claim("experiment1", "carla_cola", "dgt", ("isotropic", "binary"))(apart)
+    assert v.reproduced is True and v.measured == "60/60 vs 15/60, 12/60"
+    close = [_record(s, {"dgt": (17, 20), "single-task": (16, 20)}) for s in range(3)]
+    v = claims.more_claim("experiment1", "carla_cola", "dgt", ("single-task",))(close)
+    assert v.reproduced is False and "a tie with DGT-Map(ST)" in v.word
+    v = claims.same_claim("experiment1", "carla_cola", "single-task", "dgt")(close)
+    assert v.reproduced is True  # "as well as" holds when the intervals overlap
+
+
+def test_a_route_claim_says_in_how_many_seeds_it_held():
+    recs = [_record(0, {}), _record(1, {}, ascents_a=(2, 3)), _record(2, {})]
+    v = claims.route_claim("hill_ascent_A")(recs)
+    assert v.measured == "2 of 3 seeds (8/9 plans)" and v.reproduced is False
+    assert v.word == "**not reproduced**: in 2 of 3 seeds"
+
+
+def test_a_seed_record_names_its_processor_commit_and_claims(tmp_path, monkeypatch):
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    prof = get_profile("smoke")
+    record = seed_record([_experiment3()], prof)
+    assert record["profile"] == "smoke" and record["seed"] == prof.seed
+    assert record["processor"]["cpus"] >= 1 and record["commit"]
+    assert {"python", "numpy", "torch", "mujoco"} <= set(record["versions"])
+    assert record["experiments"]["experiment3"]["counts"]["jeep"]["dgt"] == [1, 1]
+    assert set(record["claims"]) >= {"hill_ascent_A", "ridge_jeep_sharp"}
+    path = write_seed_record([_experiment3()], prof)
+    assert json.loads(path.read_text())["seed"] == prof.seed
+
+
+def test_publish_copies_every_seed_with_its_stage_times(tmp_path, monkeypatch):
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    prof = get_profile("smoke").with_(seeds=2)
+    for p in prof.seed_profiles():
+        write_seed_record([_experiment3()], p)
+    folder = publish(prof, dest=tmp_path / "runs")
+    run = tables.Run.load(folder)
+    assert run.seeds == [0, 1] and run.profile == "smoke"
+    assert all(len(p.read_bytes()) <= MAX_RECORD_BYTES for p in folder.glob("seed-*.json"))
+
+
+def test_a_run_of_two_processors_is_refused():
+    other = {**PROC, "model": "Other CPU"}
+    with pytest.raises(ValueError, match="several processors"):
+        run_name([_record(0, {}), _record(1, {}, processor=other)])
+
+
+def test_publish_names_the_missing_seed(tmp_path, monkeypatch):
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
+    with pytest.raises(FileNotFoundError, match="no results for seed 0"):
+        publish("smoke", dest=tmp_path / "runs")
+
+
+def test_the_committed_docs_are_what_the_committed_records_render():
+    """`make docs` on a clean checkout changes nothing: no result in a generated block
+    was typed by hand or left stale."""
+    assert documents.stale(ROOT) == []
+
+
+def _copy_docs(tmp_path: Path) -> Path:
+    for rel in [*documents.BLOCKS, documents.CITED, documents.FIGURE_FACTS]:
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(ROOT / rel, tmp_path / rel)
+    for d in (ROOT / "docs" / "runs").iterdir():
+        if d.is_dir():
+            shutil.copytree(d, tmp_path / "docs" / "runs" / d.name)
+    return tmp_path
+
+
+def test_a_number_typed_into_a_generated_table_is_caught(tmp_path):
+    root = _copy_docs(tmp_path)
+    readme = root / "README.md"
+    text = readme.read_text()
+    start = text.index("<!-- generated: results -->")
+    end = text.index("<!-- end generated: results -->")
+    block = text[start:end]
+    edited = block.replace("/", "/9", 1)  # one count changed by hand
+    assert edited != block
+    readme.write_text(text[:start] + edited + text[end:])
+    assert documents.stale(root) == [readme]
+    documents.write_all(root)
+    assert documents.stale(root) == []
+
+
+def test_every_cited_run_exists_and_a_missing_one_is_named(tmp_path):
+    root = _copy_docs(tmp_path)
+    (root / documents.CITED).write_text(json.dumps({"demo": "no-such-run"}))
+    with pytest.raises(FileNotFoundError, match="no-such-run"):
+        documents.render_all(root)
+
+
+def test_every_seed_record_pooled_by_the_readme_keeps_its_processor():
+    cited, _ = documents.load_runs(ROOT)
+    assert cited, "the README cites no run"
+    for run in cited:
+        assert len({json.dumps(r["processor"], sort_keys=True) for r in run.records}) == 1
+        assert all((ROOT / "docs" / "runs" / run.name / f"seed-{s}.json").stat().st_size
+                   <= MAX_RECORD_BYTES for s in run.seeds)
+
