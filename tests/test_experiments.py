@@ -351,3 +351,41 @@ def test_a_variant_keeps_its_results_apart_from_the_profiles_own(tmp_path, monke
     assert experiment_stem("experiment2", smoke.with_overrides({"experiments.n_hill": 9})) != (
         "experiment2")  # the experiments section keys every experiment
     assert experiment_stem("experiment1", smoke.with_(seed=2)) == "experiment1"
+
+
+def test_the_jeep_is_asked_exactly_the_vans_ridge_queries_and_keeps_its_own_results():
+    """Experiment 2's other half: the jeep drives the van's queries, not new ones, and its
+    trials are cached apart, so adding it leaves the van's stored trials valid."""
+    from dgt_lib.evaluation.experiments import EXPERIMENTS, experiment_queries
+    from dgt_lib.stages.experiments import experiment_config
+
+    prof = get_profile("demo")
+    van = experiment_queries("experiment2", prof, load_maps=trial_maps)["mercedes_van"]
+    jeep = experiment_queries("experiment2_jeep", prof, load_maps=trial_maps)["jeep"]
+    assert [(q.start, q.goal, q.label) for q in jeep] == [(q.start, q.goal, q.label) for q in van]
+    assert EXPERIMENTS["experiment2_jeep"][:2] == ("ridge", ("jeep",))
+    assert experiment_config("experiment2", prof) != experiment_config("experiment2_jeep", prof)
+    assert experiment_stem("experiment2_jeep", prof) == "experiment2_jeep"
+
+
+def test_a_recorded_trial_stepped_again_ends_as_it_was_recorded(monkeypatch):
+    """`step_trial` (notebook 07) drives the trial the experiment drove: same controller,
+    seed and time limit, so the same outcome at the same time."""
+    from dgt_lib.mapping.world_maps import WorldMaps
+    from dgt_lib.perception.bev import BEVMap
+
+    world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
+    monkeypatch.setattr(trials, "get_world", lambda name, prof: world)
+    grid = world.grid
+    bev = BEVMap(grid, np.zeros((6, *grid.shape), np.float32), np.ones(grid.shape, bool),
+                 np.ones(grid.shape, np.int64))
+    maps = WorldMaps("flat", bev, np.zeros(grid.shape, np.uint8), 0.6, {})
+    prof = PROFILE.with_overrides({"experiments.mppi_batch_size": 128})
+    task = TrialTask("experiment2_jeep", "flat", "binary", "jeep",
+                     Query((10.0, 20.0, 0.0), (60.0, 20.0), "northbound"), 3, prof, 0)
+    recorded = run_trial(task, lambda *args: maps)
+    assert recorded.outcome.reason == "success"
+    steps, mppi, rule = trials.step_trial(recorded, maps, keep_every=20)
+    assert steps[-1].outcome.reason == recorded.outcome.reason
+    assert steps[-1].outcome.duration_s == pytest.approx(recorded.outcome.duration_s)
+    assert len(mppi) >= 2 and all(p.shape[1] >= 2 for p in mppi.values())
