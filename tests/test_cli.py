@@ -281,9 +281,10 @@ def test_set_changes_settings_for_every_stage_and_seed(capsys, tmp_path, monkeyp
     # out of range: refused before any stage, not stored as a run of failed trials
     ("planner.beta=-5", "planner.beta=-5.0 is not allowed: planner.beta must be a finite "
                         "number ≥ 0"),
-    ("train.epochs=0", "train.epochs=0 is not allowed: train.epochs must be an integer ≥ 1"),
+    ("train.epochs=0", "train.epochs=0 is not allowed: train.epochs must be an integer in "
+                       "[1, 10,000]"),
     ("train.batch_size=-1", "train.batch_size=-1 is not allowed"),
-    ("workers=0", "workers=0 is not allowed: workers must be an integer ≥ 1"),  # as --workers 0
+    ("workers=0", "workers=0 is not allowed: workers must be an integer in [1, 256]"),
 ])
 def test_a_bad_set_is_a_clear_error_before_anything_runs(capsys, tmp_path, monkeypatch,
                                                          setting, message):

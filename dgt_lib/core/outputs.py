@@ -75,14 +75,14 @@ def check_output_path(path: str | Path, *, what: str = "--out",
     if str(path).strip() == "":
         raise OutputPathError(f"{what} is empty: give a file name")
     target = Path(os.path.abspath(Path(path).expanduser()))
-    if target.is_dir():
-        raise OutputPathError(f"{what} {target} is a directory: give a file name")
     name_max = _limit(target.parent if target.parent.is_dir() else Path("/"),
                       "PC_NAME_MAX", 255)
     if len(os.fsencode(target.name)) + BESIDE_BYTES > name_max:
         raise OutputPathError(f"{what}: the file name {target.name[:40]}… has "
                               f"{len(os.fsencode(target.name))} bytes; at most "
                               f"{name_max - BESIDE_BYTES} fit here")
+    if target.is_dir():
+        raise OutputPathError(f"{what} {target} is a directory: give a file name")
     path_max = _limit(Path("/"), "PC_PATH_MAX", 4096)
     if len(os.fsencode(str(target))) + BESIDE_BYTES >= path_max:
         raise OutputPathError(f"{what}: the path {str(target)[:40]}… is longer than the "
