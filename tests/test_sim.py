@@ -229,7 +229,7 @@ def test_mujoco_s_log_of_a_diverging_simulation_goes_to_the_data_directory(tmp_p
         "import mujoco, numpy as np\n"
         "from dgt_lib.world.mujoco_model import build_model\n"
         "from dgt_lib.world.worlds import from_heightmap\n"
-        "build_model(from_heightmap(np.zeros((20, 20), np.float32), 0.4), 'jeep')\n"
+        "build_model(from_heightmap(np.zeros((40, 40), np.float32), 0.4), 'jeep')\n"
         "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><freejoint/>"
         "<geom size=\".1\"/></body></worldbody></mujoco>')\n"
         "d = mujoco.MjData(m); d.qvel[:] = 1e300; mujoco.mj_step(m, d)\n")
