@@ -422,3 +422,13 @@ def test_one_seed_alone_leaves_the_pooled_results_as_they_are(capsys, tmp_path, 
     assert pooled == [] and "pooled results were left as they were" in capsys.readouterr().out
     assert main(["reproduce", "--profile", "smoke", "--seeds", "2"]) == 0
     assert [[p.seed for p in runs] for runs in pooled] == [[0, 1]]
+
+
+@pytest.mark.parametrize("value", ["1e6", "0", "nan", "-1"])
+def test_a_heightmap_resolution_no_machine_can_map_is_refused_by_the_parser(capsys, value):
+    """--resolution 1e6 ended in "Unable to allocate 279 PiB" after the world was read."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["costmap", "--world", "x.npy", "--vehicle", "jeep", f"--resolution={value}",
+              "--out", "x.tif"])
+    assert exit_.value.code == 2
+    assert "metres per pixel in [0.001, 100]" in capsys.readouterr().err
