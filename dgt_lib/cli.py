@@ -19,6 +19,7 @@ import argparse
 import contextlib
 import importlib.util
 import json
+import math
 import os
 import shlex
 import sys
@@ -66,7 +67,7 @@ def _stopped_message(args: argparse.Namespace, how: str, why: str = "") -> str:
     was in (``args.stage``) —, what it kept, and that the same command resumes."""
     seed, stage = getattr(args, "stage", (None, None))
     where = "" if stage is None else f" in seed {seed} · {stage.name}"
-    kept = ("everything finished so far" if stage is None
+    kept = (getattr(args, "kept", None) or "everything finished so far" if stage is None
             else f"the earlier stages' outputs; {stage.kept}")
     said = f": {why}\n" if why else ". "  # a fault's reason on a line of its own
     return f"dgt: {how}{where}{said}Kept: {kept}. Rerun `{args.command_line}` to resume."
@@ -276,7 +277,8 @@ def _plan(args: argparse.Namespace) -> int:
                                 method=args.method, profile=profile, drive=args.drive,
                                 resolution_m=args.resolution,
                                 vertical_scale_m=args.vertical_scale,
-                                crs_coords=args.crs_coords, nodata=args.nodata)
+                                crs_coords=args.crs_coords, nodata=args.nodata,
+                                band=args.band)
     except (InvalidQueryError, FileNotFoundError, ValueError) as exc:
         print(f"dgt plan: error: {exc}", file=sys.stderr)
         return 2
@@ -343,15 +345,45 @@ def _add_world_options(parser: argparse.ArgumentParser, vehicle_file: bool = Fal
     parser.add_argument("--method", default="dgt", choices=METHODS)
     parser.add_argument("--profile", type=_profile_arg, default=None,
                         metavar=PROFILE_METAVAR, help=PROFILE_HELP)
-    parser.add_argument("--resolution", type=float, default=0.4,
+    parser.add_argument("--resolution", type=_resolution_arg, default=0.4,
                         help="heightmap file: metres per pixel (default 0.4); a DEM is "
                              "resampled to the profile's worlds.hfield_resolution_m")
     parser.add_argument("--vertical-scale", type=float, default=None,
                         help="PNG heightmap: metres at the brightest pixel")
     parser.add_argument("--nodata", choices=("error", "crop"), default="error",
                         help="DEM no-data cells: an error, or keep the largest valid rectangle")
+    parser.add_argument("--band", type=_band_arg, default=None, metavar="N",
+                        help="DEM: the band that holds the heights (default 1; a file of "
+                             "several bands says which it read)")
     _add_set_option(parser)
     _device_arg(parser)
+
+
+def _band_arg(text: str) -> int:
+    """``--band``: a band number, 1 or more."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a band is a whole number from 1, got {text!r}")
+    return value
+
+
+def _resolution_arg(text: str) -> float:
+    """``--resolution``: a heightmap's metres per pixel, within
+    :data:`~dgt_lib.core.constraints.HEIGHTMAP_RESOLUTION_M`."""
+    from dgt_lib.core.constraints import HEIGHTMAP_RESOLUTION_M
+
+    low, high = HEIGHTMAP_RESOLUTION_M
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not low <= value <= high:
+        raise argparse.ArgumentTypeError(f"metres per pixel in [{low:g}, {high:g}], "
+                                         f"got {text!r}")
+    return value
 
 
 def _add_costmap(sub) -> None:
@@ -361,7 +393,8 @@ def _add_costmap(sub) -> None:
                                     "or map_server PGM + YAML files (--format nav2).")
     _add_world_options(cm)
     cm.add_argument("--out", required=True, metavar="FILE",
-                    help="the GeoTIFF; nav2: FILE_heading<k>/FILE_occupancy .pgm + .yaml")
+                    help="the GeoTIFF; nav2: FILE_heading<k>/FILE_occupancy .pgm + .yaml, "
+                         "or inside FILE when it is a directory (or ends in /)")
     cm.add_argument("--format", dest="fmt", choices=("geotiff", "nav2"), default="geotiff")
     cm.set_defaults(func=_costmap)
 

@@ -14,8 +14,9 @@ import sys
 from pathlib import Path
 
 from dgt_lib.core.config import Profile, as_profile
+from dgt_lib.core.outputs import check_output_path
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.mapping.export import write_geotiff, write_nav2
+from dgt_lib.mapping.export import nav2_stem, write_geotiff, write_nav2
 from dgt_lib.mapping.methods import METHODS
 from dgt_lib.plan_one import load_world, training_notice
 from dgt_lib.stages.costmaps import ensure_world_costmaps
@@ -29,11 +30,13 @@ FORMATS: tuple[str, ...] = ("geotiff", "nav2")
 def export_costmap(world: str | World, vehicle: str, out: str | Path, *, method: str = "dgt",
                    fmt: str = "geotiff", profile: Profile | str | None = None,
                    resolution_m: float = 0.4, vertical_scale_m: float | None = None,
-                   nodata: str = "error", progress: bool = True) -> list[Path]:
+                   nodata: str = "error", progress: bool = True,
+                   band: int | None = None) -> list[Path]:
     """Write ``method``'s K-heading costmap of ``vehicle`` on ``world`` (a kit world, a
     heightmap or DEM file: :func:`~dgt_lib.plan_one.load_world`) to ``out`` in ``fmt``
     (:data:`FORMATS`), georeferenced when the world came from a DEM. Returns the files
-    written (the GeoTIFF, or the YAML files)."""
+    written (the GeoTIFF, or the YAML files). ``out`` is checked before any work
+    (:func:`output_target`); ``band``: a DEM's band (:func:`~dgt_lib.world.dem.read_dem`)."""
     prof = as_profile(profile)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
@@ -42,27 +45,49 @@ def export_costmap(world: str | World, vehicle: str, out: str | Path, *, method:
     get_vehicle(vehicle)
     if fmt == "geotiff":
         import_rasterio()  # missing: a one-line error now, not after the costmap is built
+    target = output_target(out, fmt, f"{vehicle}_{method}",
+                           inputs=() if isinstance(world, World) else (world,))
     w, georef = load_world(world, prof, resolution_m=resolution_m,
-                           vertical_scale_m=vertical_scale_m, nodata=nodata)
+                           vertical_scale_m=vertical_scale_m, nodata=nodata, band=band)
     notice = training_notice(method, vehicle, prof)
     if progress and notice:
         print(notice, flush=True)
     maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
     cost = maps.costmap(method, vehicle)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     if fmt == "geotiff":
-        return [write_geotiff(out, cost, maps.occupancy, maps.grid, georef)]
-    return write_nav2(out, cost, maps.occupancy, maps.grid)
+        return [write_geotiff(target, cost, maps.occupancy, maps.grid, georef)]
+    return write_nav2(target, cost, maps.occupancy, maps.grid)
+
+
+def output_target(out: str | Path, fmt: str, name: str, *,
+                  inputs: tuple[str | Path, ...] = ()) -> Path:
+    """Where ``dgt costmap`` writes, checked before any work
+    (:func:`~dgt_lib.core.outputs.check_output_path`: a one-line
+    :class:`~dgt_lib.core.outputs.OutputPathError` for a directory that cannot take a
+    file, a directory given as the GeoTIFF, a name too long, ``out`` equal to an input).
+    A Nav2 ``out`` that is a directory (or ends in ``/``) gets its files inside it, named
+    ``<name>_heading<k>…``; every file of the set is checked by its longest name."""
+    if str(out).strip() == "":
+        return check_output_path(out)
+    if fmt == "geotiff":
+        return check_output_path(out, inputs=inputs)
+    stem = nav2_stem(out, name)
+    check_output_path(f"{stem}_occupancy.yaml", what="--out", inputs=inputs)
+    for k in (0, 99):  # the longest heading's name stands for every layer's
+        check_output_path(f"{stem}_heading{k}.yaml", what="--out", inputs=inputs)
+    return stem.with_name(stem.name + ".nav2")  # write_nav2 drops the suffix again
 
 
 def run_command(args: argparse.Namespace, profile: Profile) -> int:
     """``dgt costmap`` (its options: ``dgt costmap --help``): prints the files written;
     exit status 0, or 2 with a one-line error for a bad world, file, method or format."""
     try:
+        args.kept = (f"the cache's finished work; {args.out or '--out'} is its earlier file "
+                     "(or none) or the whole new one, never a part")
         paths = export_costmap(args.world, args.vehicle, args.out, method=args.method,
                                fmt=args.fmt, profile=profile, resolution_m=args.resolution,
-                               vertical_scale_m=args.vertical_scale, nodata=args.nodata)
+                               vertical_scale_m=args.vertical_scale, nodata=args.nodata,
+                               band=args.band)
     except (FileNotFoundError, ValueError) as exc:
         print(f"dgt costmap: error: {exc}", file=sys.stderr)
         return 2

@@ -27,6 +27,7 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile, as_profile, get_profile
 from dgt_lib.core.faults import is_storage_error, storage_message
 from dgt_lib.core.geometry import nearest_heading_bin
+from dgt_lib.core.outputs import bounded_name
 from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.evaluation.queries import classify_route
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
@@ -56,13 +57,14 @@ def resolve_world(world: str | World, profile: Profile, *, resolution_m: float =
 
 
 def load_world(world: str | World, profile: Profile, *, resolution_m: float = 0.4,
-               vertical_scale_m: float | None = None,
-               nodata: str = "error") -> tuple[World, Georeference | None]:
+               vertical_scale_m: float | None = None, nodata: str = "error",
+               band: int | None = None) -> tuple[World, Georeference | None]:
     """A :class:`World` and, for a DEM, its :class:`~dgt_lib.world.dem.Georeference`.
 
     A DEM (GeoTIFF ``.tif``, ESRI ASCII grid ``.asc``) is resampled to the profile's
     ``worlds.hfield_resolution_m`` (:func:`~dgt_lib.world.dem.load_dem`; ``nodata``: what
-    to do with its no-data cells); a ``.npy``/``.png`` heightmap has ``resolution_m``
+    to do with its no-data cells; ``band``: which band holds heights); a ``.npy``/``.png``
+    heightmap has ``resolution_m``
     [m/pixel] and no georeference, nor does a kit world or a World."""
     if isinstance(world, World):
         return world, None
@@ -73,7 +75,7 @@ def load_world(world: str | World, profile: Profile, *, resolution_m: float = 0.
         raise FileNotFoundError(f"{world!r} is neither a world ({', '.join(WORLD_NAMES)}) "
                                 "nor an existing .npy/.png heightmap or .tif/.asc DEM file")
     if is_dem_path(path):
-        return load_dem(path, profile.worlds.hfield_resolution_m, nodata=nodata)
+        return load_dem(path, profile.worlds.hfield_resolution_m, nodata=nodata, band=band)
     if path.suffix.lower() == ".npy" and not _is_npy(path):
         raise ValueError(f"{world} is not a NumPy heightmap: a .npy file starts with "
                          "NumPy's header (np.save writes one); this one does not")
@@ -280,7 +282,9 @@ def output_stem(world: World, vehicle: str | VehicleSpec, method: str, start, go
     heading, a start 0.3 m away, another heightmap of the same name, driven or not)
     never overwrite each other, and the same query replaces its own files; settings
     changed from the profile's add :func:`settings_tag`. A vehicle never driven is given
-    as its spec (two files of one name are two vehicles)."""
+    as its spec (two files of one name are two vehicles). The world's and vehicle's names
+    are cut to :func:`~dgt_lib.core.outputs.bounded_name`'s length, so the name fits any
+    file system (the hash tells long names apart)."""
     sx, sy, sth = (float(v) for v in start)
     gx, gy = (float(v) for v in tuple(goal)[:2])
     key = artifacts.config_hash({
@@ -289,8 +293,8 @@ def output_stem(world: World, vehicle: str | VehicleSpec, method: str, start, go
         "vehicle": vehicle, "method": method, "start": [sx, sy, sth], "goal": [gx, gy],
         "drive": bool(drive)})[:8]
     heading_deg = float(np.degrees(sth)) % 360.0
-    name = vehicle.name if isinstance(vehicle, VehicleSpec) else vehicle
-    return (f"{world.name}_{name}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
+    name = bounded_name(vehicle.name if isinstance(vehicle, VehicleSpec) else vehicle)
+    return (f"{bounded_name(world.name)}_{name}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
             f"{gx:.1f}_{gy:.1f}{'_driven' if drive else ''}_{key}{settings_tag(profile)}")
 
 
@@ -313,7 +317,8 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
                profile: Profile | str | None = None, drive: bool = False,
                resolution_m: float = 0.4, vertical_scale_m: float | None = None,
                out_dir: Path | None = None, progress: bool = True, crs_coords: bool = False,
-               nodata: str = "error", source: CostmapSource | None = None) -> QueryReport:
+               nodata: str = "error", source: CostmapSource | None = None,
+               band: int | None = None) -> QueryReport:
     """Plan (and optionally drive) one query; see the module docstring.
 
     start (x, y, yaw) [m, m, rad], goal (x, y) [m]. Raises
@@ -321,7 +326,9 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     or in an obstacle (the message names which) — found before any dataset or model is
     built (:func:`check_query`). With ``progress``, prints when a model must be trained.
     ``crs_coords``: start and goal x, y are in a DEM file's CRS (:func:`crs_to_local`);
-    ``nodata``: a DEM's no-data policy (:func:`load_world`). ``source``: the costmap of a
+    ``nodata``, ``band``: a DEM's no-data policy and band (:func:`load_world`). Driven, the
+    vehicle is tracked by the profile's controller (``experiments.controller``) with the
+    profile's seed, as a trial is (:func:`drive_query`). ``source``: the costmap of a
     vehicle that is not a named one (its spec, then, is the vehicle; ``vehicle`` is not
     read).
     """
@@ -331,7 +338,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     spec = source.spec if source else get_vehicle(vehicle)  # unknown: an error before any work
     vehicle = spec if source else spec.name
     w, georef = load_world(world, prof, resolution_m=resolution_m,
-                           vertical_scale_m=vertical_scale_m, nodata=nodata)
+                           vertical_scale_m=vertical_scale_m, nodata=nodata, band=band)
     start = tuple(float(v) for v in start)
     goal = tuple(float(v) for v in goal)[:2]
     if crs_coords:
@@ -365,21 +372,34 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
             raise
         report.not_written = storage_message(exc)
     if drive and result.success:
-        from dgt_lib.evaluation.trials import trial_time_limit_s  # imports MPPI: only to drive
-        from dgt_lib.navigation.drive import drive as drive_path
-
-        limit = trial_time_limit_s(prof.experiments, result.length_m)
-        outcome, traj, speed = drive_path(w, vehicle, result.path, goal,
-                                          occupancy=maps.occupancy, grid=maps.grid,
-                                          time_limit_s=limit,
-                                          mppi_batch_size=prof.experiments.mppi_batch_size)
-        report.outcome = outcome
+        report.outcome, traj, speed = drive_query(w, vehicle, result, goal, maps, cost, prof)
     else:
         traj = speed = None
     if report.not_written is None:
         report.recording = _recording(w, maps, cost, report, traj, speed,
                                       out_dir / f"{stem}.rrd", prof)
     return report
+
+
+def drive_query(world: World, vehicle: str | VehicleSpec, plan: PlanResult, goal, maps: WorldMaps,
+                cost: np.ndarray, profile: Profile) -> tuple[TrialOutcome, np.ndarray,
+                                                             np.ndarray]:
+    """Drive a found ``plan`` as a trial drives it: the profile's controller
+    (``experiments.controller``: paper, robust, or terrain reading ``cost``, the costmap
+    the plan was made on — :func:`~dgt_lib.evaluation.trials.trial_controller`), its seed
+    (``profile.seed``), its MPPI samples and time limit. Returns
+    :func:`~dgt_lib.navigation.drive.drive`'s (outcome, trajectory, speed)."""
+    from dgt_lib.evaluation.trials import (  # import MPPI: only to drive
+        trial_controller,
+        trial_time_limit_s,
+    )
+    from dgt_lib.navigation.drive import drive as drive_path
+
+    limit = trial_time_limit_s(profile.experiments, plan.length_m)
+    return drive_path(world, vehicle, plan.path, goal, occupancy=maps.occupancy,
+                      grid=maps.grid, time_limit_s=limit,
+                      mppi_batch_size=profile.experiments.mppi_batch_size, seed=profile.seed,
+                      **trial_controller(profile, cost))
 
 
 def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
@@ -391,8 +411,10 @@ def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
     from dgt_lib.viz.planner import plot_query
 
     fig = plot_query(world, maps, cost, report)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    try:
+        artifacts.write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -281,9 +281,10 @@ def test_set_changes_settings_for_every_stage_and_seed(capsys, tmp_path, monkeyp
     # out of range: refused before any stage, not stored as a run of failed trials
     ("planner.beta=-5", "planner.beta=-5.0 is not allowed: planner.beta must be a finite "
                         "number ≥ 0"),
-    ("train.epochs=0", "train.epochs=0 is not allowed: train.epochs must be an integer ≥ 1"),
+    ("train.epochs=0", "train.epochs=0 is not allowed: train.epochs must be an integer in "
+                       "[1, 10,000]"),
     ("train.batch_size=-1", "train.batch_size=-1 is not allowed"),
-    ("workers=0", "workers=0 is not allowed: workers must be an integer ≥ 1"),  # as --workers 0
+    ("workers=0", "workers=0 is not allowed: workers must be an integer in [1, 256]"),
 ])
 def test_a_bad_set_is_a_clear_error_before_anything_runs(capsys, tmp_path, monkeypatch,
                                                          setting, message):
@@ -421,3 +422,13 @@ def test_one_seed_alone_leaves_the_pooled_results_as_they_are(capsys, tmp_path, 
     assert pooled == [] and "pooled results were left as they were" in capsys.readouterr().out
     assert main(["reproduce", "--profile", "smoke", "--seeds", "2"]) == 0
     assert [[p.seed for p in runs] for runs in pooled] == [[0, 1]]
+
+
+@pytest.mark.parametrize("value", ["1e6", "0", "nan", "-1"])
+def test_a_heightmap_resolution_no_machine_can_map_is_refused_by_the_parser(capsys, value):
+    """--resolution 1e6 ended in "Unable to allocate 279 PiB" after the world was read."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["costmap", "--world", "x.npy", "--vehicle", "jeep", f"--resolution={value}",
+              "--out", "x.tif"])
+    assert exit_.value.code == 2
+    assert "metres per pixel in [0.001, 100]" in capsys.readouterr().err

@@ -123,7 +123,7 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
     ("collect.episodes", "1,2", "collect.episodes expects 4 integers separated by commas"),
     ("train.patience", "soon", "train.patience expects an integer or none"),
     ("planner.heuristic", 3, "planner.heuristic expects a string"),
-    ("seeds", "0", "seeds=0 is not allowed: seeds must be an integer ≥ 1"),
+    ("seeds", "0", "seeds=0 is not allowed: seeds must be an integer in [1, 1,000]"),
     # a choice is checked when set, not when training reaches it an hour later
     ("train.conv_taps", "half", "train.conv_taps=half: unknown conv_taps 'half'; valid: all, live"),
     ("train.lr_schedule", "step", "unknown lr_schedule 'step'; valid: constant, cosine"),
@@ -236,3 +236,38 @@ def test_a_pair_valid_together_is_accepted_in_either_order():
 def test_an_infinite_number_is_refused(value):
     with pytest.raises(InvalidOverrideError, match="planner.beta=inf|planner.beta=-inf"):
         get_profile("demo").with_overrides({"planner.beta": value})
+
+
+def _bounded() -> list[tuple[str, object]]:
+    """Each bounded setting with a value just above its bound (a pair for ``stride``)."""
+    from dgt_lib.core.constraints import BOUNDS
+
+    out = []
+    for name, rule in BOUNDS.items():
+        high = float(rule.allowed.split(", ")[-1].rstrip("])").replace(",", ""))
+        over = int(high) + 1 if "integer" in rule.allowed else high * 1.01
+        out.append((name, (over, 1) if name == "costmap.stride" else over))
+    return out
+
+
+@pytest.mark.parametrize("name, over", _bounded())
+def test_every_setting_that_multiplies_work_or_memory_has_an_upper_bound(name, over):
+    with pytest.raises(InvalidOverrideError, match=f"^{re.escape(name)}=.* is not allowed"):
+        get_profile("smoke").with_overrides({name: over})
+
+
+@pytest.mark.parametrize("setting, value", [
+    ("costmap.n_headings", 100_000), ("worlds.hfield_resolution_m", 1e-6), ("seed", 10**300),
+    ("workers", 10**6), ("seeds", 10**9), ("experiments.mppi_batch_size", 10**9),
+    ("worlds.training_seed", 2**63),
+])
+def test_values_that_could_never_fit_in_memory_are_refused_in_one_line(setting, value):
+    with pytest.raises(InvalidOverrideError) as err:
+        get_profile("smoke").with_overrides({setting: value})
+    assert "\n" not in str(err.value) and f"{setting} must be" in str(err.value)
+
+
+def test_a_world_of_more_height_cells_than_a_machine_holds_is_refused():
+    with pytest.raises(InvalidOverrideError, match="at most 16,000,000 height cells"):
+        get_profile("smoke").with_overrides({"worlds.training_size_m": 1500.0,
+                                             "worlds.hfield_resolution_m": 0.1})

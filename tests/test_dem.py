@@ -179,3 +179,76 @@ def test_crs_coords_on_a_plain_heightmap_is_a_usage_error(tmp_path, capsys):
     assert main(["plan", "--world", str(tmp_path / "flat.npy"), "--vehicle", "jeep", "--start",
                  "1,2,0", "--goal", "3,4", "--crs-coords", "--profile", "smoke"]) == 2
     assert "coordinates in the file's CRS need a DEM" in capsys.readouterr().err
+
+
+ASC_HEADER = "ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize {cell}\n"
+
+
+def _asc(tmp_path, rows: str, cell: str = "1", name: str = "g.asc"):
+    path = tmp_path / name
+    path.write_text(ASC_HEADER.format(cell=cell) + rows)
+    return path
+
+
+def test_a_malformed_asc_number_is_an_error_naming_the_file_and_line(tmp_path):
+    path = _asc(tmp_path, "1 2 3 4\n5 2x 7 8\n9 10 11 12\n")  # GDAL read 2x as 2, abc as 0
+    with pytest.raises(HeightmapError, match=r"g\.asc line 7: '2x' is not a number"):
+        read_dem(path, 0.5)
+    with pytest.raises(HeightmapError, match="holds 11 numbers; its header declares 3 × 4"):
+        read_dem(_asc(tmp_path, "1 2 3 4\n5 6 7 8\n9 10 11\n"), 0.5)
+
+
+def test_an_asc_with_cellsize_0_or_a_huge_declared_size_is_one_line_before_reading(tmp_path):
+    with pytest.raises(HeightmapError, match="cellsize 0 must be a finite number > 0"):
+        read_dem(_asc(tmp_path, "1 2 3 4\n5 6 7 8\n9 10 11 12\n", cell="0"), 0.5)
+    huge = tmp_path / "huge.asc"
+    huge.write_text("ncols 100000\nnrows 100000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n")
+    with pytest.raises(HeightmapError, match="declares 100000 × 100000 cells"):
+        read_dem(huge, 0.5)
+
+
+def test_a_dem_file_too_large_is_refused_from_its_header_before_any_cell_is_read(
+        tmp_path, monkeypatch):
+    from dgt_lib.world import dem
+
+    path = utm_dem(tmp_path)
+    monkeypatch.setattr(dem, "MAX_SOURCE_CELLS", N * N - 1)
+
+    def no_read(*args, **kwargs):
+        raise AssertionError("cells read before the size check")
+
+    monkeypatch.setattr(rasterio.io.DatasetReader, "read", no_read)
+    with pytest.raises(HeightmapError, match="crop or coarsen it first"):
+        read_dem(path, 1.0)
+
+
+def test_a_truncated_geotiff_is_one_line(tmp_path):
+    path = utm_dem(tmp_path)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(HeightmapError, match=r"cannot read .*utm\.tif as a DEM") as err:
+        read_dem(path, 1.0)
+    assert "\n" not in str(err.value)
+
+
+def test_a_multi_band_dem_says_which_band_it_read_and_band_selects_another(tmp_path):
+    path = tmp_path / "two.tif"
+    with rasterio.open(path, "w", driver="GTiff", height=N, width=N, count=2, dtype="float32",
+                       crs="EPSG:32631",
+                       transform=from_origin(500000.0, 5000060.0, 1.0, 1.0)) as dst:
+        dst.write(plane(), 1)
+        dst.write(plane() + 1000.0, 2)
+    said = []
+    first = read_dem(path, 1.0, log=said.append)
+    assert len(said) == 1 and "has 2 bands: reading heights from band 1" in said[0]
+    second = read_dem(path, 1.0, band=2, log=said.append)
+    assert len(said) == 1  # asked for: nothing to say
+    assert np.allclose(second.heights, first.heights + 1000.0)
+    with pytest.raises(HeightmapError, match="--band 3 is not one of them"):
+        read_dem(path, 1.0, band=3)
+
+
+def test_crs_coords_beyond_the_pole_are_one_line(tmp_path):
+    world, georef = load_dem(geo_dem(tmp_path), 0.4)
+    with pytest.raises(ValueError, match=r"\(2, 95\).*beyond ±90°|\(2, 95\).*cannot be conv"):
+        crs_to_local(georef, (2.0, 95.0, 0.0), (2.0002, 45.0002))

@@ -143,6 +143,15 @@ def test_dgt_costmap_on_a_tiny_dem(tmp_path, monkeypatch, capsys):
     assert main([*args, "--out", str(tmp_path / "nav2" / "jeep"), "--format", "nav2"]) == 0
     assert sorted(p.name for p in (tmp_path / "nav2").glob("*.yaml")) == [
         "jeep_cost.yaml", "jeep_occupancy.yaml"]
+    (tmp_path / "into").mkdir()  # a directory: the files go inside it, never beside it
+    assert main([*args, "--out", str(tmp_path / "into") + "/", "--format", "nav2"]) == 0
+    assert sorted(p.name for p in (tmp_path / "into").glob("*.yaml")) == [
+        "jeep_binary_cost.yaml", "jeep_binary_occupancy.yaml"]
+    assert not list(tmp_path.glob("into_*"))
+    before = (tmp_path / "dem.tif").read_bytes()  # --out the input DEM: refused, kept
+    assert main([*args, "--out", str(tmp_path / "." / "dem.tif")]) == 2
+    assert "also an input" in capsys.readouterr().err
+    assert (tmp_path / "dem.tif").read_bytes() == before
     assert main([*args[:2], str(tmp_path / "none.tif"), *args[3:], "--out", "x.tif"]) == 2
     assert "dgt costmap: error:" in capsys.readouterr().err
     # dgt plan on the same DEM (its maps cached now), start and goal in the file's CRS
@@ -163,3 +172,119 @@ def test_dgt_costmap_without_rasterio_says_which_extra_before_any_work(tmp_path,
                  "--method", "binary", "--profile", "smoke", "--out", "x.tif"]) == 2
     assert "pip install 'dgt-kit[geo]'" in capsys.readouterr().err
     assert not any((tmp_path / "data").rglob("*"))  # nothing was built
+
+
+WRITER = """
+import sys
+import numpy as np
+from dgt_lib.core.geometry import GridSpec
+from dgt_lib.mapping.export import write_geotiff
+k, h, w = 8, {side}, {side}
+grid = GridSpec((0.0, 0.0), 0.4, (h, w))
+occ = np.zeros((h, w), np.uint8)
+maps = [np.full((k, h, w), v, np.float32) for v in (0.25, 0.75)]
+for i in range({rounds}):
+    write_geotiff(sys.argv[1], maps[i % 2], occ, grid)
+    print("wrote", flush=True)
+"""
+
+
+def _whole(path) -> float:
+    """The one value of every cost band of a GeoTIFF the writer wrote; fails on a file cut
+    short, a band of another write, or any band missing."""
+    with rasterio.open(path) as src:
+        assert src.count == 9
+        bands = src.read()
+    assert (bands[-1] == 0).all()
+    values = np.unique(bands[:-1])
+    assert len(values) == 1 and values[0] in (0.25, 0.75), values
+    return float(values[0])
+
+
+def _writer(target, *, side: int = 700, rounds: int = 1000):
+    import subprocess
+
+    script = WRITER.format(side=side, rounds=rounds)
+    return subprocess.Popen([sys.executable, "-c", script, str(target)],
+                            stdout=subprocess.PIPE, text=True)
+
+
+@pytest.mark.parametrize("signum", ["SIGKILL", "SIGTERM"])
+def test_a_costmap_writer_killed_at_random_points_leaves_the_old_file_or_a_whole_new_one(
+        tmp_path, signum):
+    """A writer rewriting a 9-band GeoTIFF over and over is killed at random moments: the
+    target is always a whole file of one write (never zeros, never cut short)."""
+    import random
+    import signal
+    import time
+
+    target = tmp_path / "costmap.tif"
+    rng = random.Random(7)
+    for _ in range(3):
+        proc = _writer(target)
+        assert proc.stdout.readline().strip() == "wrote"
+        time.sleep(rng.uniform(0.0, 0.6))
+        proc.send_signal(getattr(signal, signum))
+        proc.wait(timeout=30)
+        _whole(target)
+
+
+def test_two_writers_of_one_path_never_mix_their_bands(tmp_path):
+    target = tmp_path / "costmap.tif"
+    procs = [_writer(target, side=300, rounds=6) for _ in range(2)]
+    for proc in procs:
+        proc.communicate(timeout=120)
+        assert proc.returncode == 0
+    _whole(target)
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
+
+
+@pytest.mark.parametrize("out, said", [
+    ("/proc/x/costmap.tif", "cannot write in /proc/x"),
+    ("", "--out is empty"),
+    ("{tmp}", "is a directory"),
+    ("{tmp}/" + "c" * 300 + ".tif", "bytes; at most"),
+    ("{tmp}/flat.npy", "also an input"),
+])
+def test_an_unwritable_out_is_one_line_before_any_work(tmp_path, monkeypatch, capsys, out,
+                                                       said):
+    from dgt_lib import costmap_export
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("costmaps built before --out was checked")
+
+    monkeypatch.setattr(costmap_export, "ensure_world_costmaps", no_work)
+    monkeypatch.setattr(costmap_export, "load_world", no_work)
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    np.save(tmp_path / "flat.npy", np.zeros((40, 40), np.float32))
+    assert main(["costmap", "--world", str(tmp_path / "flat.npy"), "--vehicle", "jeep",
+                 "--method", "binary", "--profile", "smoke",
+                 "--out", out.format(tmp=tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dgt costmap: error:") and said in err and err.count("\n") == 1
+
+
+def test_an_interrupted_costmap_says_the_out_file_is_the_old_or_the_whole_new_one(
+        tmp_path, monkeypatch, capsys):
+    from dgt_lib import costmap_export
+    from dgt_lib.core.faults import Terminated
+
+    def stopped(*args, **kwargs):
+        raise Terminated()
+
+    monkeypatch.setattr(costmap_export, "load_world", stopped)
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    out = tmp_path / "out.tif"
+    assert main(["costmap", "--world", "hill", "--vehicle", "jeep", "--profile", "smoke",
+                 "--out", str(out)]) == 143
+    err = capsys.readouterr().err
+    assert f"{out} is its earlier file (or none) or the whole new one" in err
+    assert "everything finished so far" not in err
+
+
+def test_nav2_out_that_is_a_directory_gets_the_files_inside(tmp_path):
+    cost, occ = synthetic()
+    (tmp_path / "maps").mkdir()
+    written = write_nav2(tmp_path / "maps", cost, occ, GRID)
+    assert {p.parent for p in written} == {tmp_path / "maps"}
+    assert written[0].name == "costmap_heading0.yaml"

@@ -311,3 +311,69 @@ def test_output_stem_of_the_profile_s_own_settings_is_unchanged():
     other = smoke.with_overrides({"planner.beta": 0})
     tagged = output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=other)
     assert tagged.startswith(stem + "_set-") and len(tagged) == len(stem) + 13
+
+
+@pytest.mark.parametrize("controller", ["paper", "robust", "terrain"])
+def test_dgt_plan_drive_drives_the_profile_s_controller_and_seed(data_dir, monkeypatch,
+                                                                 controller):
+    """--drive always drove the paper's MPPI with seed 0 whatever experiments.controller
+    said; now it drives what a trial would: the controller's settings, the profile's seed,
+    and for the terrain critic the costmap the plan was made on."""
+    from dgt_lib.navigation import drive as drive_module
+    from dgt_lib.navigation.control.profiles import controller_settings
+    from dgt_lib.plan_one import plan_query
+
+    seen = {}
+
+    def fake_drive(world, vehicle, path, goal, **kwargs):
+        seen.update(kwargs)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(drive_module, "drive", fake_drive)
+    profile = get_profile("smoke").with_overrides({"experiments.controller": controller,
+                                                   "seed": 5})
+    with pytest.raises(RuntimeError, match="stop here"):
+        plan_query(tiny_world(), "jeep", (8.0, 16.0, 0.0), (40.0, 16.0), method="binary",
+                   profile=profile, drive=True, progress=False)
+    assert seen["seed"] == 5
+    assert seen.get("mppi_settings", {}) == controller_settings(controller)
+    if controller == "terrain":
+        assert seen["costmap"].ndim == 3 and seen["costmap"].shape[1:] == (80, 120)
+    else:
+        assert "costmap" not in seen
+
+
+def test_robust_and_paper_controllers_give_different_first_commands_at_a_full_lock_start():
+    """The first command on a plan that turns at full lock at once: the paper's MPPI and
+    the robust one (biased samples, half the yaw-rate noise) answer differently, so the
+    controller --drive is handed is the one it drives."""
+    from dgt_lib.core.vehicles import get_vehicle
+    from dgt_lib.navigation.control.profiles import controller_settings
+    from dgt_lib.navigation.drive import drive
+
+    radius = get_vehicle("jeep").min_turn_radius_m
+    theta = np.linspace(0.0, np.pi, 40)  # a half circle: its end 7 m away
+    path = np.column_stack([20.0 + radius * np.sin(theta), 10.0 + radius * (1 - np.cos(theta)),
+                            theta])
+    first = {}
+    for name in ("paper", "robust"):
+        commands = []
+        drive(tiny_world(), "jeep", path, path[-1, :2], time_limit_s=0.5, mppi_batch_size=256,
+              seed=0, mppi_settings=controller_settings(name),
+              on_command=lambda state, v, steer, out=commands: out.append((v, steer)))
+        first[name] = commands[0]
+    assert first["paper"] != first["robust"]
+
+
+def test_a_long_vehicle_or_world_name_gives_a_file_name_that_fits(data_dir):
+    """A 210-character vehicle name lost the computed plan when its figure was saved."""
+    from dataclasses import replace
+
+    from dgt_lib.core.vehicles import get_vehicle
+    from dgt_lib.plan_one import output_stem
+
+    world = from_heightmap(np.zeros((40, 40), np.float32), RES, name="w" * 300)
+    stems = {output_stem(world, replace(get_vehicle("jeep"), name="v" * 209 + end), "dgt",
+                         (1, 2, 0), (3, 4)) for end in "ab"}
+    assert len(stems) == 2  # names that share their start stay apart
+    assert all(len(s.encode()) + len(".png.lock") < 255 for s in stems)

@@ -217,3 +217,29 @@ def test_reverse_speed_command():
                         duration_s=8.0)
     assert tr.speed_mps[-1] == pytest.approx(-2.0, abs=0.25)
     assert tr.position[-1, 0] < 50.0  # it went backwards (−x while facing +x)
+
+
+def test_mujoco_s_log_of_a_diverging_simulation_goes_to_the_data_directory(tmp_path):
+    """MuJoCo wrote MUJOCO_LOG.TXT into the current directory when a drive diverged."""
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "import mujoco, numpy as np\n"
+        "from dgt_lib.world.mujoco_model import build_model\n"
+        "from dgt_lib.world.worlds import from_heightmap\n"
+        "build_model(from_heightmap(np.zeros((40, 40), np.float32), 0.4), 'jeep')\n"
+        "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><freejoint/>"
+        "<geom size=\".1\"/></body></worldbody></mujoco>')\n"
+        "d = mujoco.MjData(m); d.qvel[:] = 1e300; mujoco.mj_step(m, d)\n")
+    cwd, data = tmp_path / "cwd", tmp_path / "data"
+    cwd.mkdir()
+    data.mkdir()
+    env = {**os.environ, "DGT_DATA_DIR": str(data),
+           "PYTHONPATH": os.pathsep.join(filter(None, [os.getcwd(),
+                                                       os.environ.get("PYTHONPATH")]))}
+    subprocess.run([sys.executable, "-c", script], cwd=cwd, env=env, check=True,
+                   capture_output=True, timeout=120)
+    assert not (cwd / "MUJOCO_LOG.TXT").exists()
+    assert "QVEL" in (data / "MUJOCO_LOG.TXT").read_text()

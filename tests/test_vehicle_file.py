@@ -157,3 +157,29 @@ def test_a_file_that_is_not_toml_or_not_there_names_itself(tmp_path):
         load_vehicle(bad)
     with pytest.raises(InvalidVehicleError, match="missing.toml: cannot read it"):
         load_vehicle(tmp_path / "missing.toml")
+
+
+def test_a_300_digit_integer_or_a_non_utf8_file_is_one_line_naming_the_file(tmp_path):
+    text = EXAMPLE.read_text(encoding="utf-8")
+    key = next(line.split("=")[0].strip() for line in text.splitlines()
+               if line.strip().startswith("wheelbase_m"))
+    huge = tmp_path / "huge.toml"
+    huge.write_text("\n".join(f"{key} = {'9' * 400}" if line.strip().startswith(key)
+                              else line for line in text.splitlines()), encoding="utf-8")
+    with pytest.raises(InvalidVehicleError) as err:
+        load_vehicle(huge)
+    assert str(err.value).startswith(f"{huge}: wheelbase_m = 999")
+    assert "too large" in str(err.value) and "9" * 61 not in str(err.value)
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b'name = "b\xff"\n')
+    with pytest.raises(InvalidVehicleError, match=f"^{latin}: not UTF-8 text"):
+        load_vehicle(latin)
+
+
+def test_a_field_of_the_wrong_type_names_the_file(tmp_path):
+    path = tmp_path / "typed.toml"
+    path.write_text(EXAMPLE.read_text(encoding="utf-8").replace(
+        "wheelbase_m = ", 'wheelbase_m = "long" #', 1), encoding="utf-8")
+    with pytest.raises(InvalidVehicleError, match=f"^{path}: wheelbase_m = 'long' has the "
+                                                  "wrong type"):
+        load_vehicle(path)

@@ -123,22 +123,28 @@ def new_file_mode() -> int:
 
 
 def _atomic_write(path: Path, write: Callable[[Path], None],
-                  needed_bytes: int | None = None) -> None:
-    """Write through ``write(tmp_path)`` then rename: a crash never leaves half a file.
-    The file gets :func:`new_file_mode` (the temporary file is private, 0o600, until then),
-    so others sharing the data directory can read it (docs/reliability.md). A full disk,
-    a read-only file system or a refused permission is an ``OSError`` naming ``path``
-    (not the temporary file) with ``needed_bytes`` when known
+                  needed_bytes: int | None = None, *, tmp_suffix: str = ".tmp") -> None:
+    """Write through ``write(tmp_path)``, flush it to disk (``fsync``), then rename it over
+    ``path`` and flush the directory: a crash, SIGKILL or power cut leaves the old file or
+    the whole new one, never half a file. The temporary file lies in ``path``'s directory
+    (a rename within one file system is atomic) and ends in ``tmp_suffix`` (for writers
+    that pick a format by the suffix). The file gets :func:`new_file_mode` (the temporary
+    file is private, 0o600, until then), so others sharing the data directory can read it
+    (docs/reliability.md). A full disk, a read-only file system or a refused permission is
+    an ``OSError`` naming ``path`` (not the temporary file) with ``needed_bytes`` when known
     (:func:`dgt_lib.core.faults.storage_message` says it in one line)."""
     tmp_path = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:80]}.",
+                                   suffix=tmp_suffix)
         os.close(fd)
         tmp_path = Path(tmp)
         write(tmp_path)
+        _fsync(tmp_path, os.O_RDONLY)
         os.chmod(tmp_path, new_file_mode())
         os.replace(tmp_path, path)
+        _fsync(path.parent, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError as exc:
         if exc.errno not in STORAGE_ERRNOS:
             raise
@@ -146,6 +152,30 @@ def _atomic_write(path: Path, write: Callable[[Path], None],
     finally:
         if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
+
+
+def _fsync(path: Path, flags: int) -> None:
+    """``fsync`` a file or directory by its path (a directory that refuses it is let be)."""
+    fd = os.open(path, flags)
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not path.is_dir():
+            raise
+    finally:
+        os.close(fd)
+
+
+def write_atomically(path: str | Path, write: Callable[[Path], None], *,
+                     tmp_suffix: str = ".tmp") -> Path:
+    """A file a user pointed the kit at (``dgt costmap --out``, ``dgt plan``'s figure),
+    written as the cache writes its artifacts: under :func:`build_lock` (two writers of one
+    path take turns, never mixing their bytes) through :func:`_atomic_write` (the target
+    holds the old file or the whole new one). Returns ``path``."""
+    path = Path(path)
+    with build_lock(path):
+        _atomic_write(path, write, tmp_suffix=tmp_suffix)
+    return path
 
 
 def _naming(exc: OSError, path: Path, needed_bytes: int | None = None) -> OSError:
@@ -341,7 +371,7 @@ def build_lock(path: Path) -> Iterator[None]:
         if fcntl is not None:
             fcntl.flock(fd, fcntl.LOCK_EX)  # released when fd is closed
         try:  # a lock file made earlier opens on a read-only file system: try a file
-            probe, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+            probe, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:80]}.",
                                            suffix=".probe")
         except OSError as exc:
             if exc.errno not in STORAGE_ERRNOS:

@@ -69,6 +69,18 @@ def between(low: float, high: float, *, high_open: bool = False) -> Rule:
                 f"in [{low:g}, {high:g}{end}", high if high_open else high + 1e-3)
 
 
+def count_up_to(high: int) -> Rule:
+    """An integer in [1, ``high``]: a count that multiplies work or memory (:data:`BOUNDS`)."""
+    return Rule(lambda v: isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= high,
+                f"an integer in [1, {high:,}]", 0)
+
+
+def within(low: float, high: float) -> Rule:
+    """A finite number in [``low``, ``high``] (a size or resolution: :data:`BOUNDS`)."""
+    return Rule(lambda v: _number(v) and low <= v <= high, f"in [{low:g}, {high:g}]",
+                low / 2 if low > 0 else low - 1)
+
+
 def above_up_to(low: float, high: float) -> Rule:
     """``low < value ≤ high``."""
     return Rule(lambda v: _number(v) and low < v <= high, f"in ({low:g}, {high:g}]", low)
@@ -100,9 +112,10 @@ def increasing_within(low: float, high: float) -> Rule:
 
 
 def episode_counts() -> Rule:
-    """Runs per vehicle: 4 integers ≥ 0, not all 0 (a vehicle may sit a collection out)."""
-    return Rule(lambda v: all(isinstance(x, int) and x >= 0 for x in v) and sum(v) > 0,
-                "4 integers ≥ 0, not all 0", (-1, 1, 1, 1))
+    """Runs per vehicle: 4 integers in [0, MAX_EPISODES], not all 0 (a vehicle may sit a
+    collection out)."""
+    return Rule(lambda v: all(isinstance(x, int) and 0 <= x <= MAX_EPISODES for x in v)
+                and sum(v) > 0, f"4 integers in [0, {MAX_EPISODES:,}], not all 0", (-1, 1, 1, 1))
 
 
 def distance_range() -> Rule:
@@ -113,12 +126,52 @@ def distance_range() -> Rule:
 
 COUNT, POSITIVE, NON_NEGATIVE = at_least(1, integer=True), above(0), at_least(0)
 MAX_GENERATED = 64  # generated training vehicles at most (each a head while training)
-SEED = at_least(0, integer=True)
+
+# Upper bounds, from what one machine (tens of GB of memory, tens of cores) holds; a value
+# past one fails in one line here instead of an "Unable to allocate 279 PiB" later:
+# - seeds: run seeds are seed … seed + seeds − 1 and trial i's is seed + i; everything
+#   stays below 2³¹ (the int32 some generators take) with MAX_SEED + 2 · 10⁶.
+# - a world is (size / resolution)² height cells and the BEV and costmaps grow with it:
+#   HFIELD_RESOLUTION_M ≥ 0.05 m, WORLD_SIZE_M ≤ 2 km and MAX_WORLD_CELLS (the cross rule)
+#   16 M cells (64 MB of float32 heights; × 8 headings × 4 B = 512 MB of costmap).
+# - n_headings ≤ 64: K layers × 16 M cells × 4 B = 4 GB at the largest world.
+# - counts of samples, trials, epochs, widths: 10–100× the paper profile's, where a run
+#   takes days; MPPI's samples × its horizon × the state (8 B each) stay below 1 GB.
+# - workers ≤ 256: each a process of about 300 MB (torch, MuJoCo), 77 GB in all.
+MAX_SEED = 2**31 - 2_000_000
+MAX_SEEDS = 1_000
+MAX_WORKERS = 256
+MAX_EPISODES = 10_000
+HFIELD_RESOLUTION_M = (0.05, 10.0)
+WORLD_SIZE_M = 2_000.0
+MAX_WORLD_CELLS = 16_000_000
+HEIGHTMAP_RESOLUTION_M = (1e-3, 100.0)
+"""``--resolution`` of a heightmap file [m/pixel] (``dgt plan``, ``dgt costmap``)."""
+SEED = Rule(lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= MAX_SEED,
+            f"an integer in [0, {MAX_SEED:,}]", -1)
+BOUNDS: dict[str, Rule] = {
+    "seeds": count_up_to(MAX_SEEDS), "workers": count_up_to(MAX_WORKERS),
+    "worlds.hfield_resolution_m": within(*HFIELD_RESOLUTION_M),
+    "worlds.training_size_m": above_up_to(0, WORLD_SIZE_M),
+    "worlds.eval_size_m": above_up_to(0, WORLD_SIZE_M),
+    "costmap.n_headings": count_up_to(64), "costmap.stride": each(count_up_to(64), 2),
+    "costmap.batch_size": count_up_to(1 << 16), "costmap.slope_trials": count_up_to(100_000),
+    "train.epochs": count_up_to(10_000), "train.batch_size": count_up_to(1 << 16),
+    "train.width": count_up_to(1024), "train.fc_hidden": count_up_to(8192),
+    "train.label_bins": count_up_to(1000), "planner.theta_bins": count_up_to(720),
+    "planner.max_expansions": count_up_to(100_000_000),
+    "experiments.n_hill": count_up_to(100_000), "experiments.n_ridge": count_up_to(100_000),
+    "experiments.n_eval_jeep": count_up_to(100_000),
+    "experiments.n_eval_vw_van": count_up_to(100_000),
+    "experiments.mppi_batch_size": count_up_to(100_000),
+    "ground_truth.cells": count_up_to(1_000_000),
+}
+"""The settings bounded above, each with its rule (its ``outside`` value is below it; the
+tests try ``high + 1`` too)."""
 
 SETTING_RULES: dict[str, Rule] = {
-    "seed": SEED, "seeds": COUNT, "workers": COUNT,
-    "worlds.training_size_m": POSITIVE, "worlds.eval_size_m": POSITIVE,
-    "worlds.hfield_resolution_m": POSITIVE, "worlds.training_seed": SEED,
+    "seed": SEED,
+    "worlds.training_seed": SEED,
     "worlds.eval_seed": SEED,
     "collect.episodes": episode_counts(), "collect.episode_duration_s": POSITIVE,
     "collect.speed_mps": POSITIVE, "collect.immobilized_limit_s": POSITIVE,
@@ -129,30 +182,27 @@ SETTING_RULES: dict[str, Rule] = {
     "collect.frame_spacing_m": POSITIVE, "collect.frame_max_depth_m": POSITIVE,
     "collect.patch_interval_s": POSITIVE, "collect.patch_start_s": NON_NEGATIVE,
     "collect.survey_altitude_m": POSITIVE, "collect.survey_overlap": between(0, 1, high_open=True),
-    "train.epochs": COUNT, "train.batch_size": COUNT, "train.learning_rate": POSITIVE,
-    "train.weight_decay": NON_NEGATIVE, "train.width": COUNT, "train.fc_hidden": COUNT,
+    "train.learning_rate": POSITIVE,
+    "train.weight_decay": NON_NEGATIVE,
     "train.patience": optional(COUNT), "train.head_init": one_of(*HEAD_INITS),
-    "train.label_weighting": one_of(*LABEL_WEIGHTINGS), "train.label_bins": COUNT,
+    "train.label_weighting": one_of(*LABEL_WEIGHTINGS),
     "train.max_label_weight": POSITIVE, "train.lr_schedule": one_of(*LR_SCHEDULES),
     "train.selection": one_of(*SELECTIONS), "train.conv_taps": one_of(*CONV_TAPS),
     "train.inputs": one_of(*INPUTS), "train.scarce_vehicle": one_of("none", *VEHICLES),
     "train.scarce_fraction": above_up_to(0, 1),
-    "costmap.n_headings": COUNT, "costmap.stride": each(COUNT, 2), "costmap.batch_size": COUNT,
-    "costmap.slope_trials": COUNT, "costmap.tau_s_margin": POSITIVE,
+    "costmap.tau_s_margin": POSITIVE,
     "planner.step_m": POSITIVE, "planner.beta": NON_NEGATIVE,
     "planner.heuristic": one_of("euclidean", "cost_to_go"),  # navigation's HEURISTICS
     "planner.heuristic_weight": at_least(1), "planner.goal_tolerance_m": POSITIVE,
-    "planner.goal_heading_tolerance_rad": above_up_to(0, math.pi), "planner.theta_bins": COUNT,
+    "planner.goal_heading_tolerance_rad": above_up_to(0, math.pi),
     "planner.closed_cell_m": POSITIVE, "planner.substep_m": POSITIVE,
     "planner.safety_margin_m": NON_NEGATIVE, "planner.shot_distance_m": NON_NEGATIVE,
-    "planner.max_expansions": COUNT, "planner.max_time_s": POSITIVE,
-    "experiments.n_hill": COUNT, "experiments.n_ridge": COUNT, "experiments.n_eval_jeep": COUNT,
-    "experiments.n_eval_vw_van": COUNT, "experiments.mppi_batch_size": COUNT,
+    "planner.max_time_s": POSITIVE,
     "experiments.start_jitter_m": NON_NEGATIVE, "experiments.heading_jitter_deg": between(0, 180),
     "experiments.eval_distance_m": distance_range(), "experiments.eval_min_hazard_m": NON_NEGATIVE,
     "experiments.time_limit_base_s": POSITIVE, "experiments.time_limit_factor": NON_NEGATIVE,
     "experiments.controller": one_of("paper", "robust", "terrain"),  # CONTROLLERS
-    "ground_truth.cells": COUNT, "ground_truth.run_up_m": NON_NEGATIVE,
+    "ground_truth.run_up_m": NON_NEGATIVE,
     "ground_truth.past_m": NON_NEGATIVE, "ground_truth.edge_margin_m": NON_NEGATIVE,
     "ground_truth.tree_clearance_m": NON_NEGATIVE, "ground_truth.max_slope_deg": above_up_to(0, 90),
     "ground_truth.slope_edges_deg": increasing_within(0, 90),
@@ -163,6 +213,7 @@ SETTING_RULES: dict[str, Rule] = {
     "conditioned.generated_vehicles": Rule(
         lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= MAX_GENERATED,
         f"an integer in [0, {MAX_GENERATED}]", MAX_GENERATED + 1),
+    **BOUNDS,  # the settings bounded above
 }
 """Every setting's allowed values, by dotted name (``dgt settings`` lists the names)."""
 
@@ -179,6 +230,11 @@ class CrossRule:
 
 
 CROSS_RULES: tuple[CrossRule, ...] = (
+    CrossRule(("worlds.training_size_m", "worlds.eval_size_m", "worlds.hfield_resolution_m"),
+              lambda p: (max(p.worlds.training_size_m, p.worlds.eval_size_m)
+                         / p.worlds.hfield_resolution_m) ** 2 <= MAX_WORLD_CELLS,
+              f"a world has at most {MAX_WORLD_CELLS:,} height cells ((size / resolution)²)",
+              {"worlds.training_size_m": 1000.0, "worlds.hfield_resolution_m": 0.1}),
     CrossRule(("planner.substep_m", "planner.step_m"),
               lambda p: p.planner.substep_m <= p.planner.step_m,
               "the collision-check spacing is at most one primitive",

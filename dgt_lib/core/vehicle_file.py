@@ -131,6 +131,9 @@ def load_vehicle(path: str | Path) -> VehicleSpec:
         raise InvalidVehicleError(f"{path}: not valid TOML: {e}") from None
     except OSError as e:
         raise InvalidVehicleError(f"{path}: cannot read it: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise InvalidVehicleError(f"{path}: not UTF-8 text (byte {e.start}): a vehicle file "
+                                  "is TOML, which is UTF-8") from None
     return parse_vehicle(data, str(path))
 
 

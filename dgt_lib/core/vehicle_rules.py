@@ -165,20 +165,32 @@ def fields_to_spec(f: Mapping[str, object]) -> VehicleSpec:
                        camera=camera)
 
 
-def _typed(name: str, value: object) -> object:
-    """``value`` as ``FIELD_TYPES[name]`` wants it, or :class:`InvalidVehicleError`."""
+def _typed(name: str, value: object, where: str = "vehicle") -> object:
+    """``value`` as ``FIELD_TYPES[name]`` wants it, or :class:`InvalidVehicleError` starting
+    with ``where`` (an integer too large for a float, 300 digits, is one too)."""
     kind = FIELD_TYPES[name]
     number = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if kind is float and number:
-        return float(value)
+    shown = _shown(value)
+    try:
+        if kind is float and number:
+            return float(value)
+        if kind is tuple and isinstance(value, (list, tuple)) and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+            return tuple(float(x) for x in value)
+    except OverflowError:
+        raise InvalidVehicleError(f"{where}: {name} = {shown} is too large for a number "
+                                  "of the kit (at most about 1.8e308)") from None
     if kind is str and isinstance(value, str):
         return value
-    if kind is tuple and isinstance(value, (list, tuple)) and all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
-        return tuple(float(x) for x in value)
     want = {float: "a number", str: "a string", tuple: "a list of numbers"}[kind]
-    raise InvalidVehicleError(f"{name} = {value!r} has the wrong type: {name} must be {want}, "
-                              f"not {type(value).__name__}")
+    raise InvalidVehicleError(f"{where}: {name} = {shown} has the wrong type: {name} must be "
+                              f"{want}, not {type(value).__name__}")
+
+
+def _shown(value: object, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters (a 300-digit integer stays one line)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit - 1]}…"
 
 
 def check_fields(f: Mapping[str, object], where: str = "vehicle") -> dict[str, object]:
@@ -194,9 +206,9 @@ def check_fields(f: Mapping[str, object], where: str = "vehicle") -> dict[str, o
     for name, rule in FIELD_RULES.items():
         if name not in f:
             raise InvalidVehicleError(f"{where}: missing required field {name!r}")
-        value = _typed(name, f[name])
+        value = _typed(name, f[name], where)
         if not rule.check(value):
-            raise InvalidVehicleError(f"{where}: {name} = {value!r} is impossible: "
+            raise InvalidVehicleError(f"{where}: {name} = {_shown(value)} is impossible: "
                                       f"{name} must be {rule.allowed}")
         out[name] = value
     for rule in CROSS_RULES:

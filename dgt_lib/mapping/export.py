@@ -16,14 +16,19 @@ cells lethal) and one for the occupancy (``mode: trinary``: free, occupied, unkn
 
 Rows are flipped on the way out: both formats put the north edge first, the kit's grids
 the south (docs/ARCHITECTURE.md → Conventions).
+
+Every file is written atomically under a lock (:func:`~dgt_lib.core.artifacts.write_atomically`):
+a writer killed half-way leaves the earlier file, and two writers of one path take turns.
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 
+from dgt_lib.core.artifacts import build_lock, write_atomically
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED
 from dgt_lib.world.dem import Georeference, import_rasterio
@@ -77,29 +82,34 @@ def write_geotiff(path: str | Path, cost: np.ndarray, occupancy: np.ndarray, gri
                "crs": None if georef is None else georef.crs}
     if np.isnan(bands).any():
         profile["nodata"] = float("nan")
-    with rasterio.open(path, "w", **profile) as dst:
-        dst.write(bands)
-        for k in range(k_layers):
-            dst.set_band_description(k + 1, heading_label(k, k_layers))
-            if k_layers > 1:
-                dst.update_tags(k + 1, heading_k=k, theta_deg=f"{360.0 * k / k_layers:.1f}")
-        dst.set_band_description(k_layers + 1, "occupancy 0=free 1=occupied 2=unobserved")
-        dst.update_tags(k_layers + 1, layer="occupancy")
-    return path
+
+    def write(tmp: Path) -> None:
+        with rasterio.open(tmp, "w", **profile) as dst:
+            dst.write(bands)
+            for k in range(k_layers):
+                dst.set_band_description(k + 1, heading_label(k, k_layers))
+                if k_layers > 1:
+                    dst.update_tags(k + 1, heading_k=k, theta_deg=f"{360.0 * k / k_layers:.1f}")
+            dst.set_band_description(k_layers + 1, "occupancy 0=free 1=occupied 2=unobserved")
+            dst.update_tags(k_layers + 1, layer="occupancy")
+
+    return write_atomically(path, write)
 
 
 def _write_pgm(path: Path, image: np.ndarray) -> None:
     """A binary greyscale PGM (P5, maxval 255) of a (H, W) uint8 image, row 0 at the top."""
     h, w = image.shape
-    path.write_bytes(f"P5\n{w} {h}\n255\n".encode("ascii") + np.ascontiguousarray(image).tobytes())
+    data = f"P5\n{w} {h}\n255\n".encode("ascii") + np.ascontiguousarray(image).tobytes()
+    write_atomically(path, lambda tmp: tmp.write_bytes(data))
 
 
 def _write_yaml(path: Path, image: Path, grid: GridSpec, mode: str,
                 thresholds: tuple[float, float]) -> None:
     x0, y0 = grid.origin_xy
-    path.write_text(f"image: {image.name}\nmode: {mode}\nresolution: {grid.resolution}\n"
+    text = (f"image: {image.name}\nmode: {mode}\nresolution: {grid.resolution}\n"
                     f"origin: [{x0}, {y0}, 0.0]\nnegate: 0\n"
                     f"occupied_thresh: {thresholds[0]}\nfree_thresh: {thresholds[1]}\n")
+    write_atomically(path, lambda tmp: tmp.write_text(text))
 
 
 def cost_to_pixels(cost: np.ndarray, occupancy: np.ndarray) -> np.ndarray:
@@ -123,10 +133,29 @@ def write_nav2(path: str | Path, cost: np.ndarray, occupancy: np.ndarray,
                grid: GridSpec) -> list[Path]:
     """map_server image + YAML pairs: ``<stem>_heading<k>.pgm/.yaml`` for each heading θ_k
     (``<stem>_cost`` for an isotropic costmap's one layer) and ``<stem>_occupancy.pgm/.yaml``,
-    beside ``path`` (its suffix is dropped). Returns the YAML files, headings first."""
+    beside ``path`` (its suffix is dropped), or inside ``path`` when it is a directory (or
+    ends in ``/``): ``path/costmap_heading<k>.pgm`` … Each file is written atomically, and
+    the whole set under one lock (``<stem>.nav2.lock``): two writers of one set take turns.
+    Returns the YAML files, headings first."""
     _check(cost, occupancy, grid)
-    path = Path(path)
-    stem = path.parent / path.stem
+    stem = nav2_stem(path)
+    with build_lock(stem.with_name(stem.name + ".nav2")):
+        return _write_nav2_files(stem, cost, occupancy, grid)
+
+
+def nav2_stem(path: str | Path, name: str = "costmap") -> Path:
+    """Where :func:`write_nav2` puts its files: ``path`` without its suffix, or
+    ``path/<name>`` when ``path`` is a directory or ends in a path separator."""
+    text = str(path)
+    if text.endswith(("/", os.sep)) or Path(text).is_dir():
+        return Path(text) / name
+    p = Path(text)
+    return p.parent / p.stem
+
+
+def _write_nav2_files(stem: Path, cost: np.ndarray, occupancy: np.ndarray,
+                      grid: GridSpec) -> list[Path]:
+    """:func:`write_nav2`'s files at ``stem`` (its lock held)."""
     written = []
     k_layers = cost.shape[0]
     layers = [(f"heading{k}" if k_layers > 1 else "cost", cost_to_pixels(cost[k], occupancy),

@@ -18,6 +18,8 @@ taken to be metres.
 from __future__ import annotations
 
 import math
+import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,6 +36,12 @@ MAX_DEM_CELLS = 4_000_000
 """Most height cells a DEM may become (2000 × 2000: 800 m × 800 m at 0.4 m): the BEV survey
 and the costmaps grow with the area, and a 30 m DEM tile resampled to 0.4 m would not fit
 in memory. A larger DEM is an error that says to crop it first."""
+
+MAX_SOURCE_CELLS = 64_000_000
+"""Most cells a DEM file may hold to be read (8000 × 8000): its band is read as float32
+(4 bytes a cell) with a mask and a NaN-filled copy, about 10 bytes a cell, 640 MB at this
+limit, which a laptop holds; a 20000² tile (4 GB as float64) is refused from its header,
+before any cell is read."""
 
 
 def import_rasterio():
@@ -65,7 +73,15 @@ class Georeference:
         if self.source_crs is not None and self.source_crs != self.crs:
             from rasterio.warp import transform
 
-            x, y = (np.asarray(v) for v in transform(self.source_crs, self.crs, x, y))
+            given = _pairs(x, y)
+            try:
+                x, y = (np.asarray(v) for v in transform(self.source_crs, self.crs, x, y))
+            except _gdal_errors() as exc:
+                raise ValueError(f"coordinates {given} cannot be converted from the DEM's "
+                                 f"CRS: {_one_line(exc)}") from None
+            if not (np.isfinite(x).all() and np.isfinite(y).all()):
+                raise ValueError(f"coordinates {given} lie outside where the DEM's CRS is "
+                                 "defined (a latitude beyond ±90°?)")
         return x - self.origin[0], y - self.origin[1]
 
 
@@ -122,55 +138,31 @@ def largest_valid_rectangle(valid: np.ndarray) -> tuple[slice, slice]:
     return best_box
 
 
-def read_dem(path: str | Path, resolution_m: float, *, nodata: str = "error") -> Dem:
+def read_dem(path: str | Path, resolution_m: float, *, nodata: str = "error",
+             band: int | None = None, log: Callable[[str], None] | None = None) -> Dem:
     """Read a GeoTIFF / ESRI ASCII DEM and resample it to ``resolution_m`` [m/cell] in a
-    metric CRS (module docstring). Raises :class:`HeightmapError` for a missing or
-    unreadable file, no-data cells under ``nodata="error"`` (naming how many), or a DEM
-    left with no valid cells."""
+    metric CRS (module docstring). ``band``: which band holds the heights (1-based; a file
+    of several bands without it uses band 1 and says so through ``log``, default stderr).
+    Raises :class:`HeightmapError` (one line naming the file) for a missing, unreadable or
+    truncated file, a malformed ``.asc`` number (naming its line), a grid too large to map
+    (said from the header, before any cell is read), no-data cells under
+    ``nodata="error"`` (naming how many), or a DEM left with no valid cells."""
     if nodata not in NODATA_POLICIES:
         raise ValueError(f"nodata must be one of {NODATA_POLICIES}, got {nodata!r}")
     rasterio = import_rasterio()
-    from rasterio.transform import Affine
-    from rasterio.warp import Resampling, calculate_default_transform, reproject
-
     p = Path(path)
     if not p.is_file():
         raise HeightmapError(f"DEM file not found: {p}")
+    if p.suffix.lower() == ".asc":
+        check_ascii_grid(p)
     try:
-        src = rasterio.open(p)
-    except rasterio.errors.RasterioIOError as exc:
-        raise HeightmapError(f"cannot read {p} as a DEM: {exc}") from None
-    with src:
-        band = src.read(1, masked=True).astype(np.float64)
-        invalid = np.ma.getmaskarray(band) | ~np.isfinite(band.filled(np.nan))
-        if nodata == "error" and invalid.any():
-            raise HeightmapError(
-                f"{p} has {int(invalid.sum())} no-data cells of {invalid.size}: fill them "
-                "(e.g. gdal_fillnodata.py) or keep the largest valid rectangle with "
-                "--nodata crop")
-        dst_crs = _metric_crs(src)
-        source = np.where(invalid, np.nan, band.filled(np.nan))
-        res = float(resolution_m)
-        if dst_crs is None:  # no CRS: the file's units, resampled on its own axes
-            b = src.bounds
-            width = max(1, round((b.right - b.left) / res))
-            height = max(1, round((b.top - b.bottom) / res))
-            dst_transform = Affine(res, 0.0, b.left, 0.0, -res, b.top)
-        else:
-            dst_transform, width, height = calculate_default_transform(
-                src.crs, dst_crs, src.width, src.height, *src.bounds, resolution=res)
-        if width * height > MAX_DEM_CELLS:
-            raise HeightmapError(
-                f"{p} covers {width * res:.0f} m × {height * res:.0f} m: {height} × {width} "
-                f"cells at {res} m, more than the {MAX_DEM_CELLS:,} the kit maps; crop it "
-                "to the area to plan in first (e.g. gdal_translate -projwin)")
-        out = np.full((height, width), np.nan, np.float64)
-        # without a CRS both sides share a stand-in one: GDAL then only resamples
-        crs = dst_crs if dst_crs is not None else "EPSG:3857"
-        reproject(source, out, src_transform=src.transform, src_crs=src.crs or crs,
-                  dst_transform=dst_transform, dst_crs=crs,
-                  src_nodata=np.nan, dst_nodata=np.nan, resampling=Resampling.bilinear)
-        source_crs = None if src.crs is None else src.crs.to_wkt()
+        with rasterio.open(p) as src:
+            index = _band(src, p, band, log)
+            grid = _target_grid(src, p, float(resolution_m))
+            out, source_crs = _resample(src, p, index, nodata, grid)
+    except _gdal_errors() as exc:
+        raise HeightmapError(f"cannot read {p} as a DEM: {_one_line(exc)}") from None
+    dst_crs, dst_transform, res = grid[0], grid[1], float(resolution_m)
     rows, cols = largest_valid_rectangle(np.isfinite(out))
     if rows.stop <= rows.start:
         raise HeightmapError(f"{p} has no valid height cells")
@@ -182,11 +174,176 @@ def read_dem(path: str | Path, resolution_m: float, *, nodata: str = "error") ->
                Georeference(crs_wkt, (float(west), float(south)), source_crs))
 
 
+def _gdal_errors() -> tuple[type[BaseException], ...]:
+    """What rasterio, GDAL and PROJ raise for a bad file or coordinate."""
+    import rasterio.errors
+
+    errors: tuple[type[BaseException], ...] = (rasterio.errors.RasterioError,
+                                               rasterio.errors.CRSError)
+    try:
+        from rasterio._err import CPLE_BaseError
+
+        errors += (CPLE_BaseError,)
+    except ImportError:  # another rasterio layout: its public errors still count
+        pass
+    return errors
+
+
+def _pairs(x: np.ndarray, y: np.ndarray) -> str:
+    return ", ".join(f"({a:g}, {b:g})" for a, b in zip(x, y, strict=True))
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _band(src, p: Path, band: int | None, log: Callable[[str], None] | None) -> int:
+    """The 1-based band to read; says which when the file has several and none was asked."""
+    if band is not None and not 1 <= band <= src.count:
+        raise HeightmapError(f"{p} has {src.count} band(s): --band {band} is not one of them")
+    if band is None and src.count > 1:
+        (log or _stderr)(f"[dgt] {p} has {src.count} bands: reading heights from band 1 "
+                         "(--band N reads another)")
+    return band or 1
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def _target_grid(src, p: Path, res: float):
+    """(metric CRS or None, transform, width, height) of the resampled grid, from the
+    header alone; :class:`HeightmapError` when it or the file's own grid is too large."""
+    from rasterio.transform import Affine
+    from rasterio.warp import calculate_default_transform
+
+    if src.width * src.height > MAX_SOURCE_CELLS:
+        raise HeightmapError(
+            f"{p} has {src.height} × {src.width} cells, more than the {MAX_SOURCE_CELLS:,} "
+            "the kit reads; crop or coarsen it first (e.g. gdal_translate -projwin, -tr)")
+    b = src.bounds
+    if not (b.right > b.left and b.top > b.bottom and all(map(math.isfinite, b))):
+        raise HeightmapError(f"{p} has no extent (bounds {tuple(b)}): check its cell size")
+    dst_crs = _metric_crs(src)
+    if dst_crs is None:  # no CRS: the file's units, resampled on its own axes
+        width = max(1, round((b.right - b.left) / res))
+        height = max(1, round((b.top - b.bottom) / res))
+        dst_transform = Affine(res, 0.0, b.left, 0.0, -res, b.top)
+    else:
+        dst_transform, width, height = calculate_default_transform(
+            src.crs, dst_crs, src.width, src.height, *src.bounds, resolution=res)
+    if width * height > MAX_DEM_CELLS:
+        raise HeightmapError(
+            f"{p} covers {width * res:.0f} m × {height * res:.0f} m: {height} × {width} "
+            f"cells at {res} m, more than the {MAX_DEM_CELLS:,} the kit maps; crop it "
+            "to the area to plan in first (e.g. gdal_translate -projwin)")
+    return dst_crs, dst_transform, width, height
+
+
+def _resample(src, p: Path, index: int, nodata: str, grid) -> tuple[np.ndarray, str | None]:
+    """Band ``index`` read (float32), checked for no-data, resampled onto ``grid``
+    (:func:`_target_grid`): the (H, W) float64 heights, NaN outside the DEM, and the
+    file's CRS as WKT."""
+    from rasterio.warp import Resampling, reproject
+
+    dst_crs, dst_transform, width, height = grid
+    band = src.read(index, masked=True).astype(np.float32)
+    invalid = np.ma.getmaskarray(band) | ~np.isfinite(band.filled(np.nan))
+    if nodata == "error" and invalid.any():
+        raise HeightmapError(
+            f"{p} has {int(invalid.sum())} no-data cells of {invalid.size}: fill them "
+            "(e.g. gdal_fillnodata.py) or keep the largest valid rectangle with "
+            "--nodata crop")
+    source = np.where(invalid, np.float32(np.nan), band.filled(np.nan))
+    out = np.full((height, width), np.nan, np.float64)
+    # without a CRS both sides share a stand-in one: GDAL then only resamples
+    crs = dst_crs if dst_crs is not None else "EPSG:3857"
+    reproject(source, out, src_transform=src.transform, src_crs=src.crs or crs,
+              dst_transform=dst_transform, dst_crs=crs,
+              src_nodata=np.nan, dst_nodata=np.nan, resampling=Resampling.bilinear)
+    return out, None if src.crs is None else src.crs.to_wkt()
+
+
+ASCII_HEADER_KEYS: tuple[str, ...] = ("ncols", "nrows", "xllcorner", "xllcenter", "yllcorner",
+                                      "yllcenter", "cellsize", "dx", "dy", "nodata_value")
+
+
+def check_ascii_grid(p: Path) -> None:
+    """Read an ESRI ASCII grid strictly before GDAL does (GDAL reads ``2x`` as 2 and ``abc``
+    as 0): a positive whole ``ncols``/``nrows`` within :data:`MAX_SOURCE_CELLS`, a finite
+    cell size > 0, and exactly ``nrows`` × ``ncols`` numbers; else :class:`HeightmapError`
+    naming the file and the line."""
+    header: dict[str, str] = {}
+    try:
+        with open(p, encoding="ascii", errors="strict") as f:
+            line_no, line = _ascii_header(f, p, header)
+            ncols, nrows = _ascii_size(p, header)
+            count = 0
+            while line:
+                values = line.split()
+                try:
+                    np.array(values, dtype=np.float64)
+                except ValueError:
+                    bad = next(v for v in values if not _is_number(v))
+                    raise HeightmapError(f"{p} line {line_no}: {bad[:40]!r} is not a "
+                                         "number") from None
+                count += len(values)
+                line, line_no = f.readline(), line_no + 1
+    except UnicodeDecodeError as exc:
+        raise HeightmapError(f"{p} is not an ESRI ASCII grid: byte {exc.start} is not "
+                             "ASCII text") from None
+    if count != ncols * nrows:
+        raise HeightmapError(f"{p} holds {count} numbers; its header declares "
+                             f"{nrows} × {ncols} = {nrows * ncols}")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _ascii_header(f, p: Path, header: dict[str, str]) -> tuple[int, str]:
+    """The header's ``key value`` lines into ``header``; (number, text) of the first
+    line of numbers."""
+    line_no, line = 1, f.readline()
+    while line:
+        parts = line.split()
+        if parts and parts[0].lower() in ASCII_HEADER_KEYS:
+            if len(parts) != 2:
+                raise HeightmapError(f"{p} line {line_no}: a header line is `key value`, "
+                                     f"got {line.strip()[:60]!r}")
+            header[parts[0].lower()] = parts[1]
+        elif parts:
+            break
+        line, line_no = f.readline(), line_no + 1
+    return line_no, line
+
+
+def _ascii_size(p: Path, header: dict[str, str]) -> tuple[int, int]:
+    """(ncols, nrows) of a parsed header, checked with its cell size."""
+    try:
+        ncols, nrows = int(header["ncols"]), int(header["nrows"])
+        cell = float(header.get("cellsize", header.get("dx", "nan")))
+    except (KeyError, ValueError) as exc:
+        raise HeightmapError(f"{p}: its header needs whole ncols and nrows and a cell size "
+                             f"({_one_line(exc)})") from None
+    if ncols < 1 or nrows < 1 or ncols * nrows > MAX_SOURCE_CELLS:
+        raise HeightmapError(f"{p} declares {nrows} × {ncols} cells: from 1 to "
+                             f"{MAX_SOURCE_CELLS:,} cells can be read")
+    if not (math.isfinite(cell) and cell > 0):
+        raise HeightmapError(f"{p}: cellsize {header.get('cellsize', header.get('dx'))} "
+                             "must be a finite number > 0")
+    return ncols, nrows
+
+
 def load_dem(path: str | Path, resolution_m: float, *, nodata: str = "error",
-             name: str | None = None) -> tuple[World, Georeference]:
+             name: str | None = None, band: int | None = None) -> tuple[World, Georeference]:
     """A :class:`World` from a DEM file (:func:`read_dem` → :func:`from_heightmap`) and the
     :class:`Georeference` that places it on Earth."""
-    dem = read_dem(path, resolution_m, nodata=nodata)
+    dem = read_dem(path, resolution_m, nodata=nodata, band=band)
     world = from_heightmap(dem.heights, dem.resolution, name=name or Path(path).stem)
     return world, dem.georef
 

@@ -10,12 +10,17 @@ Physics runs at 8 ms (implicitfast, pyramidal friction cones). The onboard camer
 
 from __future__ import annotations
 
+import contextlib
 import math
+import sys
+import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco  # dgt_lib/__init__.py has set MUJOCO_GL=egl before this import
 import numpy as np
 
+from dgt_lib.core.artifacts import data_root
 from dgt_lib.core.camera import CameraIntrinsics
 from dgt_lib.core.vehicles import GRAVITY_MPS2, VehicleSpec, get_vehicle
 from dgt_lib.world.worlds import World
@@ -220,9 +225,37 @@ def _add_wheel(spec: mujoco.MjSpec, chassis, v: VehicleSpec, name: str,
                           forcerange=[-t, t], forcelimited=1)
 
 
+MUJOCO_LOG_NAME = "MUJOCO_LOG.TXT"
+
+
+def route_mujoco_log() -> Path:
+    """Send MuJoCo's warning log (``MUJOCO_LOG.TXT``: a diverging simulation, "Nan, Inf or
+    huge value in QACC") to the data directory, ``$DGT_DATA_DIR`` (or ``data/``), instead
+    of the current directory MuJoCo writes it to by default; the warning is still printed.
+    :func:`build_model` sets it in each process that builds a model (pool workers too)."""
+    target = data_root() / MUJOCO_LOG_NAME
+    config_type = getattr(mujoco, "MjLogConfig", None)
+    if config_type is not None:  # newer MuJoCo: its own log file setting
+        config = config_type.get()
+        if config.logfile != str(target):
+            config.logfile = str(target)
+            config.set()
+        return target
+
+    def warn(message: str) -> None:  # older MuJoCo: the warning hook, written here
+        print(f"WARNING: {message}", file=sys.stderr)
+        with contextlib.suppress(OSError), open(target, "a", encoding="utf-8") as f:
+            f.write(f"WARNING {time.ctime()}: {message}\n")
+
+    mujoco.set_mju_user_warning(warn)
+    return target
+
+
 def build_model(world: World, vehicle: str | VehicleSpec) -> mujoco.MjModel:
     """Compile the MuJoCo model of ``world`` with ``vehicle`` on it (8 ms steps,
-    implicitfast, pyramidal friction cones, rendering shadows/reflections off)."""
+    implicitfast, pyramidal friction cones, rendering shadows/reflections off); MuJoCo's
+    log goes to the data directory (:func:`route_mujoco_log`)."""
+    route_mujoco_log()
     v = get_vehicle(vehicle)
     spec = mujoco.MjSpec()
     spec.compiler.degree = False
