@@ -52,7 +52,7 @@ def _results(cited: Sequence[Run], _every, _root: Path) -> str:
 
 
 def _claims(cited: Sequence[Run], _every, _root: Path) -> str:
-    return tables.claims_table(cited)
+    return "Checked over:\n\n" + _captions(cited, "docs/") + "\n" + tables.claims_table(cited)
 
 
 def _bottom_line(cited: Sequence[Run], _every, _root: Path) -> str:
