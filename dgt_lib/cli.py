@@ -212,11 +212,16 @@ def _stages(_: argparse.Namespace) -> int:
 
 def _settings(args: argparse.Namespace) -> int:
     profile = _profile(args)
-    rows = settings_table(profile)  # every name --set accepts, its type, the profile's value
+    from dgt_lib.core.constraints import SETTING_RULES
+
+    # every name --set accepts, its type, the profile's value, and what it may be
+    rows = [(*row, SETTING_RULES[row[0]].allowed if row[0] in SETTING_RULES else "")
+            for row in settings_table(profile)]
     print(f"Settings of profile {profile.describe()} (change one with --set NAME=VALUE):")
-    widths = [max(len(r[i]) for r in rows) for i in range(2)]
-    for name, kind, value in rows:
-        print(f"  {name:<{widths[0]}}  {kind:<{widths[1]}}  {value}")
+    widths = [max(len(r[i]) for r in rows) for i in range(3)]
+    for name, kind, value, allowed in rows:
+        print(f"  {name:<{widths[0]}}  {kind:<{widths[1]}}  {value:<{widths[2]}}  {allowed}"
+              .rstrip())
     return 0
 
 

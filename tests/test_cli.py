@@ -373,7 +373,8 @@ def test_plan_takes_only_the_four_vehicles(capsys):
     assert all(v in err for v in ("jeep", "vw_van", "mercedes_van", "carla_cola"))
 
 
-def test_settings_lists_every_name_set_takes_with_its_type_and_the_profile_s_value(capsys):
+def test_settings_lists_every_name_set_takes_with_its_type_value_and_allowed_range(capsys):
+    import re
     from dataclasses import replace
 
     from dgt_lib.core.config import Profile, get_profile
@@ -381,20 +382,21 @@ def test_settings_lists_every_name_set_takes_with_its_type_and_the_profile_s_val
 
     assert main(["settings", "--profile", "demo"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    rows = {line.split()[0]: line.split(None, 1)[1] for line in lines[1:]}
-    assert list(rows) == setting_names(Profile)  # every name, nothing else
-    assert rows["planner.beta"].split() == ["float", "150.0"]
-    assert rows["costmap.stride"].split() == ["tuple[int,", "int]", "4,2"]  # demo's, not (6, 3)
-    assert rows["train.patience"].split()[:3] == ["int", "|", "None"]
+    cols = {c[0]: c[1:] for c in (re.split(r"\s{2,}", line.strip()) for line in lines[1:])}
+    assert list(cols) == setting_names(Profile)  # every name, nothing else
+    assert cols["planner.beta"][:2] == ["float", "150.0"]
+    assert cols["costmap.stride"][:2] == ["tuple[int, int]", "4,2"]  # demo's, not (6, 3)
+    assert cols["train.patience"][0].startswith("int | None")
+    assert cols["costmap.n_headings"][2].startswith("an integer in [")  # its bound, shown
     # what it prints is what --set takes: typed back, every value gives demo itself
     demo = get_profile("demo")
-    typed = {name: text.rsplit(None, 1)[1] for name, text in rows.items()}
+    typed = {name: c[1] for name, c in cols.items()}
     assert replace(demo.with_overrides(typed), overrides=()) == demo
     assert main(["settings", "--profile", "smoke", "--set", "planner.beta=50"]) == 0
     out = capsys.readouterr().out
     assert "with planner.beta=50.0" in out.splitlines()[0]
-    assert next(line for line in out.splitlines()[1:]
-                if line.split()[0] == "planner.beta").endswith(" 50.0")
+    assert re.split(r"\s{2,}", next(line for line in out.splitlines()[1:]
+                                    if line.split()[0] == "planner.beta").strip())[2] == "50.0"
 
 
 def test_seed_runs_that_one_seed_alone(capsys, tmp_path, two_stages):
