@@ -252,3 +252,19 @@ def test_crs_coords_beyond_the_pole_are_one_line(tmp_path):
     world, georef = load_dem(geo_dem(tmp_path), 0.4)
     with pytest.raises(ValueError, match=r"\(2, 95\).*beyond ±90°|\(2, 95\).*cannot be conv"):
         crs_to_local(georef, (2.0, 95.0, 0.0), (2.0002, 45.0002))
+
+
+def test_a_dem_coarser_than_a_vehicle_says_so_once_and_a_fine_one_says_nothing(tmp_path):
+    said = []
+    read_dem(utm_dem(tmp_path), 0.4, log=said.append)  # 1 m cells: fine
+    assert said == []
+    coarse = write_dem(tmp_path / "coarse.tif", plane(), crs="EPSG:32631",
+                       transform=from_origin(500000.0, 5001800.0, 30.0, 30.0))
+    read_dem(coarse, 5.0, log=said.append)
+    assert len(said) == 1 and "cells are 30 m across, coarser than a vehicle" in said[0]
+    assert "planar facets 30 m wide" in said[0]
+    said.clear()
+    degrees = write_dem(tmp_path / "srtm.tif", plane(), crs="EPSG:4326",
+                        transform=from_origin(2.0, 45.05, 1 / 1200, 1 / 1200))  # 3 arc-seconds
+    read_dem(degrees, 5.0, log=said.append)
+    assert len(said) == 1 and "coarser than a vehicle" in said[0]

@@ -159,6 +159,7 @@ def read_dem(path: str | Path, resolution_m: float, *, nodata: str = "error",
         with rasterio.open(p) as src:
             index = _band(src, p, band, log)
             grid = _target_grid(src, p, float(resolution_m))
+            _say_if_coarse(src, p, grid[0], log)
             out, source_crs = _resample(src, p, index, nodata, grid)
     except _gdal_errors() as exc:
         raise HeightmapError(f"cannot read {p} as a DEM: {_one_line(exc)}") from None
@@ -238,6 +239,33 @@ def _target_grid(src, p: Path, res: float):
             f"cells at {res} m, more than the {MAX_DEM_CELLS:,} the kit maps; crop it "
             "to the area to plan in first (e.g. gdal_translate -projwin)")
     return dst_crs, dst_transform, width, height
+
+
+COARSE_DEM_M = 5.0
+"""A DEM cell wider than this [m] is coarser than a vehicle: said once when it is read."""
+
+
+def native_cell_m(src, dst_crs) -> float:
+    """The file's own cell size in the metric CRS it is mapped in [m] (in its own units
+    without a CRS): the width of the planar facets resampling draws between its samples."""
+    if dst_crs is None:
+        return float(abs(src.res[0]))
+    from rasterio.warp import calculate_default_transform
+
+    transform, _, _ = calculate_default_transform(src.crs, dst_crs, src.width, src.height,
+                                                  *src.bounds)
+    return float(abs(transform.a))
+
+
+def _say_if_coarse(src, p: Path, dst_crs, log: Callable[[str], None] | None) -> None:
+    """One line when the DEM's cells are coarser than a vehicle (:data:`COARSE_DEM_M`)."""
+    cell = native_cell_m(src, dst_crs)
+    if cell > COARSE_DEM_M:
+        (log or _stderr)(
+            f"[dgt] {p}: its cells are {cell:.0f} m across, coarser than a vehicle: resampled, "
+            f"the terrain is planar facets {cell:.0f} m wide with slope steps at their edges, "
+            "so costs and plans follow those facets, not relief smaller than them; a DEM of "
+            f"a few metres or finer (lidar) shows what a vehicle meets")
 
 
 def _resample(src, p: Path, index: int, nodata: str, grid) -> tuple[np.ndarray, str | None]:
