@@ -52,3 +52,73 @@ def test_the_first_cell_that_builds_on_a_cold_cache_warns_of_the_time(stem):
     above = "".join(cells[first - 1]["source"])
     assert cells[first - 1]["cell_type"] == "markdown" and "*Time.*" in above
     assert "smoke" in above and "DGT_PROFILE=smoke" in above and " s " in above
+
+
+# ----------------------------------------------------------------------------- links
+ROOT = NOTEBOOKS[0].parent.parent
+LINK = re.compile(r"(?<!!)\[([^\]]*)\]\(([^)\s]+)\)")
+CODE_SPAN = re.compile(r"```.*?```|`[^`\n]*`", re.DOTALL)
+
+
+def _markdown(path):
+    return [(i, "".join(c["source"])) for i, c in enumerate(json.loads(path.read_text())["cells"])
+            if c["cell_type"] == "markdown"]
+
+
+def github_slugs(markdown_text):
+    """The anchors GitHub gives a Markdown file's headings: lower case, punctuation dropped,
+    spaces to hyphens, a repeated slug numbered -1, -2, …"""
+    slugs, seen = set(), {}
+    in_fence = False
+    for line in markdown_text.splitlines():
+        if line.startswith("```"):
+            in_fence = not in_fence
+        m = None if in_fence else re.match(r"#{1,6}\s+(.*?)\s*#*\s*$", line)
+        if not m:
+            continue
+        text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", m.group(1))
+        slug = re.sub(r"[^\w\- ]", "", text.lower()).replace(" ", "-")
+        n = seen.get(slug, 0)
+        seen[slug] = n + 1
+        slugs.add(slug if n == 0 else f"{slug}-{n}")
+    return slugs
+
+
+def test_github_slugs_follow_githubs_rule():
+    text = "# Speed\n## The `paper` run\n## Why MPPI crawls\n## Why MPPI crawls\n" \
+           "## `demo` profile, 3 seeds\n```\n# not a heading\n```\n"
+    assert github_slugs(text) == {"speed", "the-paper-run", "why-mppi-crawls",
+                                  "why-mppi-crawls-1", "demo-profile-3-seeds"}
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_link_to_a_file_of_the_repository_resolves(path):
+    broken = []
+    for i, text in _markdown(path):
+        for _, target in LINK.findall(CODE_SPAN.sub("", text)):
+            if re.match(r"[a-z]+:", target):  # https:, mailto:
+                continue
+            file, _, anchor = target.partition("#")
+            resolved = (path.parent / file).resolve() if file else path
+            if not resolved.exists():
+                broken.append(f"cell {i}: {target} (no such file)")
+            elif anchor and resolved.suffix == ".md" and \
+                    anchor not in github_slugs(resolved.read_text()):
+                broken.append(f"cell {i}: {target} (no such heading)")
+    assert not broken, "broken links: " + "; ".join(broken)
+
+
+POINTERS_PENDING = {"07_experiment2_ridge"}
+"""Notebooks whose "(README)" pointers are rewritten with their own next change."""
+
+
+@pytest.mark.parametrize("path", [
+    pytest.param(p, marks=pytest.mark.xfail(reason="its pointers change with its next edit"))
+    if p.stem in POINTERS_PENDING else p for p in NOTEBOOKS], ids=lambda p: p.name)
+def test_numbers_are_pointed_to_by_a_link_to_the_page_that_has_them(path):
+    """No "(README)" or "see the README": a pointer names the page that holds the number,
+    as a link (README.md's own sections are linked like any other page)."""
+    bare = [f"cell {i}: …{m.string[max(0, m.start() - 60):m.end() + 20]}…"
+            for i, text in _markdown(path)
+            for m in re.finditer(r"\bREADME\b", CODE_SPAN.sub("", LINK.sub("", text)))]
+    assert not bare, "point to the page by a link, not to 'the README': " + "; ".join(bare)
