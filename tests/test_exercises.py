@@ -345,3 +345,9 @@ def test_no_notebook_shows_an_exercises_answer_before_its_check(name):
                 early += [f"{path.stem} cell {i}: {e}" for e in SHOWN_SOURCE.findall(text)
                           if _shows(e, names)]
     assert not early, f"{name}'s answer shown before its check: " + "; ".join(early)
+
+
+def test_the_notebooks_readme_lists_every_exercise_with_its_notebook():
+    text = (NOTEBOOKS / "README.md").read_text()
+    rows = {name: number for number, name in re.findall(r"^\| (\d\d\w?) \| `(\w+)`", text, re.M)}
+    assert rows == {name: ex.notebook.split("_")[0] for name, ex in EXERCISES.items()}
