@@ -145,3 +145,40 @@ def test_every_notebook_ends_with_its_takeaways_and_the_numbers_they_rest_on(pat
     assert len(after) <= 1 and all(c["cell_type"] == "code" for c in after)
     if after:
         assert "print(" in "".join(after[0]["source"]), "print the run's numbers"
+
+
+# ----------------------------------------------------------------------------- time warnings
+SLOW = {
+    "03_multitask_training": ("f0fe47ec", "420cc795"),  # trains five models; four widths
+    "04_directional_inference": ("06d5dcb1",),  # the literal procedure
+    "04b_beyond_fast_inference": ("b-reference", "b-561fadcc", "b-635151f8"),  # literal; trains
+    "05_hybrid_astar": ("13b54ba7",),  # compiles the planner's kernels on a fresh install
+    "06_experiment1_hill": ("61184f17",),  # every trial of Experiment 1
+    "07_experiment2_ridge": ("3803fe13",),
+    "08_experiment3_multitask": ("00ae3a50",),
+    "09_costmap_accuracy": ("c10", "c12", "c17"),  # ground truth, costmaps, scores
+    "10_incremental_mapping": ("incr-03",),  # a jeep explores with a camera
+}
+"""Cells that can run past 30 s on a `demo` cache (cold or warm) besides each notebook's
+first cell that builds on a cold cache."""
+WARNING = re.compile(r"\*Time[.:]\*|⏱")
+DURATION = re.compile(r"\d+ (?:s|min)\b")
+
+
+def _needs_warning(cells, stem):
+    first = [i for i, c in enumerate(cells)
+             if c["cell_type"] == "code" and HEAVY.search("".join(c["source"]))][:1]
+    ids = [c.get("id") for c in cells]
+    return sorted({*first, *(ids.index(cid) for cid in SLOW.get(stem, ()))})
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_cell_that_can_take_more_than_30_s_on_demo_warns_of_the_time(path):
+    cells = json.loads(path.read_text())["cells"]
+    unwarned = []
+    for i in _needs_warning(cells, path.stem):
+        above = "".join(cells[i - 1]["source"]) if cells[i - 1]["cell_type"] == "markdown" else ""
+        if not (WARNING.search(above) and "demo" in above and DURATION.search(above)):
+            unwarned.append(f"cell {i} ({cells[i].get('id')})")
+    assert not unwarned, ("say in the Markdown just above how long it takes on `demo` "
+                          "(*Time.* or ⏱, seconds or minutes): " + ", ".join(unwarned))
