@@ -294,7 +294,7 @@ def test_the_hazard_rule_measures_with_the_function_it_is_given():
     assert replace(hazards, measure=lambda *a: 7.0).length_m(start, goal) == 7.0
 
 
-# ----------------------------------------------------------------------------- no answer shown early
+# ----------------------------------------------------------------------------- answers shown late
 SHOWN_SOURCE = re.compile(r"\b(?:getsource|source_markdown|show_source)\(\s*([\w.]+)")
 GENERIC = {"GridSpec", "BEVMap"}
 """Names an exercise's reference uses that give nothing of its answer away."""
