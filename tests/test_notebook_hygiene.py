@@ -1,6 +1,7 @@
 """Notebooks are committed clean: no outputs, the python3 kernel, an opening that teaches,
-no development history, and a time warning before the first cell that builds on a cold
-cache."""
+no development history, links that resolve (numbers pointed to by a link to the page that
+has them), a time warning above every cell that can run past 30 s on `demo`, and an end
+that says what was learned (## Takeaways) with the run's numbers."""
 
 import json
 import re
