@@ -92,20 +92,33 @@ def test_github_slugs_follow_githubs_rule():
                                   "why-mppi-crawls-1", "demo-profile-3-seeds"}
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_every_link_to_a_file_of_the_repository_resolves(path):
+def _broken_links(path, texts):
+    """The links of ``texts`` (Markdown, (where, text) pairs) written in ``path`` that name
+    no file, or no heading of a Markdown file."""
     broken = []
-    for i, text in _markdown(path):
+    for where, text in texts:
         for _, target in LINK.findall(CODE_SPAN.sub("", text)):
             if re.match(r"[a-z]+:", target):  # https:, mailto:
                 continue
             file, _, anchor = target.partition("#")
             resolved = (path.parent / file).resolve() if file else path
             if not resolved.exists():
-                broken.append(f"cell {i}: {target} (no such file)")
+                broken.append(f"{where}: {target} (no such file)")
             elif anchor and resolved.suffix == ".md" and \
                     anchor not in github_slugs(resolved.read_text()):
-                broken.append(f"cell {i}: {target} (no such heading)")
+                broken.append(f"{where}: {target} (no such heading)")
+    return broken
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_link_to_a_file_of_the_repository_resolves(path):
+    broken = _broken_links(path, [(f"cell {i}", text) for i, text in _markdown(path)])
+    assert not broken, "broken links: " + "; ".join(broken)
+
+
+def test_the_notebooks_readme_links_resolve():
+    readme = NOTEBOOKS[0].parent / "README.md"
+    broken = _broken_links(readme, [("README.md", readme.read_text())])
     assert not broken, "broken links: " + "; ".join(broken)
 
 
