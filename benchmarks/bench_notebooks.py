@@ -74,7 +74,7 @@ def main() -> None:
                         help="directory for the executed copies (default: a temporary one)")
     args = parser.parse_args()
 
-    paths = sorted(NOTEBOOKS.glob("[0-9][0-9]_*.ipynb"))
+    paths = sorted(NOTEBOOKS.glob("[0-9][0-9]*_*.ipynb"))
     if args.notebooks:
         paths = [p for p in paths if any(p.stem.startswith(n) or p.name == n
                                          for n in args.notebooks)]

@@ -292,3 +292,62 @@ def test_the_hazard_rule_measures_with_the_function_it_is_given():
     sampled = hazards.length_m(start, goal)
     assert 1.9 < sampled < 2.2  # 2 m of hazard, crossed at a slant, sampled every 0.25 m
     assert replace(hazards, measure=lambda *a: 7.0).length_m(start, goal) == 7.0
+
+
+# ----------------------------------------------------------------------------- answers shown late
+SHOWN_SOURCE = re.compile(r"\b(?:getsource|source_markdown|show_source)\(\s*([\w.]+)")
+GENERIC = {"GridSpec", "BEVMap"}
+"""Names an exercise's reference uses that give nothing of its answer away."""
+
+
+def _reference_names(name):
+    """The library functions and classes exercise ``name`` is graded against: the adapter's
+    own name and what it imports or names in its docstring (``:func:``/``:class:``)."""
+    import inspect
+
+    source = inspect.getsource(EXERCISES[name].reference)
+    names = {EXERCISES[name].reference.__name__.lstrip("_")}
+    for imported in re.findall(r"^\s*from \S+ import (.+)$", source, re.M):
+        names |= {n.strip() for n in imported.split(",")}
+    names |= {r.split(".")[-1] for r in re.findall(r":(?:func|class):`~?([\w.]+)`", source)}
+    return names - GENERIC
+
+
+def _shows(expression, names):
+    """Whether displaying ``expression``'s source shows one of ``names``: its last part (a
+    function) or any capitalised part (a class, e.g. ``SlopeModel.locomotion``)."""
+    parts = expression.split(".")
+    return parts[-1] in names or any(p[:1].isupper() and p in names for p in parts)
+
+
+def test_reference_names_are_the_librarys_functions():
+    assert {"edge_cost", "amplified_cost"} <= _reference_names("edge_cost")
+    assert "SlopeModel" in _reference_names("slope_locomotion")
+    assert "mppi_weights" in _reference_names("mppi_weights")
+    assert _shows("SlopeModel.locomotion", _reference_names("slope_locomotion"))
+    assert not _shows("locomotion.locomotion_signal", _reference_names("locomotion"))
+
+
+@pytest.mark.parametrize("name", sorted(EXERCISES))
+def test_no_notebook_shows_an_exercises_answer_before_its_check(name):
+    """The library's source of an exercise's function is shown after the check cell, never
+    before it: not earlier in its notebook, not in an earlier notebook."""
+    names, own = _reference_names(name), EXERCISES[name].notebook
+    early = []
+    for path in sorted(NOTEBOOKS.glob("[0-9][0-9]*_*.ipynb")):
+        if path.stem > own:
+            break
+        for i, c in enumerate(_cells(path.stem)):
+            text = "".join(c["source"])
+            if path.stem == own and f'check("{name}"' in text:
+                break
+            if c["cell_type"] == "code":
+                early += [f"{path.stem} cell {i}: {e}" for e in SHOWN_SOURCE.findall(text)
+                          if _shows(e, names)]
+    assert not early, f"{name}'s answer shown before its check: " + "; ".join(early)
+
+
+def test_the_notebooks_readme_lists_every_exercise_with_its_notebook():
+    text = (NOTEBOOKS / "README.md").read_text()
+    rows = {name: number for number, name in re.findall(r"^\| (\d\d\w?) \| `(\w+)`", text, re.M)}
+    assert rows == {name: ex.notebook.split("_")[0] for name, ex in EXERCISES.items()}

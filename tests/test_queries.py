@@ -115,3 +115,9 @@ def test_the_hazard_rule_rejects_queries_that_cross_too_little_hazard():
     assert draw.rejected["hazard"] > 0
     for q in draw.queries:
         assert band.length_m(q.start, q.goal) >= 1.0
+    # every candidate is recorded with its fate, in the order drawn
+    assert len(draw.tried) == draw.candidates
+    fates = [fate for _, _, fate in draw.tried]
+    assert {r: fates.count(r) for r in draw.rejected} == draw.rejected
+    assert [(s, g) for s, g, fate in draw.tried if fate == "kept"] == \
+        [(q.start, q.goal) for q in draw.queries]

@@ -139,3 +139,19 @@ def test_source_markdown_shows_the_implementation_and_where_it_lives():
     assert text.startswith("`dgt_lib/perception/bev.py`, line ")
     assert "def height_gradient(" in text
     assert text.rstrip().endswith("```")
+
+
+def test_a_query_draw_is_drawn_with_one_legend_entry_per_fate():
+    from dgt_lib.evaluation.queries import Query, QueryDraw
+
+    world = from_heightmap(np.zeros((50, 60)), 0.4, name="flat")
+    tried = [((2.0, 2.0, 0.0), (20.0, 15.0), "kept"),
+             ((3.0, 5.0, 0.0), (9.0, 4.0), "hazard"),
+             ((4.0, 4.0, 0.0), (18.0, 12.0), "hazard"),
+             ((1.0, 1.0, 0.0), (5.0, 19.0), "infeasible")]
+    draw = QueryDraw([Query(*tried[0][:2], "random")], 4,
+                     {"off_map": 0, "footprint": 0, "hazard": 2, "infeasible": 1}, tried)
+    ax = viz.plot_query_draw(world, np.zeros((50, 60), bool), draw)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["too little hazard on the line (2)", "no feasible path (1)", "kept (1)"]
+    assert len(ax.lines) == 4

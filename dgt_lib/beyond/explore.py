@@ -172,7 +172,7 @@ def explore(world: World, vehicle: str, predict: Predictor | PooledNet, start, g
                                                        cfg.replan_cost_rise):
                     replan = True
                 if replan:
-                    path = _replan(cost, occ, grid, vehicle, planner, state, goal, path)
+                    path = replan_path(cost, occ, grid, vehicle, planner, state, goal, path)
                     planned_cost, next_plan = cost, t + cfg.replan_period_s
                     result.replans.append(t)
                     ctrl.set_path(rear_axle_pose(path[:, :2], path[:, 2], spec.wheelbase_m))
@@ -189,8 +189,8 @@ def explore(world: World, vehicle: str, predict: Predictor | PooledNet, start, g
     return result
 
 
-def _replan(cost, occ, grid, vehicle: str, planner: PlannerConfig, state, goal,
-            previous: np.ndarray | None) -> np.ndarray:
+def replan_path(cost, occ, grid, vehicle: str, planner: PlannerConfig, state, goal,
+                previous: np.ndarray | None) -> np.ndarray:
     """A Hybrid A* path (N, 3) from the vehicle's pose to ``goal``; the previous path when
     the query fails (e.g. the start footprint touches an obstacle), or, with none, a
     straight line to the goal for MPPI to follow until the next attempt."""

@@ -10,7 +10,7 @@ feasible path. Queries are drawn from a seed, never from a method's result.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -85,11 +85,14 @@ segment, no kinematically feasible path."""
 @dataclass(frozen=True)
 class QueryDraw:
     """The outcome of :func:`draw_random_queries`: the queries kept, how many candidates
-    were drawn, and how many were rejected for each of :data:`REJECTIONS`."""
+    were drawn, and how many were rejected for each of :data:`REJECTIONS`; ``tried`` is
+    every candidate in the order drawn, as ``(start, goal, fate)`` with fate ``"kept"`` or
+    a rejection (what a notebook plots)."""
 
     queries: list[Query]
     candidates: int
     rejected: dict[str, int]
+    tried: list[tuple[tuple, tuple, str]] = field(default_factory=list, compare=False)
 
     def kept_by_hazard_rule(self) -> float:
         """Share of the candidates that reached the hazard rule (on the map, footprints
@@ -137,38 +140,39 @@ def draw_random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: i
     lo, hi = cfg.eval_distance_m
     out: list[Query] = []
     rejected = dict.fromkeys(REJECTIONS, 0)
-    candidates = 0
+    tried: list[tuple[tuple, tuple, str]] = []
     for _ in range(200 * max(n, 1)):
         if len(out) == n:
             break
-        candidates += 1
         sx, sy = rng.uniform(x0 + margin_m, x1 - margin_m), rng.uniform(y0 + margin_m,
                                                                          y1 - margin_m)
         ang, dist = rng.uniform(0, 2 * np.pi), rng.uniform(lo, hi)
         gx, gy = sx + dist * np.cos(ang), sy + dist * np.sin(ang)
         start = (float(sx), float(sy), float(rng.uniform(0, 2 * np.pi)))
         goal = (float(gx), float(gy))
-        if not (x0 + margin_m < gx < x1 - margin_m and y0 + margin_m < gy < y1 - margin_m):
-            rejected["off_map"] += 1
-            continue
         goal_poses = [(gx, gy, th) for th in np.linspace(0, 2 * np.pi, 8, endpoint=False)]
-        if planner.collides(start)[0] or planner.collides(np.array(goal_poses)).all():
-            rejected["footprint"] += 1
-            continue
-        if hazards is not None and hazards.length_m(start, goal) < cfg.eval_min_hazard_m:
-            rejected["hazard"] += 1
-            continue
-        if not is_feasible(planner, start, goal):
-            rejected["infeasible"] += 1
-            continue
-        out.append(Query(start, goal, "random"))
+        if not (x0 + margin_m < gx < x1 - margin_m and y0 + margin_m < gy < y1 - margin_m):
+            fate = "off_map"
+        elif planner.collides(start)[0] or planner.collides(np.array(goal_poses)).all():
+            fate = "footprint"
+        elif hazards is not None and hazards.length_m(start, goal) < cfg.eval_min_hazard_m:
+            fate = "hazard"
+        elif not is_feasible(planner, start, goal):
+            fate = "infeasible"
+        else:
+            fate = "kept"
+            out.append(Query(start, goal, "random"))
+        if fate != "kept":
+            rejected[fate] += 1
+        tried.append((start, goal, fate))
+    candidates = len(tried)
     if len(out) < n:
         raise RuntimeError(
             f"found only {len(out)} of {n} random queries for {vehicle} on {maps.world} in "
             f"{candidates} candidates; rejected: "
             + ", ".join(f"{k} {v}" for k, v in rejected.items())
             + " (ExperimentsConfig.eval_distance_m and eval_min_hazard_m set what is kept)")
-    return QueryDraw(out, candidates, rejected)
+    return QueryDraw(out, candidates, rejected, tried)
 
 
 def random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: int,

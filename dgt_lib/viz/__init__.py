@@ -63,11 +63,13 @@ from dgt_lib.viz.costmaps import (
 )
 from dgt_lib.viz.experiments import (
     FAILURE_MARKERS,
+    QUERY_FATES,
     end_position,
     plot_failure_map,
     plot_failures,
     plot_planned_paths,
     plot_queries,
+    plot_query_draw,
     plot_success_rates,
     plot_trial_speeds,
 )
@@ -157,8 +159,9 @@ __all__ = [
     "PLAN_COLORS", "PRIMITIVES", "PRIMITIVE_COLORS", "plan_table", "plot_cost_amplification",
     "plot_motion_primitives", "plot_plans", "plot_query", "primitive_lookups",
     # experiments (notebooks 06–08, the report)
-    "FAILURE_MARKERS", "end_position", "plot_failure_map", "plot_failures", "plot_planned_paths",
-    "plot_queries", "plot_success_rates", "plot_trial_speeds",
+    "FAILURE_MARKERS", "QUERY_FATES", "end_position", "plot_failure_map", "plot_failures",
+    "plot_planned_paths", "plot_queries", "plot_query_draw", "plot_success_rates",
+    "plot_trial_speeds",
     # accuracy against the ground truth (notebook 09, the report)
     "plot_ground_truth_beside_layers", "plot_predicted_vs_measured", "plot_truth_dots",
 ]

@@ -167,3 +167,33 @@ def plot_success_rates(result, paper: Mapping | None = None):
         ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+QUERY_FATES = {"kept": ("k", "-", 1.6, "kept"),
+               "hazard": ("0.45", ":", 0.9, "too little hazard on the line"),
+               "infeasible": ("tab:red", "--", 0.9, "no feasible path"),
+               "footprint": ("tab:purple", ":", 0.6, "start or goal in an obstacle"),
+               "off_map": ("tab:orange", ":", 0.6, "goal off the map")}
+"""How :func:`plot_query_draw` draws each fate of a candidate: colour, line, width, legend."""
+
+
+def plot_query_draw(world: World, hazard_mask: np.ndarray, draw, ax=None, title: str = ""):
+    """Every candidate of a query draw (``QueryDraw.tried``) as its straight line on the
+    world's heights with the hazard cells (red), styled by its fate (:data:`QUERY_FATES`)."""
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 6.5))
+    ax.imshow(world.heights, origin="lower", extent=world.grid.extent, cmap="terrain")
+    ax.imshow(np.ma.masked_equal(hazard_mask, False), origin="lower", extent=world.grid.extent,
+              cmap="autumn", alpha=0.6)
+    shown = set()
+    for start, goal, fate in sorted(draw.tried, key=lambda t: t[2] == "kept"):
+        colour, style, width, label = QUERY_FATES[fate]
+        count = draw.rejected.get(fate, len(draw.queries))
+        ax.plot([start[0], goal[0]], [start[1], goal[1]], color=colour, ls=style, lw=width,
+                label=None if fate in shown else f"{label} ({count})")
+        shown.add(fate)
+    x0, x1, y0, y1 = world.grid.extent
+    ax.set(xlim=(x0, x1), ylim=(y0, y1), xlabel="x [m]", ylabel="y [m]",
+           title=title or f"{draw.candidates} candidates, {len(draw.queries)} kept")
+    ax.legend(fontsize=8, loc="upper right")
+    return ax
