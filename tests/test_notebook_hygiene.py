@@ -122,13 +122,7 @@ def test_the_notebooks_readme_links_resolve():
     assert not broken, "broken links: " + "; ".join(broken)
 
 
-POINTERS_PENDING = {"07_experiment2_ridge"}
-"""Notebooks whose "(README)" pointers are rewritten with their own next change."""
-
-
-@pytest.mark.parametrize("path", [
-    pytest.param(p, marks=pytest.mark.xfail(reason="its pointers change with its next edit"))
-    if p.stem in POINTERS_PENDING else p for p in NOTEBOOKS], ids=lambda p: p.name)
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_numbers_are_pointed_to_by_a_link_to_the_page_that_has_them(path):
     """No "(README)" or "see the README": a pointer names the page that holds the number,
     as a link (README.md's own sections are linked like any other page)."""
@@ -140,13 +134,7 @@ def test_numbers_are_pointed_to_by_a_link_to_the_page_that_has_them(path):
 
 # ----------------------------------------------------------------------------- takeaways
 NUMBERED = [p for p in NOTEBOOKS if re.match(r"\d\d[a-z]?_", p.name)]
-TAKEAWAYS_PENDING = {"07_experiment2_ridge"}
-"""Notebooks whose Takeaways come with their own next change."""
-
-
-@pytest.mark.parametrize("path", [
-    pytest.param(p, marks=pytest.mark.xfail(reason="its takeaways come with its next edit"))
-    if p.stem in TAKEAWAYS_PENDING else p for p in NUMBERED], ids=lambda p: p.name)
+@pytest.mark.parametrize("path", NUMBERED, ids=lambda p: p.name)
 def test_every_notebook_ends_with_its_takeaways_and_the_numbers_they_rest_on(path):
     """The last Markdown cell, headed "## Takeaways", says what was learned; after it comes at
     most one code cell, which prints the numbers of this run the takeaways rest on."""
