@@ -18,10 +18,11 @@ import matplotlib.pyplot as plt
 
 from dgt_lib import recording, recording_layout, viz
 from dgt_lib.core.config import Profile, as_profile
-from dgt_lib.evaluation import accuracy, seeds
-from dgt_lib.evaluation.experiments import EXPERIMENT_TITLES, EXPERIMENTS, ExperimentResult
+from dgt_lib.evaluation.experiments import EXPERIMENT_TITLES, ExperimentResult
 from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.records import tables
 from dgt_lib.records.record import seed_summaries, write_seed_record
+from dgt_lib.records.tables import Run
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.stages.experiments import experiment_stem
 from dgt_lib.stages.ground_truth import (
@@ -172,21 +173,7 @@ def write_seeds_report(profile: Profile) -> Path:
              "(lowest–highest success rate of the seeds); the paper's k/n beside ours. Each "
              "seed's own report, with figures: "
              + ", ".join(f"[seed {s}](../seed-{s}/results/README.md)" for s in ids) + ".", "",
-             "## Claims, seed by seed", "", seeds.claims_table(summaries)]
-    for name in EXPERIMENTS:
-        parts += [f"## {EXPERIMENT_TITLES.get(name, name)}", "",
-                  seeds.experiment_over_seeds(summaries, name, PAPER.get(name))]
-    parts += ["## Learned locomotion (test split)", "", seeds.learning_table(summaries)]
-    scored = [s for s in summaries if s.get("accuracy")]
-    if scored:
-        parts += [f"## {ACCURACY_TITLE}", "", ACCURACY_INTRO, "",
-                  "**Multi-task vs single-task per vehicle, seed by seed** (Claim 4 without "
-                  "the closed loop: closer = MAE lower by ≥ 0.005 with p < 0.05 in a paired "
-                  "test on the same samples):", "",
-                  accuracy.multitask_over_seeds({s["seed"]: s["multitask"] for s in scored}),
-                  "**Every method, per seed** (MAE / Spearman ρ; the seed's report has the "
-                  "directional contrast):", "",
-                  accuracy.accuracy_over_seeds({s["seed"]: s["accuracy"] for s in scored})]
+             tables.seeds_sections(Run(prof.name, tuple(summaries)), published=False)]
     out = profile_root(prof) / "results"
     out.mkdir(parents=True, exist_ok=True)
     path = out / "README.md"
