@@ -288,7 +288,7 @@ def _plan(args: argparse.Namespace) -> int:
         print(f"dgt plan: error: {exc}", file=sys.stderr)
         return 2
     print(json.dumps(report.as_dict()) if args.json else report.summary())
-    return 0 if report.plan.success else 1
+    return PLAN_EXIT[report.plan.failure]
 
 
 def _device_arg(parser: argparse.ArgumentParser) -> None:
@@ -410,13 +410,23 @@ def _costmap(args: argparse.Namespace) -> int:
     return run_command(args, _with_execution(_profile(args), args))
 
 
+PLAN_STATUS = ("Exit status 0: a path was found; 1: no path exists (every pose the search "
+               "can reach was expanded); 2: an invalid query; 3: the search budget ran out "
+               "before a path was found, none ruled out (raise planner.max_expansions or "
+               "planner.max_time_s with --set, as the report says).")
+"""``dgt plan --help``'s exit statuses (docs/usage.md lists them too)."""
+
+PLAN_EXIT = {"": 0, "no_path": 1, "budget": 3}
+"""``dgt plan``'s exit status by :attr:`~dgt_lib.navigation.planner.PlanResult.failure` (2 is an
+invalid query)."""
+
+
 def _add_plan(sub) -> None:
     pl = sub.add_parser("plan", help="plan (and drive) one query on a world or your terrain",
                         description="Plan one query with Hybrid A* on a method's directional "
                                     "costmap (building what it needs first), save a figure and "
                                     "a rerun recording, and optionally drive the path in "
-                                    "MuJoCo. Exit status 0: a path was found; 1: no path; 2: an "
-                                    "invalid query.")
+                                    "MuJoCo. " + PLAN_STATUS)
     _add_world_options(pl, vehicle_file=True)
     pl.add_argument("--start", required=True, type=lambda t: floats(t, 3, "--start"),
                     help="x,y,yaw [m, m, rad]; negative values are fine (-5,14,0.8)")
@@ -428,7 +438,8 @@ def _add_plan(sub) -> None:
     pl.add_argument("--drive", action="store_true", help="drive the path in MuJoCo")
     pl.add_argument("--json", action="store_true",
                     help="print only the report as one JSON object on stdout (the path's rows "
-                         "x, y, yaw; length; cost; the named route; the drive's outcome); "
+                         "x, y, yaw; length; cost; the named route; the drive's outcome; when "
+                         "no path was found, failure: no_path or budget, and the reason); "
                          "progress goes to stderr")
     pl.set_defaults(func=_plan)
 

@@ -165,12 +165,15 @@ class QueryReport:
 
     def as_dict(self) -> dict:
         """The report as plain JSON values (``dgt plan --json``): the query, whether a path
-        was found (else why), the path's rows [x m, y m, yaw rad], its length [m] and cost,
-        the named route, the drive's outcome (None when not driven) and the files written.
-        Non-finite numbers (an unknown goal distance) become None."""
+        was found (else why: ``failure``, "no_path" or "budget" as in
+        :attr:`PlanResult.failure`, and ``reason`` in words), the path's rows [x m, y m,
+        yaw rad], its length [m] and cost, the named route, the drive's outcome (None when
+        not driven) and the files written. Non-finite numbers (an unknown goal distance)
+        become None."""
         p = self.plan
         out = {"world": self.world, "vehicle": self.vehicle, "method": self.method,
                "start": list(self.start), "goal": list(self.goal), "found": bool(p.success),
+               "failure": None if p.success else p.failure,
                "reason": None if p.success else p.reason,
                "path": np.asarray(p.path, float).reshape(-1, 3).tolist() if p.success else [],
                "length_m": float(p.length_m) if p.success else None,

@@ -53,6 +53,61 @@ def test_dgt_plan_on_a_tiny_custom_world_file(data_dir, tmp_path, capsys):
     assert list((data_dir / "smoke" / "seed-0" / "plans").glob("*.png"))
 
 
+def _tiny_heights(pen: bool) -> np.ndarray:
+    """The tiny 48 m × 32 m world: a 3 m block to drive around, or (``pen``) a 3 m wall
+    2.4 m thick boxing in a 22.4 m × 20.8 m pen around (8, 16) m, the goal (40, 16) outside."""
+    heights = np.zeros((80, 120), np.float32)
+    if pen:
+        heights[8:72, 2:70] = 3.0
+        heights[14:66, 8:64] = 0.0
+    else:
+        heights[30:50, 55:65] = 3.0
+    return heights
+
+
+@pytest.mark.parametrize("pen,settings,status,failure,reason", [
+    (True, ["planner.heuristic=euclidean"], 1, "no_path",
+     "no path exists: every pose the search can reach was expanded (open list exhausted)"),
+    (False, ["planner.max_expansions=1"], 3, "budget",
+     "search budget exhausted after 1 expansions (planner.max_expansions=1): no path found "
+     "yet, none ruled out; raise it, e.g. --set planner.max_expansions=2")],
+    ids=["boxed-in", "budget"])
+def test_dgt_plan_tells_no_path_from_an_exhausted_budget(data_dir, tmp_path, capsys, pen,
+                                                         settings, status, failure, reason):
+    """A start boxed in (the search empties its open list) exits 1 and says no path exists;
+    a query with a path, searched with max_expansions=1, exits 3 and names the setting to
+    raise: in the report and in ``--json``'s ``failure`` and ``reason``."""
+    import json
+
+    np.save(tmp_path / "tiny.npy", _tiny_heights(pen))
+    args = ["plan", "--world", str(tmp_path / "tiny.npy"), "--vehicle", "jeep",
+            "--start", "8,16,0", "--goal", "40,16", "--method", "binary", "--profile", "smoke"]
+    for name in settings:
+        args += ["--set", name]
+    assert main(args) == status
+    assert f"  not found: {reason} (" in capsys.readouterr().out
+    assert main([*args, "--json"]) == status
+    report = json.loads(capsys.readouterr().out)
+    assert not report["found"] and report["path"] == [] and report["cost"] is None
+    assert report["failure"] == failure and report["reason"] == reason
+
+
+def test_dgt_plan_help_names_every_exit_status():
+    """``dgt plan``'s exit statuses: one per kind of planner failure, all in its help."""
+    import argparse
+
+    from dgt_lib.cli import PLAN_EXIT, build_parser
+    from dgt_lib.navigation.planner import FAILURES
+
+    assert sorted(PLAN_EXIT) == sorted(FAILURES)
+    assert sorted(PLAN_EXIT.values()) == [0, 1, 3]  # 2: an invalid query
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    text = " ".join(sub.choices["plan"].format_help().split())
+    for said in ("0: a path was found", "1: no path exists", "2: an invalid query",
+                 "3: the search budget ran out", "planner.max_expansions", "planner.max_time_s"):
+        assert said in text, said
+
+
 @pytest.mark.parametrize("start,message", [("500,16,0", "off the map"),
                                            ("24,16,0", "in an obstacle")])
 def test_dgt_plan_bad_start_is_a_clear_error(data_dir, tmp_path, capsys, start, message):

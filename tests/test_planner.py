@@ -274,8 +274,9 @@ def test_unreachable_goal_ends_with_no_path(hill):
     closed[(Y > 25.0) & (Y < 35.0)] = 1  # wall off both gaps
     # the 2D relaxation refutes it before any expansion
     result = planner_for(costmap, closed, grid).plan(*ASCENT)
-    assert not result.success and result.reason.startswith("no path")
+    assert not result.success and result.reason.startswith("no path exists")
     assert "relaxation" in result.reason and result.expansions == 0
+    assert result.failure == "no_path"
     assert result.path.shape == (0, 3) and result.cost == math.inf
     # the Euclidean search expands every reachable pose of a small pen, then gives up
     pen = closed.copy()
@@ -284,10 +285,12 @@ def test_unreachable_goal_ends_with_no_path(hill):
                           theta_bins=36)
     result = planner.plan(*ASCENT)
     assert not result.success and "open list exhausted" in result.reason
-    # and a cap bounds any search
+    assert result.failure == "no_path"
+    # and a cap bounds any search: the budget, not a proof that no path exists
     planner = planner_for(costmap, closed, grid, heuristic="euclidean", max_expansions=500)
     result = planner.plan(*ASCENT)
-    assert not result.success and "max_expansions=500" in result.reason
+    assert not result.success and "planner.max_expansions=500" in result.reason
+    assert result.failure == "budget" and result.reason.startswith("search budget exhausted")
     assert result.expansions == 500
 
 

@@ -19,7 +19,7 @@ import pytest
 from scipy import ndimage
 
 from dgt_lib.core.config import PlannerConfig
-from dgt_lib.navigation.planner import HybridAStar
+from dgt_lib.navigation.planner import BUDGET, NO_PATH, HybridAStar, PlanResult
 from dgt_lib.navigation.planner.heuristics import disk_minimum
 from tests import planner_cases
 
@@ -62,9 +62,10 @@ def test_every_case_is_recorded():
 
 
 def same_plan(a, b) -> bool:
-    """Whether two PlanResults describe the same search: outcome, path, nodes, node costs,
-    and every expanded node in the same order."""
-    return (a.success == b.success and a.reason == b.reason and a.expansions == b.expansions
+    """Whether two PlanResults describe the same search: outcome (and which failure), path,
+    nodes, node costs, and every expanded node in the same order."""
+    return (a.success == b.success and a.failure == b.failure and a.reason == b.reason
+            and a.expansions == b.expansions
             and a.cost == b.cost and np.array_equal(a.path, b.path)
             and np.array_equal(a.nodes, b.nodes) and np.array_equal(a.node_costs, b.node_costs)
             and np.array_equal(a.expanded_xy, b.expanded_xy))
@@ -102,29 +103,76 @@ def _hill_planners(occupancy=None, **cfg):
 UP = ((40.0, 8.0, math.pi / 2), (40.0, 52.0))
 
 
-def test_failures_are_the_same_in_both_backends():
-    """No path: refuted by the 2D relaxation, the open list exhausted, max_expansions."""
-    costmap, occupancy, grid = planner_cases.hill_maps()
+def _hill_occupancies():
+    """The hill's occupancy as it is ("open"), with both gaps walled off ("closed"), and
+    walled off with the start boxed into a 30 m × 25 m pen ("pen")."""
+    _, occupancy, grid = planner_cases.hill_maps()
     X, Y = grid.cell_centers()
     closed = occupancy.copy()
     closed[(Y > 25.0) & (Y < 35.0)] = 1
     pen = closed.copy()
     pen[(Y < 25.0) & ((X < 25.0) | (X > 55.0))] = 1
-    for occ, cfg, reason in (
-            (closed, {}, "relaxation"),
-            (pen, dict(heuristic="euclidean", closed_cell_m=1.6, theta_bins=36),
-             "open list exhausted"),
-            (closed, dict(heuristic="euclidean", max_expansions=500), "max_expansions=500")):
-        ref, fast = (p.plan(*UP) for p in _hill_planners(occ, **cfg))
-        assert not ref.success and reason in ref.reason
-        assert same_plan(ref, fast)
+    return {"open": occupancy, "closed": closed, "pen": pen}
+
+
+PENNED = dict(heuristic="euclidean", closed_cell_m=1.6, theta_bins=36)
+FAILURES = [  # occupancy, planner settings, failure, the reason's opening
+    ("closed", {}, NO_PATH,
+     "no path exists: the goal is unreachable even in the 2D relaxation"),
+    ("pen", PENNED, NO_PATH, "no path exists: every pose the search can reach was expanded "
+                             "(open list exhausted)"),
+    ("closed", dict(heuristic="euclidean", max_expansions=500), BUDGET,
+     "search budget exhausted after 500 expansions (planner.max_expansions=500): no path "
+     "found yet, none ruled out; raise it, e.g. --set planner.max_expansions=1000"),
+    ("open", dict(max_expansions=5), BUDGET,
+     "search budget exhausted after 5 expansions (planner.max_expansions=5): no path found "
+     "yet, none ruled out; raise it, e.g. --set planner.max_expansions=10"),
+]
+
+
+@pytest.mark.parametrize("occupancy,cfg,kind,reason", FAILURES,
+                         ids=["refuted-in-2d", "boxed-in", "capped-walled-off", "capped-open"])
+def test_failures_are_told_apart_and_the_same_in_both_backends(occupancy, cfg, kind, reason):
+    """No path exists (refuted by the 2D relaxation; a start boxed in, whose open list
+    empties) or the search budget ran out (a walled-off goal, or a reachable one, with
+    max_expansions tiny): both backends say which, in the same words, after the same
+    expansions."""
+    ref, fast = (p.plan(*UP) for p in _hill_planners(_hill_occupancies()[occupancy], **cfg))
+    assert not ref.success and ref.failure == kind and ref.reason == reason
+    assert ref.path.shape == (0, 3) and ref.cost == math.inf
+    assert same_plan(ref, fast)
+
+
+def test_the_boxed_in_start_ends_within_the_budget_and_the_open_goal_is_reachable():
+    """The cases above differ in what they say, not in what they were given: the pen's
+    search ends well before the default 200,000 expansions, and the open hill's query has
+    a path."""
+    occupancies = _hill_occupancies()
+    pen = _hill_planners(occupancies["pen"], **PENNED)[1].plan(*UP)
+    open_hill = _hill_planners(occupancies["open"])[1].plan(*UP)
+    assert pen.failure == NO_PATH and pen.expansions < PlannerConfig().max_expansions
+    assert open_hill.success and open_hill.failure == "" and open_hill.expansions > 5
 
 
 def test_max_time_is_checked_before_the_first_expansion():
     for planner in _hill_planners(max_time_s=1e-9):
         result = planner.plan(*UP)
-        assert not result.success and "max_time_s" in result.reason
+        assert not result.success and result.failure == BUDGET
+        assert result.reason.startswith("search budget exhausted after 0 expansions in ")
+        assert result.reason.endswith("(planner.max_time_s=1e-09): no path found yet, none "
+                                      "ruled out; raise it, e.g. --set planner.max_time_s=2e-09")
         assert result.expansions == 0
+
+
+def test_a_plan_result_s_failure_agrees_with_its_success():
+    """``failure`` is "" exactly on success and one of the two kinds otherwise."""
+    found = dict(path=np.zeros((1, 3)), cost=0.0, expansions=0, time_s=0.0, success=True,
+                 reason="reached goal")
+    assert PlanResult(**found).failure == ""
+    for bad in (dict(found, failure=NO_PATH), dict(found, success=False),
+                dict(found, success=False, failure="gave up")):
+        with pytest.raises(ValueError, match="failure"):
+            PlanResult(**bad)
 
 
 def test_a_start_in_the_goal_region_is_the_whole_path():

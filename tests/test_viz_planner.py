@@ -68,7 +68,7 @@ def test_plan_table_lists_each_plan_and_marks_failures():
     ok = PlanResult(path=np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]]), cost=12.5,
                     expansions=7, time_s=0.25, success=True, reason="reached goal")
     failed = PlanResult(path=np.zeros((0, 3)), cost=math.inf, expansions=99, time_s=1.0,
-                        success=False, reason="no path")
+                        success=False, reason="no path exists", failure="no_path")
     table = viz.plan_table({"euclidean": ok, "cost-to-go": failed}).splitlines()
     assert len(table) == 4
     assert table[2] == "| euclidean | yes | 7 | 0.25 | 12.5 | 5.0 |"

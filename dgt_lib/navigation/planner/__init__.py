@@ -36,7 +36,10 @@ goals, so repeated queries on one map are cheaper.
 Search: A* with f = g + w·h over the nodes' exact poses and a closed set over (x, y, θ)
 cells (Hybrid A*'s state merging); heuristics ``"euclidean"`` (the paper's) or
 ``"cost_to_go"`` (its max with a direction-aware 2D lower bound, which also refutes
-unreachable goals). Deterministic: ties break by insertion order.
+unreachable goals). Deterministic: ties break by insertion order. A failed query says which
+failure it is (``PlanResult.failure``): ``"no_path"`` (proven: the open list emptied, or the
+2D bound refutes the goal) or ``"budget"`` (``max_expansions`` or ``max_time_s`` ran out
+first, so a path may still exist).
 
 Two backends run the same search (``HybridAStar(..., backend=...)``): ``"compiled"``, the
 default, compiled by numba (:mod:`.compiled`; compiled once, then cached on disk), and
@@ -59,18 +62,27 @@ from dgt_lib.navigation.planner.primitives import (
     step_cost,
     travel_heading_bin,
 )
-from dgt_lib.navigation.planner.result import InvalidQueryError, PlanResult
+from dgt_lib.navigation.planner.result import (
+    BUDGET,
+    FAILURES,
+    NO_PATH,
+    InvalidQueryError,
+    PlanResult,
+)
 from dgt_lib.navigation.planner.search import Expansion, Priced, Search
 from dgt_lib.navigation.planner.shots import dubins_path, sample_segments, turn_then_straight
 from dgt_lib.navigation.planner.validation import check_query_on_world
 
 __all__ = [
     "BACKENDS",
+    "BUDGET",
+    "FAILURES",
     "HEURISTICS",
     "CostToGo",
     "Expansion",
     "HybridAStar",
     "InvalidQueryError",
+    "NO_PATH",
     "PlanResult",
     "PlannerMaps",
     "Priced",

@@ -13,7 +13,16 @@ import numpy as np
 from dgt_lib.core.geometry import TWO_PI, angle_diff
 from dgt_lib.navigation.planner.maps import PlannerMaps, Query
 from dgt_lib.navigation.planner.primitives import distance
-from dgt_lib.navigation.planner.result import SHOT, Node, PlanResult, failure, success
+from dgt_lib.navigation.planner.result import (
+    OPEN_LIST_EMPTY,
+    SHOT,
+    UNREACHABLE_2D,
+    Node,
+    PlanResult,
+    budget_exhausted,
+    no_path,
+    success,
+)
 from dgt_lib.navigation.planner.shots import shot_poses
 
 
@@ -122,8 +131,9 @@ class CompiledSearch:
         return nodes, open_list, closed, progress, tables
 
     def run(self, t0: float) -> PlanResult | None:
-        """The query's result, or None when a turn count left the tables (then the
-        reference search must answer)."""
+        """The query's result, its failure told apart as :meth:`.search.Search.run` does
+        (CAPPED or the time limit: the budget; EXHAUSTED: no path), or None when a turn
+        count left the tables (then the reference search must answer)."""
         c, cfg = self.kernel, self.cfg
         # numba compiles the kernels (or loads them from its cache) on their first call in
         # a process: that time does not count against max_time_s (it does in time_s)
@@ -131,8 +141,7 @@ class CompiledSearch:
         h = self._relaxations()
         start = self._start(h)
         if start is None:
-            return failure("no path: the goal is unreachable even in the 2D relaxation", [],
-                           t0)
+            return no_path(UNREACHABLE_2D, [], t0)
         nodes, open_list, closed, progress, tables = self._arrays(start)
         maps = self.maps.compiled_arrays()
         stop_at = 0  # max_time_s is checked first before the first expansion, as Search does
@@ -150,8 +159,8 @@ class CompiledSearch:
                 continue
             if status == c.PAUSED:
                 if time.perf_counter() - t_limit > cfg.max_time_s:
-                    return failure(f"no path within max_time_s={cfg.max_time_s}",
-                                   self._expanded_xy(nodes, progress), t0)
+                    return budget_exhausted("max_time_s", cfg.max_time_s,
+                                            self._expanded_xy(nodes, progress), t0)
                 stop_at += self.CHUNK
                 continue
             break
@@ -160,10 +169,9 @@ class CompiledSearch:
             goal = self._chain(nodes, int(progress.result[0]))
             return success(goal, self.primitives, done, t0)
         if status == c.CAPPED:
-            return failure(f"no path within max_expansions={cfg.max_expansions}", done, t0)
+            return budget_exhausted("max_expansions", cfg.max_expansions, done, t0)
         if status == c.EXHAUSTED:
-            return failure("no path: every reachable pose was expanded (open list exhausted)",
-                           done, t0)
+            return no_path(OPEN_LIST_EMPTY, done, t0)
         return None  # OUT_OF_TABLES
 
     @staticmethod

@@ -191,9 +191,12 @@ class HybridAStar:
 
         Raises :class:`InvalidQueryError` for a start or goal off the map, a start
         pose whose footprint collides, a goal point in an occupied or unobserved
-        cell, or a goal pose whose footprint collides. An unreachable goal returns
-        ``success=False`` with a reason starting "no path", bounded by
-        ``max_expansions`` and ``max_time_s``.
+        cell, or a goal pose whose footprint collides. A goal not reached returns
+        ``success=False`` and says why in ``failure``: ``"no_path"`` when no path exists
+        (every pose the search can reach was expanded, or the 2D relaxation refutes the
+        goal; ``reason`` starts "no path exists"), ``"budget"`` when ``max_expansions`` or
+        ``max_time_s`` stopped the search first (``reason`` starts "search budget
+        exhausted" and names the setting to raise).
         """
         t0 = time.perf_counter()
         query = self._check_query(start, goal)

@@ -13,6 +13,14 @@ from dgt_lib.navigation.planner.primitives import PrimitiveSet
 
 SHOT = 3  # Node.primitive of a node reached by an analytic shot (0-2: the arc primitives)
 
+NO_PATH, BUDGET = "no_path", "budget"
+"""The kinds of failure (:attr:`PlanResult.failure`): no path exists (every pose the search
+can reach was expanded, or the 2D relaxation refutes the goal), or the search budget
+(``max_expansions`` or ``max_time_s``) ran out with nodes still open."""
+
+FAILURES: tuple[str, ...] = ("", NO_PATH, BUDGET)
+"""The values of :attr:`PlanResult.failure` ("": the goal was reached)."""
+
 
 class InvalidQueryError(ValueError):
     """A start or goal that cannot be planned for (off the map, in an obstacle)."""
@@ -51,11 +59,16 @@ class PlanResult:
     expansions: nodes taken from the open list and expanded.
     time_s: wall time of the query, including the heuristic's set-up.
     success: whether the goal was reached.
-    reason: "reached goal" or why not (starts with "no path").
+    reason: "reached goal" or why not, in words: starts with "no path exists" or
+        "search budget exhausted" (then it names the setting to raise).
     nodes: (M, 3) the search nodes on the path (primitive end poses; the goal
         pose when an analytic shot finished it).
     node_costs: (M,) cost-so-far g at each node (node_costs[-1] == cost).
     expanded_xy: (E, 2) positions of all expanded nodes, in expansion order.
+    failure: which failure, one of :data:`FAILURES`: "" on success, :data:`NO_PATH` when
+        no path exists (proven: the search's reachable set is exhausted, or the 2D
+        relaxation refutes the goal), :data:`BUDGET` when ``max_expansions`` or
+        ``max_time_s`` stopped the search with nodes still open (a path may exist).
     """
 
     path: np.ndarray
@@ -67,6 +80,12 @@ class PlanResult:
     nodes: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     node_costs: np.ndarray = field(default_factory=lambda: np.zeros(0))
     expanded_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    failure: str = ""
+
+    def __post_init__(self):
+        if self.failure not in FAILURES or (self.failure == "") != self.success:
+            raise ValueError(f"a PlanResult with success={self.success} has failure "
+                             f"{self.failure!r}; valid: {FAILURES} ('' exactly on success)")
 
     @property
     def length_m(self) -> float:
@@ -80,13 +99,48 @@ def _expanded_array(expanded) -> np.ndarray:
     return np.asarray(expanded, dtype=np.float64).reshape(-1, 2)
 
 
-def failure(reason: str, expanded: list, t0: float) -> PlanResult:
-    """The result of a query that found no path; ``expanded`` the expanded (x, y)."""
+def _failed(kind: str, reason: str, expanded: list | np.ndarray, t0: float) -> PlanResult:
+    """The result of a query that found no path: ``kind`` one of :data:`NO_PATH`,
+    :data:`BUDGET`; ``expanded`` the expanded (x, y); ``t0`` the query's
+    ``time.perf_counter()`` at its start."""
+    if kind not in FAILURES[1:]:
+        raise ValueError(f"a failure is one of {FAILURES[1:]}, got {kind!r}")
     return PlanResult(
         path=np.zeros((0, 3)), cost=np.inf, expansions=len(expanded),
         time_s=time.perf_counter() - t0, success=False, reason=reason,
-        expanded_xy=_expanded_array(expanded),
+        expanded_xy=_expanded_array(expanded), failure=kind,
     )
+
+
+UNREACHABLE_2D = "the goal is unreachable even in the 2D relaxation"
+"""Why no path exists when the cost-to-go refutes the goal before the search starts."""
+
+OPEN_LIST_EMPTY = "every pose the search can reach was expanded (open list exhausted)"
+"""Why no path exists when the search ran out of nodes to expand."""
+
+
+def no_path(why: str, expanded: list | np.ndarray, t0: float) -> PlanResult:
+    """The result of a query that has no path: ``why`` (:data:`UNREACHABLE_2D` or
+    :data:`OPEN_LIST_EMPTY`) says how that was proven."""
+    return _failed(NO_PATH, f"no path exists: {why}", expanded, t0)
+
+
+def budget_exhausted(setting: str, limit: float, expanded: list | np.ndarray,
+                     t0: float) -> PlanResult:
+    """The result of a search that ``setting`` (``"max_expansions"`` or ``"max_time_s"``,
+    of value ``limit``: expansions or seconds) stopped with nodes still open: its reason
+    names the setting and how to raise it (``--set planner.<setting>=<2 × limit>``)."""
+    if setting == "max_expansions":
+        spent = f"{len(expanded)} expansions"
+        shown, raised = str(int(limit)), str(2 * int(limit))
+    elif setting == "max_time_s":
+        spent = f"{len(expanded)} expansions in {time.perf_counter() - t0:.1f} s"
+        shown, raised = f"{limit:g}", f"{2 * limit:g}"
+    else:
+        raise ValueError(f"a search budget is max_expansions or max_time_s, got {setting!r}")
+    return _failed(BUDGET, f"search budget exhausted after {spent} (planner.{setting}="
+                           f"{shown}): no path found yet, none ruled out; raise it, e.g. "
+                           f"--set planner.{setting}={raised}", expanded, t0)
 
 
 def success(goal: Node, primitives: PrimitiveSet, expanded: list, t0: float) -> PlanResult:

@@ -27,7 +27,16 @@ from dgt_lib.core.geometry import TWO_PI, angle_diff
 from dgt_lib.navigation.planner.heuristics import euclidean
 from dgt_lib.navigation.planner.maps import PlannerMaps, Query
 from dgt_lib.navigation.planner.primitives import TURN_STEPS, distance, step_cost
-from dgt_lib.navigation.planner.result import SHOT, Node, PlanResult, failure, success
+from dgt_lib.navigation.planner.result import (
+    OPEN_LIST_EMPTY,
+    SHOT,
+    UNREACHABLE_2D,
+    Node,
+    PlanResult,
+    budget_exhausted,
+    no_path,
+    success,
+)
 from dgt_lib.navigation.planner.shots import shot_cost, shot_poses
 
 EdgeCost = Callable[[float, float, float], float]
@@ -219,19 +228,20 @@ class Search:
 
     def run(self, t0: float) -> PlanResult:
         """The query's :class:`PlanResult`, bounded by ``max_expansions`` and
-        ``max_time_s`` (counted from ``t0``, a ``time.perf_counter()``)."""
+        ``max_time_s`` (counted from ``t0``, a ``time.perf_counter()``): a failure is
+        :data:`.result.NO_PATH` when the open list empties (or the 2D bound refutes the
+        goal), :data:`.result.BUDGET` when a limit stops the search with nodes still open."""
         if not self.push_start():
-            return failure("no path: the goal is unreachable even in the 2D relaxation", [], t0)
+            return no_path(UNREACHABLE_2D, [], t0)
         cfg = self.cfg
         if time.perf_counter() - t0 > cfg.max_time_s:
-            return failure(f"no path within max_time_s={cfg.max_time_s}", self.expanded, t0)
+            return budget_exhausted("max_time_s", cfg.max_time_s, self.expanded, t0)
         for _ in self.steps():  # the limits stop a search with nodes left to pop
             if self.open_list and len(self.expanded) >= cfg.max_expansions:
-                return failure(f"no path within max_expansions={cfg.max_expansions}",
-                               self.expanded, t0)
+                return budget_exhausted("max_expansions", cfg.max_expansions, self.expanded,
+                                        t0)
             if self.open_list and time.perf_counter() - t0 > cfg.max_time_s:
-                return failure(f"no path within max_time_s={cfg.max_time_s}", self.expanded, t0)
+                return budget_exhausted("max_time_s", cfg.max_time_s, self.expanded, t0)
         if self.goal is not None:
             return success(self.goal, self.primitives, self.expanded, t0)
-        return failure("no path: every reachable pose was expanded (open list exhausted)",
-                       self.expanded, t0)
+        return no_path(OPEN_LIST_EMPTY, self.expanded, t0)
