@@ -19,7 +19,6 @@ import argparse
 import contextlib
 import importlib.util
 import json
-import math
 import os
 import shlex
 import sys
@@ -27,7 +26,13 @@ import time
 from dataclasses import replace
 
 from dgt_lib import __version__
-from dgt_lib.cli_args import floats, glue_negative_coordinates, vehicle_or_file
+from dgt_lib.cli_args import (
+    band_arg,
+    floats,
+    glue_negative_coordinates,
+    resolution_arg,
+    vehicle_or_file,
+)
 from dgt_lib.core import faults
 from dgt_lib.core.artifacts import data_root
 from dgt_lib.core.config import (
@@ -350,45 +355,18 @@ def _add_world_options(parser: argparse.ArgumentParser, vehicle_file: bool = Fal
     parser.add_argument("--method", default="dgt", choices=METHODS)
     parser.add_argument("--profile", type=_profile_arg, default=None,
                         metavar=PROFILE_METAVAR, help=PROFILE_HELP)
-    parser.add_argument("--resolution", type=_resolution_arg, default=0.4,
+    parser.add_argument("--resolution", type=resolution_arg, default=0.4,
                         help="heightmap file: metres per pixel (default 0.4); a DEM is "
                              "resampled to the profile's worlds.hfield_resolution_m")
     parser.add_argument("--vertical-scale", type=float, default=None,
                         help="PNG heightmap: metres at the brightest pixel")
     parser.add_argument("--nodata", choices=("error", "crop"), default="error",
                         help="DEM no-data cells: an error, or keep the largest valid rectangle")
-    parser.add_argument("--band", type=_band_arg, default=None, metavar="N",
+    parser.add_argument("--band", type=band_arg, default=None, metavar="N",
                         help="DEM: the band that holds the heights (default 1; a file of "
                              "several bands says which it read)")
     _add_set_option(parser)
     _device_arg(parser)
-
-
-def _band_arg(text: str) -> int:
-    """``--band``: a band number, 1 or more."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if not 1 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"a band is a whole number from 1, got {text!r}")
-    return value
-
-
-def _resolution_arg(text: str) -> float:
-    """``--resolution``: a heightmap's metres per pixel, within
-    :data:`~dgt_lib.core.constraints.HEIGHTMAP_RESOLUTION_M`."""
-    from dgt_lib.core.constraints import HEIGHTMAP_RESOLUTION_M
-
-    low, high = HEIGHTMAP_RESOLUTION_M
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not low <= value <= high:
-        raise argparse.ArgumentTypeError(f"metres per pixel in [{low:g}, {high:g}], "
-                                         f"got {text!r}")
-    return value
 
 
 def _add_costmap(sub) -> None:

@@ -1,5 +1,5 @@
-"""Parsing ``dgt``'s argument values: coordinates (negative ones included) and vehicles
-(a named one or a vehicle file)."""
+"""Parsing ``dgt``'s argument values: coordinates (negative ones included), vehicles (a
+named one or a vehicle file), a DEM's band and a heightmap's resolution."""
 
 from __future__ import annotations
 
@@ -60,3 +60,30 @@ def glue_negative_coordinates(argv: list[str]) -> list[str]:
         out.append(arg)
         i += 1
     return out
+
+
+def band_arg(text: str) -> int:
+    """``--band``: a band number, 1 or more."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a band is a whole number from 1, got {text!r}")
+    return value
+
+
+def resolution_arg(text: str) -> float:
+    """``--resolution``: a heightmap's metres per pixel, within
+    :data:`~dgt_lib.core.constraints.HEIGHTMAP_RESOLUTION_M`."""
+    from dgt_lib.core.constraints import HEIGHTMAP_RESOLUTION_M
+
+    low, high = HEIGHTMAP_RESOLUTION_M
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not low <= value <= high:
+        raise argparse.ArgumentTypeError(f"metres per pixel in [{low:g}, {high:g}], "
+                                         f"got {text!r}")
+    return value
