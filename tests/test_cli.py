@@ -309,7 +309,7 @@ def test_dgt_plan_takes_set_too(capsys, monkeypatch):
     def fake_plan_query(world, vehicle, start, goal, *, profile, **kwargs):
         seen["profile"] = profile
         return types.SimpleNamespace(summary=lambda: "planned",
-                                     plan=types.SimpleNamespace(success=True))
+                                     plan=types.SimpleNamespace(success=True, failure=""))
 
     monkeypatch.setattr(dgt_lib.plan_one, "plan_query", fake_plan_query)
     assert main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2,0", "--goal",
