@@ -89,13 +89,17 @@ def _hero(cited: Sequence[Run], _every, root: Path) -> str:
 
 
 def _times(cited: Sequence[Run], _every, _root: Path) -> str:
-    lines = ["| profile | processor | one seed's stages, median over its seeds |",
-             "| --- | --- | --- |"]
+    lines = ["| profile | processor | one seed's stages, median over its seeds | load |",
+             "| --- | --- | --- | --- |"]
     for run in cited:
+        times = [t for r in run.records for t in r.get("stage_times", [])]
         totals = [sum(t["seconds"] for t in r.get("stage_times", [])) for r in run.records]
+        loads = [t["load_1min_before"] for t in times if t.get("load_1min_before") is not None]
         if totals:
             lines.append(f"| `{run.profile}` ({tables.n_seeds(len(run.seeds))}) | "
-                         f"{run.processor} | {median(totals) / 60:.0f} min |")
+                         f"{run.processor} | {median(totals) / 60:.0f} min | "
+                         f"{min(loads, default=0):.1f}–{max(loads, default=0):.1f} at "
+                         "the stages' starts |")
     return "\n".join(lines) + "\n"
 
 
