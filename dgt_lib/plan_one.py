@@ -48,14 +48,6 @@ HIGH_COST = 0.5
 """Path cells with a directional cost C above this are listed in the summary."""
 
 
-def resolve_world(world: str | World, profile: Profile, *, resolution_m: float = 0.4,
-                  vertical_scale_m: float | None = None) -> World:
-    """A :class:`World` from a kit world's name, a ``.npy``/``.png`` heightmap file, a DEM
-    (``.tif``/``.asc``) or a World (:func:`load_world` without the georeference)."""
-    return load_world(world, profile, resolution_m=resolution_m,
-                      vertical_scale_m=vertical_scale_m)[0]
-
-
 def load_world(world: str | World, profile: Profile, *, resolution_m: float = 0.4,
                vertical_scale_m: float | None = None, nodata: str = "error",
                band: int | None = None) -> tuple[World, Georeference | None]:

@@ -234,10 +234,6 @@ def load(path: Path) -> Any:
         return pickle.load(f)
 
 
-class CorruptArtifactError(RuntimeError):
-    """An artifact file that exists but cannot be trusted (truncated, changed, unreadable)."""
-
-
 def changed_settings(old: Any, new: Any, prefix: str = "", depth: int = 2) -> list[str]:
     """Dotted names of the settings that differ between two configurations in their
     :func:`config_hash` form (dicts compared key by key down to ``depth`` levels):
