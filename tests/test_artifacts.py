@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from dgt_lib.core import artifacts
+from dgt_lib.core.cache_keys import jsonable as key_form
 from dgt_lib.core.config import get_profile
 
 
@@ -166,7 +167,7 @@ def test_a_settings_object_used_many_times_hashes_as_its_copies_do():
     copies = [{"worlds": copy.deepcopy(p.worlds), "collect": copy.deepcopy(p.collect), "i": i}
               for i in range(3)]
     assert artifacts.config_hash(shared) == artifacts.config_hash(copies)
-    assert artifacts._jsonable(shared) == artifacts._jsonable(copies)
+    assert key_form(shared) == key_form(copies)
     copies[2]["worlds"] = get_profile("demo").worlds
     assert artifacts.config_hash(shared) != artifacts.config_hash(copies)
 

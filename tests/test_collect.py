@@ -167,11 +167,10 @@ def test_a_stalling_truck_gets_low_locomotion():
     hill = get_world("hill", "smoke")
     x_route = hill.routes["B"][0, 0]
     start = np.array([x_route, 22.0, math.pi / 2])
-    paper_run = CollectConfig(episode_duration_s=40.0, turn_around_after_stall=False)
+    paper_run = CollectConfig(episode_duration_s=40.0)
     ep = run_episode(hill, "carla_cola", 0, paper_run, start_pose=start,
                      steer=_keep_on_route_b(hill), render=False)
     assert ep.end_reason in ("immobilized", "timeout")  # stalled (or still rocking at 40 s)
-    assert len(ep.segments()) == 1
     assert ep.pose[:, 1].max() < hill.landmarks["B_steep_top"][1]
     at = np.arange(3.0, ep.time_s[-1], 0.5)
     labels = locomotion_signal(ep.time_s, ep.pose[:, :2], at_s=at)
@@ -180,39 +179,6 @@ def test_a_stalling_truck_gets_low_locomotion():
     assert flat[0] and labels[flat].min() > 0.8
     assert labels[~flat].min() < 0.1
     assert labels[-1] < 0.1  # where it ends, stuck
-
-
-def test_a_stalled_truck_can_turn_around_and_drive_back_down():
-    """With ``turn_around_after_stall`` (an option) the truck that stalled at Route B's
-    26° section is put back where it stopped, facing the other way, and drives back down
-    at u in a second segment of the same run; its patches are labelled low where it
-    stalled going up and high going down, and none spans the turn-around."""
-    from dgt_lib.perception.dataset import episode_patches
-
-    hill = get_world("hill", "smoke")
-    start = np.array([hill.routes["B"][0, 0], 22.0, math.pi / 2])
-    turning = CollectConfig(episode_duration_s=60.0, turn_around_after_stall=True)
-    ep = run_episode(hill, "carla_cola", 0, turning, start_pose=start,
-                     steer=_keep_on_route_b(hill), render=False)
-    up, down = ep.segments()[:2]
-    stall_y = ep.pose[up][-1, 1]
-    assert hill.landmarks["B_steep_bottom"][1] - 3.0 < stall_y  # stalled at the section
-    assert math.sin(ep.pose[down][0, 2]) < -0.9  # turned around: facing south
-    np.testing.assert_allclose(ep.pose[down][0, :2], ep.pose[up][-1, :2], atol=0.5)
-    back = (ep.pose[down][:, 1] < stall_y - 6.0) & (ep.pose[down][:, 1] > stall_y - 20.0)
-    assert back.sum() > 25
-    np.testing.assert_allclose(ep.speed_mps[down][back], 5.0, atol=0.8)  # back at u
-    cut = episode_patches(ep, _true_bev(hill), CollectConfig())
-    t_turn = ep.time_s[down][0]
-    before, after = cut["times"] < t_turn, cut["times"] >= t_turn
-    assert cut["labels"][before][-1] < 0.2  # stuck going up
-    assert cut["times"][after].min() >= t_turn + CollectConfig().patch_start_s - 1e-6
-    going_down = after & (np.sin(cut["pose"][:, 2]) < -0.9)
-    assert going_down.sum() >= 3 and cut["labels"][going_down].min() > 0.8
-    # The paper's run (the default) ends at the stall: one segment.
-    paper = run_episode(hill, "carla_cola", 0, CollectConfig(episode_duration_s=60.0),
-                        start_pose=start, steer=_keep_on_route_b(hill), render=False)
-    assert paper.end_reason == "immobilized" and len(paper.segments()) == 1
 
 
 def test_collection_resumes_after_an_interruption(data_dir):

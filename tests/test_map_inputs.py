@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from dgt_lib.core.cache_keys import jsonable as key_form
 from dgt_lib.core.camera import CameraIntrinsics, RGBDFrame
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.geometry import GridSpec
@@ -16,7 +17,6 @@ from dgt_lib.perception.bev import GRADIENT, BEVMap
 from dgt_lib.perception.colour_shuffle import shuffled_colours
 from dgt_lib.perception.pose_noise import PoseNoise, perturbed, pose_noise
 from dgt_lib.stages.collect import bev_config, episode_config
-from dgt_lib.stages.train import train_key
 
 INTR = CameraIntrinsics(width=8, height=6, fovy_rad=math.radians(60.0))
 
@@ -32,17 +32,17 @@ def test_true_poses_leave_every_frame_and_every_cache_key_as_it_was():
     f = frame()
     assert PoseNoise().localiser(3)(f) is f
     prof = get_profile("smoke")
-    assert "pose_noise" not in episode_config(prof, "jeep", 0)
-    assert "bev_settings" not in bev_config("hill", prof)
-    assert "inputs" not in train_key(prof.train)
+    assert "pose_noise" not in key_form(episode_config(prof, "jeep", 0))
+    assert "bev_settings" not in key_form(bev_config("hill", prof))
+    assert "inputs" not in key_form(prof.train)
 
 
 def test_noisy_poses_change_the_keys_of_what_they_change_and_only_when_set():
     noisy = get_profile("smoke").with_overrides({"bev.pose_sigma_xy_m": 0.3})
-    assert episode_config(noisy, "jeep", 0)["pose_noise"]["sigma_xy_m"] == 0.3
-    assert bev_config("hill", noisy)["bev_settings"].pose_sigma_xy_m == 0.3
+    assert key_form(episode_config(noisy, "jeep", 0))["pose_noise"]["sigma_xy_m"] == 0.3
+    assert key_form(bev_config("hill", noisy))["bev_settings"]["pose_sigma_xy_m"] == 0.3
     geometry = get_profile("smoke").with_overrides({"train.inputs": "geometry"})
-    assert train_key(geometry.train)["inputs"] == "geometry"
+    assert key_form(geometry.train)["inputs"] == "geometry"
 
 
 def test_a_perturbed_frame_moves_its_points_by_the_offset_and_turns_them_about_the_camera():

@@ -5,13 +5,14 @@ setting leaves every existing model's cache key unchanged."""
 import numpy as np
 import pytest
 
+from dgt_lib.core.cache_keys import jsonable as key_form
 from dgt_lib.core.config import VEHICLES, TrainConfig, get_profile
 from dgt_lib.core.constraints import InvalidSettingError
 from dgt_lib.learning.scarcity import UNUSED, keep_runs, kept_training_runs, runs_kept
 from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.learning.training import TrainingSet
 from dgt_lib.perception.dataset import TEST, TRAIN, VAL
-from dgt_lib.stages.train import model_config, train_key
+from dgt_lib.stages.train import model_config
 
 
 @pytest.fixture(scope="module")
@@ -78,9 +79,9 @@ def test_settings_are_checked():
 
 def test_cache_keys_unchanged_by_default_and_changed_when_thinned():
     prof = get_profile("smoke")
-    assert "scarce_vehicle" not in train_key(prof.train)
+    assert "scarce_vehicle" not in key_form(prof.train)
     thin = prof.with_overrides({"train.scarce_vehicle": "vw_van", "train.scarce_fraction": 0.1})
-    assert train_key(thin.train)["scarce_fraction"] == 0.1
+    assert key_form(thin.train)["scarce_fraction"] == 0.1
     a = model_config(prof, None, dataset_hash="d")
     b = model_config(thin, None, dataset_hash="d")
-    assert a != b and a["train"] == train_key(prof.train)
+    assert a != b and a["train"] == prof.train

@@ -424,29 +424,6 @@ def test_a_head_that_predicts_a_constant_is_reported_as_collapsed(trained, datas
     assert train.collapsed_heads({"jeep": {"mse": 0.1}}) == []  # old checkpoints: unknown
 
 
-def test_inverse_frequency_weights_make_each_label_bin_count_alike():
-    from dgt_lib.learning.training import label_weights
-
-    # a jeep-like vehicle: 97 labels ≈ 1 and 3 stalls; a balanced one
-    labels = np.r_[np.full(97, 0.99), np.full(3, 0.05), np.linspace(0, 1, 100, endpoint=False)]
-    vehicle = np.r_[np.zeros(100, np.int8), np.ones(100, np.int8)]
-    w = label_weights(labels, vehicle, np.arange(200), n_bins=5, max_weight=50.0)
-    jeep = w[:100]
-    assert jeep[:97].sum() == pytest.approx(jeep[97:].sum(), rel=1e-5)  # the two bins weigh alike
-    assert jeep.mean() == pytest.approx(1.0) and w[100:].mean() == pytest.approx(1.0)
-    np.testing.assert_allclose(w[100:], 1.0, rtol=1e-6)  # balanced labels: weights all 1
-    capped = label_weights(labels, vehicle, np.arange(200), n_bins=5, max_weight=5.0)
-    assert capped[97] / capped[0] == pytest.approx(5.0 / (100 / (2 * 97)), rel=1e-5)  # capped
-
-
-def test_label_weighting_trains_and_is_validated(dataset):
-    cfg = replace(TINY, epochs=1, label_weighting="inverse_frequency")
-    result = train_model(dataset, cfg, progress=False, device=CPU)
-    assert math.isfinite(result.history[0]["val_loss"])
-    with pytest.raises(ValueError, match="label_weighting"):
-        train_model(dataset, replace(TINY, label_weighting="focal"), progress=False)
-
-
 def test_the_cosine_schedule_falls_from_the_learning_rate_to_zero():
     cfg = replace(TINY, learning_rate=1e-3, lr_schedule="cosine")
     rates = [train.learning_rate_at(cfg, t, 100) for t in range(101)]
@@ -494,16 +471,6 @@ def test_live_taps_train_the_same_network_and_hand_back_full_kernels(dataset):
                                   predict(loaded, dataset.patches[:64]))
     with pytest.raises(ValueError, match="conv_taps"):
         train_model(dataset, replace(TINY, conv_taps="some"), progress=False)
-
-
-def test_recipe_fields_at_their_old_behaviour_keep_the_cached_models_valid():
-    old = {k: v for k, v in artifacts._jsonable(TINY).items()
-           if k not in train_stage.LATER_TRAIN_FIELDS}  # the key before the fields existed
-    assert artifacts._jsonable(train_stage.train_key(TINY)) == old
-    cosine = train_stage.train_key(replace(TINY, lr_schedule="cosine"))
-    assert cosine["lr_schedule"] == "cosine"
-    assert train_stage.train_key(replace(TINY, conv_taps="live"))["conv_taps"] == "live"
-    assert artifacts.config_hash(cosine) != artifacts.config_hash(train_stage.train_key(TINY))
 
 
 @pytest.mark.parametrize(("stem", "name", "function"), [

@@ -45,7 +45,6 @@ from dgt_lib.learning.run import train_network
 from dgt_lib.learning.training import (
     TrainingSet,
     channel_statistics,
-    label_weights,
     resolve_device,
 )
 from dgt_lib.perception.dataset import TRAIN, VAL, PatchDataset
@@ -319,9 +318,5 @@ def spec_training_set(dataset: PatchDataset, vehicles: Sequence[str],
     used = dataset.labels[np.concatenate([train_idx, val_idx])]
     if not np.all((used >= 0) & (used <= 1)):
         raise ValueError("labels must be locomotion values in [0, 1]")
-    weights = None
-    if cfg.label_weighting == "inverse_frequency":
-        weights = label_weights(dataset.labels, column, train_idx, cfg.label_bins,
-                                cfg.max_label_weight)
     return TrainingSet(dataset, tuple(vehicles), np.ones(len(column), bool), train_idx,
-                       val_idx, column, weights, codes=tuple(range(n_vehicles)))
+                       val_idx, column, codes=tuple(range(n_vehicles)))

@@ -16,18 +16,18 @@ Formats follow the file suffix: ``.npz`` (a dict of numpy arrays), ``.json``,
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import json
 import os
 import pickle
 import tempfile
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
 
+from dgt_lib.core.cache_keys import KEY_FORM, jsonable, legacy_form
 from dgt_lib.core.faults import STORAGE_ERRNOS
 
 try:
@@ -51,47 +51,11 @@ def profile_dir(profile: str) -> Path:
     return data_root() / profile
 
 
-def _jsonable(obj: Any, memo: dict[int, Any] | None = None) -> Any:
-    """``obj`` as plain JSON values (a dataclass tagged with its type, an array by its
-    SHA-256). ``memo`` maps ``id`` of a dataclass already converted in this call to its
-    value: a configuration that repeats one settings object (1,300 episodes of one
-    profile) converts it once."""
-    memo = {} if memo is None else memo
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        if id(obj) not in memo:
-            memo[id(obj)] = {"__type__": type(obj).__name__,
-                             **_jsonable(dataclasses.asdict(obj), memo)}
-        return memo[id(obj)]
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v, memo)
-                for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v, memo) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return {"__array__": hashlib.sha256(np.ascontiguousarray(obj).tobytes()).hexdigest(),
-                "shape": list(obj.shape), "dtype": str(obj.dtype)}
-    if isinstance(obj, (np.integer, np.floating, np.bool_)):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    if obj is None or isinstance(obj, (str, int, float, bool)):
-        return obj
-    raise TypeError(f"cannot hash configuration value of type {type(obj).__name__}: {obj!r}")
-
-
-def key_without_later_fields(config: Any, later: Mapping[str, object]) -> dict[str, object]:
-    """A dataclass ``config`` as a cache key sees it, leaving out each field of ``later``
-    (fields added after artifacts were cached) while it has the value that computes exactly
-    as before the field existed: the stored artifacts keep their keys; any other value is in
-    the key. Hashes as the dataclass itself would (:func:`config_hash`)."""
-    return {"__type__": type(config).__name__,
-            **{k: v for k, v in dataclasses.asdict(config).items()
-               if not (k in later and v == later[k])}}
-
-
 def config_hash(config: Any) -> str:
-    """A stable 16-hex-digit hash of a configuration (dataclasses, dicts, numbers, arrays)."""
-    text = json.dumps(_jsonable(config), sort_keys=True, separators=(",", ":"))
+    """A stable 16-hex-digit hash of a configuration (dataclasses, dicts, numbers, arrays)
+    in key form (:func:`dgt_lib.core.cache_keys.jsonable`: settings at their defaults left
+    out)."""
+    text = json.dumps(jsonable(config), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -269,8 +233,11 @@ def _check(path: Path, config: Any) -> str | None:
     except (OSError, ValueError):
         return "unreadable metadata"
     if meta.get("config_hash") != config_hash(config):
-        changed = changed_settings(meta.get("config"), _jsonable(config))
-        return f"configuration changed ({', '.join(changed)})"
+        current, stored = jsonable(config), meta.get("config")
+        if meta.get("key_form") != KEY_FORM:  # a key stored in the older, every-field form
+            stored = legacy_form(stored, current)
+        if stored != current:
+            return f"configuration changed ({', '.join(changed_settings(stored, current))})"
     if meta.get("size") != path.stat().st_size or meta.get("sha256") != _file_digest(path):
         return "corrupt (size or checksum differs from when it was written)"
     return None
@@ -328,7 +295,8 @@ def ensure(
         value = build()
         save(path, value)
         meta = {"config_hash": config_hash(config), "size": path.stat().st_size,
-                "sha256": _file_digest(path), "config": _jsonable(config)}
+                "sha256": _file_digest(path), "config": jsonable(config),
+                "key_form": KEY_FORM}
         if fingerprint is not None:
             meta["fingerprint"] = fingerprint(value)
         _atomic_write(_meta_path(path), lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))

@@ -34,7 +34,6 @@ from dgt_lib.core.constraints import (  # the choices of TrainConfig's text sett
     CONV_TAPS,
     HEAD_INITS,
     INPUTS,
-    LABEL_WEIGHTINGS,
     LR_SCHEDULES,
     SELECTIONS,
     VEHICLES,
@@ -65,8 +64,7 @@ class CollectConfig:
     Episodes: spawn at a random free pose, drive at ``speed_mps`` with smooth
     random (Ornstein–Uhlenbeck) steering until ``episode_duration_s`` or a simulator
     end (flipped, off_map, diverged); ``immobilized_limit_s`` below the simulator's
-    immobile speed ends the run (or, with ``turn_around_after_stall``, turns the vehicle
-    around). Survey: nadir frames of the same camera from ``survey_altitude_m`` above the
+    immobile speed ends the run. Survey: nadir frames of the same camera from ``survey_altitude_m`` above the
     terrain on a lattice (complete BEV maps).
     """
 
@@ -74,13 +72,6 @@ class CollectConfig:
     episode_duration_s: float = 100.0  # paper: runs end at 100 s or when immobilized
     speed_mps: float = 5.0  # u, commanded speed (paper: Locomotion)
     immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
-    # True (ours, an option): after a stall the vehicle turns around where it stopped and
-    # drives on (a new segment); False = the paper's runs, which end at the first stall.
-    # Measured on the demo training world (studies/descent_coverage.py, 20 carla_cola runs):
-    # 2× the driving time, but steep descents stay rare (samples more than 15° downhill:
-    # 0 → 2), because the truck stalls at the foot of steep slopes.
-    turn_around_after_stall: bool = False
-    turn_around_min_m: float = 5.0  # a segment stalling closer than this to its start ends the run
     steer_tau_s: float = 2.0  # OU steering correlation time [s]
     steer_sigma: float = 0.3  # OU stationary std of the normalised steer
     edge_margin_m: float = 15.0  # closer to the map edge, steer back toward the centre [m]
@@ -111,7 +102,6 @@ class TrainConfig:
     epochs: int = 10
     batch_size: int = 256
     learning_rate: float = 1e-3  # Adam
-    weight_decay: float = 0.0  # Adam's L2 penalty
     width: int = 64  # channels of the first ResNet stage; 64 = ResNet-18 (paper)
     fc_hidden: int = 256  # units of the FC layer between the branches and the heads
     patience: int | None = None  # stop after this many epochs without a better val loss
@@ -120,12 +110,6 @@ class TrainConfig:
     # × 0.1 (DGTNet.init_heads; ours); "default": PyTorch's init, which let the jeep head
     # (97 % of labels ≈ 1) saturate at L̂ = 1 in the first epoch. One of HEAD_INITS.
     head_init: str = "prior"
-    # "inverse_frequency": each sample's loss weighted by 1 / (how common its label is among
-    # its vehicle's training labels, in label_bins bins), capped at max_label_weight, so the
-    # rare low-L patches (a stall on a ridge) count; "none": the paper's plain mean (ours).
-    label_weighting: str = "none"
-    label_bins: int = 5
-    max_label_weight: float = 10.0
     # "constant": Adam at learning_rate throughout; "cosine": the rate falls from
     # learning_rate to 0 along a half cosine over the whole run, step by step (ours). One of
     # LR_SCHEDULES.
@@ -150,7 +134,7 @@ class TrainConfig:
     scarce_fraction: float = 1.0
 
     def __post_init__(self):
-        for name, valid in (("head_init", HEAD_INITS), ("label_weighting", LABEL_WEIGHTINGS),
+        for name, valid in (("head_init", HEAD_INITS),
                             ("lr_schedule", LR_SCHEDULES), ("selection", SELECTIONS),
                             ("conv_taps", CONV_TAPS), ("inputs", INPUTS),
                             ("scarce_vehicle", ("none",) + VEHICLES)):
@@ -213,7 +197,6 @@ class PlannerConfig:
     theta_bins: int = 36  # heading bins of the closed set (10°)
     closed_cell_m: float = 1.6  # xy cell of the closed set [m] (one step)
     substep_m: float = 0.2  # collision-check spacing along a primitive [m]
-    safety_margin_m: float = 0.0  # extra clearance around the footprint [m]
     analytic_shot: bool = True  # try a Dubins / turn-then-straight shot near the goal
     shot_distance_m: float = 20.0  # try the shot from nodes this close to the goal [m]
     max_expansions: int = 200_000  # search cap (expanded nodes)

@@ -17,12 +17,11 @@ from dataclasses import dataclass
 from dgt_lib.core.overrides import InvalidOverrideError, format_setting
 
 HEAD_INITS: tuple[str, ...] = ("prior", "default")
-LABEL_WEIGHTINGS: tuple[str, ...] = ("none", "inverse_frequency")
 LR_SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 SELECTIONS: tuple[str, ...] = ("best_val", "last")
 CONV_TAPS: tuple[str, ...] = ("all", "live")
 INPUTS: tuple[str, ...] = ("rgbd", "geometry", "rgb")
-"""Valid ``TrainConfig.head_init``, ``label_weighting``, ``lr_schedule``, ``selection``,
+"""Valid ``TrainConfig.head_init``, ``lr_schedule``, ``selection``,
 ``conv_taps`` and ``inputs`` values (re-exported by :mod:`dgt_lib.core.config`; checked when
 a ``TrainConfig`` is made, so ``--set`` fails at once)."""
 VEHICLES: tuple[str, ...] = ("jeep", "vw_van", "mercedes_van", "carla_cola")
@@ -158,7 +157,7 @@ BOUNDS: dict[str, Rule] = {
     "costmap.batch_size": count_up_to(1 << 16), "costmap.slope_trials": count_up_to(100_000),
     "train.epochs": count_up_to(10_000), "train.batch_size": count_up_to(1 << 16),
     "train.width": count_up_to(1024), "train.fc_hidden": count_up_to(8192),
-    "train.label_bins": count_up_to(1000), "planner.theta_bins": count_up_to(720),
+    "planner.theta_bins": count_up_to(720),
     "planner.max_expansions": count_up_to(100_000_000),
     "experiments.n_hill": count_up_to(100_000), "experiments.n_ridge": count_up_to(100_000),
     "experiments.n_eval_jeep": count_up_to(100_000),
@@ -175,7 +174,7 @@ SETTING_RULES: dict[str, Rule] = {
     "worlds.eval_seed": SEED,
     "collect.episodes": episode_counts(), "collect.episode_duration_s": POSITIVE,
     "collect.speed_mps": POSITIVE, "collect.immobilized_limit_s": POSITIVE,
-    "collect.turn_around_min_m": NON_NEGATIVE, "collect.steer_tau_s": POSITIVE,
+    "collect.steer_tau_s": POSITIVE,
     "collect.steer_sigma": NON_NEGATIVE, "collect.edge_margin_m": NON_NEGATIVE,
     "collect.tree_lookahead_m": NON_NEGATIVE, "collect.spawn_margin_m": NON_NEGATIVE,
     "collect.spawn_max_slope_deg": above_up_to(0, 90), "collect.max_angular_rate_dps": POSITIVE,
@@ -183,10 +182,8 @@ SETTING_RULES: dict[str, Rule] = {
     "collect.patch_interval_s": POSITIVE, "collect.patch_start_s": NON_NEGATIVE,
     "collect.survey_altitude_m": POSITIVE, "collect.survey_overlap": between(0, 1, high_open=True),
     "train.learning_rate": POSITIVE,
-    "train.weight_decay": NON_NEGATIVE,
     "train.patience": optional(COUNT), "train.head_init": one_of(*HEAD_INITS),
-    "train.label_weighting": one_of(*LABEL_WEIGHTINGS),
-    "train.max_label_weight": POSITIVE, "train.lr_schedule": one_of(*LR_SCHEDULES),
+    "train.lr_schedule": one_of(*LR_SCHEDULES),
     "train.selection": one_of(*SELECTIONS), "train.conv_taps": one_of(*CONV_TAPS),
     "train.inputs": one_of(*INPUTS), "train.scarce_vehicle": one_of("none", *VEHICLES),
     "train.scarce_fraction": above_up_to(0, 1),
@@ -196,7 +193,7 @@ SETTING_RULES: dict[str, Rule] = {
     "planner.heuristic_weight": at_least(1), "planner.goal_tolerance_m": POSITIVE,
     "planner.goal_heading_tolerance_rad": above_up_to(0, math.pi),
     "planner.closed_cell_m": POSITIVE, "planner.substep_m": POSITIVE,
-    "planner.safety_margin_m": NON_NEGATIVE, "planner.shot_distance_m": NON_NEGATIVE,
+    "planner.shot_distance_m": NON_NEGATIVE,
     "planner.max_time_s": POSITIVE,
     "experiments.start_jitter_m": NON_NEGATIVE, "experiments.heading_jitter_deg": between(0, 180),
     "experiments.eval_distance_m": distance_range(), "experiments.eval_min_hazard_m": NON_NEGATIVE,

@@ -186,8 +186,7 @@ def train_network(
     if live_taps:
         model.use_live_taps()
     model.to(device)
-    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate,
-                                 weight_decay=cfg.weight_decay)
+    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate)
     name = "multi-task" if len(vehicles) > 1 else f"single-task {vehicles[0]}"
     snapshots, state = None, FitState()
     if snapshot_path is not None:

@@ -7,8 +7,8 @@ every vehicle's patches at once with the masked loss (:func:`masked_loss`): a pa
 vehicle v trains the shared backbone and head v only. The single-task variant is the same
 architecture with one head, trained on one vehicle's data. Plain shuffled minibatches over
 all training samples (the dataset's vehicle imbalance is kept, as in the paper). Ours,
-beyond the paper: heads start at their vehicle's prior (``TrainConfig.head_init``), rare
-labels can weigh more (``TrainConfig.label_weighting``), a cosine learning rate and
+beyond the paper: heads start at their vehicle's prior (``TrainConfig.head_init``), a
+cosine learning rate and
 last-epoch selection (``lr_schedule``, ``selection``); why: docs/training.md.
 
 Typical use::
@@ -41,8 +41,7 @@ from dgt_lib.perception.dataset import TRAIN, VAL, PatchDataset
 if TYPE_CHECKING:
     pass
 
-def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor,
-                weight: torch.Tensor | None = None) -> torch.Tensor:
+def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor) -> torch.Tensor:
     """The multi-task loss of a batch (paper: Multi-Task Learning).
 
         𝓛(P, v) = ‖L̂_v(P) − L_v(t_P)‖²
@@ -50,45 +49,10 @@ def masked_loss(pred: torch.Tensor, labels: torch.Tensor, head: torch.Tensor,
     Only the head of the vehicle that collected patch P contributes; the other
     heads' outputs are not used, so they get exactly zero gradient from P.
     pred: (B, n_heads) predictions; labels: (B,) L_v(t_P); head: (B,) int64 column
-    of each sample's vehicle; weight: optional (B,) sample weights w_P
-    (:func:`label_weights`). Returns the mean over the batch, Σ w_P 𝓛(P) / Σ w_P with
-    weights (a scalar).
+    of each sample's vehicle. Returns the mean over the batch (a scalar).
     """
     chosen = pred.gather(1, head[:, None]).squeeze(1)  # (B,) L̂_v(P)
-    if weight is None:
-        return torch.mean((chosen - labels) ** 2)
-    return torch.sum(weight * (chosen - labels) ** 2) / torch.sum(weight)
-
-
-def label_weights(labels: np.ndarray, vehicle: np.ndarray, train_index: np.ndarray,
-                  n_bins: int = 5, max_weight: float = 10.0) -> np.ndarray:
-    """Inverse-frequency sample weights (N,) float32 for imbalanced labels (ours).
-
-    Per vehicle v, its training labels are binned in ``n_bins`` equal bins of [0, 1];
-    a sample of v whose label falls in bin b gets
-
-        w = min(n_v / (B_v · n_{v,b}), max_weight),   then scaled to mean 1 over v's
-                                                       training samples,
-
-    with n_v the vehicle's training samples, n_{v,b} those in bin b and B_v its
-    non-empty bins: every occupied bin weighs about the same in the loss
-    (docs/training.md). Samples of bins with no training sample get the cap.
-    """
-    labels = np.asarray(labels, np.float64)
-    bins = np.clip((labels * n_bins).astype(np.int64), 0, n_bins - 1)
-    weights = np.ones(len(labels), np.float64)
-    train = np.zeros(len(labels), bool)
-    train[train_index] = True
-    for v in np.unique(vehicle):
-        own = vehicle == v
-        counts = np.bincount(bins[own & train], minlength=n_bins).astype(np.float64)
-        if counts.sum() == 0:
-            continue
-        per_bin = np.where(counts > 0, counts.sum() / (np.count_nonzero(counts)
-                                                        * np.maximum(counts, 1)), max_weight)
-        w = np.minimum(per_bin[bins], max_weight)
-        weights[own] = w[own] / w[own & train].mean()
-    return weights.astype(np.float32)
+    return torch.mean((chosen - labels) ** 2)
 
 
 def default_device() -> torch.device:
@@ -314,8 +278,8 @@ class MultiHeadNet(Protocol):
 @dataclass
 class TrainingSet:
     """The samples one training reads: ``dataset`` with the training and validation
-    indices of ``vehicles``' samples, each sample's output column (``heads``, -1 for other
-    vehicles) and, with ``TrainConfig.label_weighting``, its loss weight w_P."""
+    indices of ``vehicles``' samples and each sample's output column (``heads``, -1 for
+    other vehicles)."""
 
     dataset: PatchDataset
     vehicles: tuple[str, ...]
@@ -323,7 +287,6 @@ class TrainingSet:
     train_index: np.ndarray
     val_index: np.ndarray
     heads: np.ndarray  # (N,) int64
-    weights: np.ndarray | None = None
     # each vehicle's value in dataset.vehicle; None: its index into config.VEHICLES
     codes: tuple[int, ...] | None = None
 
@@ -346,33 +309,26 @@ class TrainingSet:
         if not np.all((used >= 0) & (used <= 1)):  # also catches NaN
             raise ValueError("labels must be locomotion values in [0, 1]; found "
                              f"{np.sum(~((used >= 0) & (used <= 1)))} outside (or NaN)")
-        weights = None
-        if cfg.label_weighting == "inverse_frequency":
-            weights = label_weights(dataset.labels, dataset.vehicle, train_idx, cfg.label_bins,
-                                    cfg.max_label_weight)
         return cls(dataset, vehicles, chosen, train_idx, val_idx,
-                   _head_columns(vehicles, dataset.vehicle), weights)
+                   _head_columns(vehicles, dataset.vehicle))
 
     def targets(self, idx: np.ndarray, device: torch.device
-                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
-        """Labels (B,) float32, output columns (B,) and weights (B,) or None of samples ``idx``."""
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Labels (B,) float32 and output columns (B,) of samples ``idx``."""
         labels = torch.from_numpy(self.dataset.labels[idx].astype(np.float32)).to(device)
-        weight = None if self.weights is None else torch.from_numpy(self.weights[idx]).to(device)
-        return labels, torch.from_numpy(self.heads[idx]).to(device), weight
+        return labels, torch.from_numpy(self.heads[idx]).to(device)
 
     def batches(self, order: np.ndarray, batch_size: int) -> list[np.ndarray]:
         """``order`` in minibatches; a last batch of one is dropped (BatchNorm needs ≥ 2)."""
         return [b for b in _index_batches(order, batch_size) if len(b) >= 2]
 
     def validation_loss(self, model: MultiHeadNet, device: torch.device) -> float:
-        """Mean :func:`masked_loss` over the validation samples (eval mode, no gradient),
-        weighted like training."""
+        """Mean :func:`masked_loss` over the validation samples (eval mode, no gradient)."""
         index = self.val_index
         pred = _predict_index(model, self.dataset.patches, index, 1024, device)
-        w = None if self.weights is None else torch.from_numpy(self.weights[index]).double()
         return masked_loss(torch.from_numpy(pred).double(),
                            torch.from_numpy(self.dataset.labels[index]).double(),
-                           torch.from_numpy(self.heads[index]), w).item()
+                           torch.from_numpy(self.heads[index])).item()
 
 
 def train_epoch(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: TrainingSet,
@@ -381,7 +337,7 @@ def train_epoch(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: Tra
                 on_step: Callable[[int, float, float], None] | None = None,
                 loss_fn: Callable[..., torch.Tensor] = masked_loss) -> float:
     """One epoch: the training samples in a random order, in minibatches; per batch the
-    masked loss ``loss_fn(pred, labels, head[, weight])`` (:func:`masked_loss`), its
+    masked loss ``loss_fn(pred, labels, head)`` (:func:`masked_loss`), its
     gradient, and one Adam step at the rate :func:`learning_rate_at` gives optimiser step
     ``step`` of ``total_steps``. With ``cfg.mirror_augment`` each patch is mirrored
     left ↔ right with probability ½ (a vehicle's locomotion does not care).
@@ -395,8 +351,8 @@ def train_epoch(model: MultiHeadNet, optimizer: torch.optim.Optimizer, data: Tra
         if cfg.mirror_augment:
             flip = torch.from_numpy(rng.random(len(idx)) < 0.5).to(device)
             x = torch.where(flip[:, None, None, None], x.flip(-1), x)
-        pred, (labels, heads, weight) = model(x), data.targets(idx, device)
-        loss = loss_fn(pred, labels, heads, *(() if weight is None else (weight,)))
+        pred, (labels, heads) = model(x), data.targets(idx, device)
+        loss = loss_fn(pred, labels, heads)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         for group in optimizer.param_groups:

@@ -178,9 +178,7 @@ def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None 
                     window_s: float | None = None) -> dict[str, np.ndarray]:
     """Patches of one run (a :class:`dgt_lib.perception.episodes.Episode`) cut from ``bev`` with
     their labels L_v(t_P) (paper: "each patch P extracted at time t_P is paired with
-    L_v(t_P)"), at :func:`patch_times` of each of the run's segments (a segment is
-    treated as a run of its own: it starts from rest after a turn-around, and no label
-    window spans two); none in the last 2 s of a run that fell off the map or diverged
+    L_v(t_P)"), at :func:`patch_times` of the run; none in the last 2 s of a run that fell off the map or diverged
     (:data:`ARTIFACT_ENDS`).
 
     Returns ``times`` (M,), ``pose`` (M, 3), ``patches`` (M, 6, 22, 7) float32,
@@ -195,25 +193,17 @@ def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None 
     valid = np.asarray(episode.valid, dtype=bool)
     if episode.end_reason in ARTIFACT_ENDS:  # the last moments show the map edge / a glitch
         valid = valid & (t <= t[-1] - ARTIFACT_END_S)
-    times, poses, labels = [], [], []
-    for seg in episode.segments():
-        ts, t0 = t[seg], t[seg][0]
-        at = t0 + patch_times(ts - t0, valid[seg], cfg.patch_interval_s, cfg.patch_start_s, w)
-        if len(at) == 0:
-            continue
-        xy_yaw = np.asarray(episode.pose[seg], dtype=np.float64)
-        times.append(at)
-        poses.append(_pose_at(ts, xy_yaw, at))
-        labels.append(locomotion_signal(ts, xy_yaw[:, :2], window_s=w, u=cfg.speed_mps,
-                                        at_s=at))
-    if not times:
+    at = t[0] + patch_times(t - t[0], valid, cfg.patch_interval_s, cfg.patch_start_s, w)
+    if len(at) == 0:
         return {"times": np.zeros(0), "pose": np.zeros((0, 3)),
                 "patches": np.zeros((0, 6, 22, 7), np.float32),
                 "observed": np.zeros((0, 22, 7), bool), "labels": np.zeros(0, np.float32)}
-    pose = np.concatenate(poses)
+    xy_yaw = np.asarray(episode.pose, dtype=np.float64)
+    pose = _pose_at(t, xy_yaw, at)
+    labels = locomotion_signal(t, xy_yaw[:, :2], window_s=w, u=cfg.speed_mps, at_s=at)
     patches, observed = extract_patches(bev, pose)
-    return {"times": np.concatenate(times), "pose": pose, "patches": patches,
-            "observed": observed, "labels": np.concatenate(labels).astype(np.float32)}
+    return {"times": at, "pose": pose, "patches": patches, "observed": observed,
+            "labels": np.asarray(labels).astype(np.float32)}
 
 
 def build_dataset(episodes: Sequence[Episode], bev: BEVMap,

@@ -7,7 +7,7 @@ Ornstein–Uhlenbeck process, :class:`OUSteering`, turned home near the map edge
 trunks ahead), and ends after ``episode_duration_s`` (paper: 100 s), when immobilized, or
 at a simulator end. The pose is recorded at 25 Hz; an onboard RGB-D frame every 5 m
 driven is accumulated into the episode's BEV; samples above 100°/s are simulator
-glitches (paper: pre-filtering). Stalls, turn-arounds and why: docs/stages.md →
+glitches (paper: pre-filtering). Stalls and why a run ends at the first: docs/stages.md →
 Collection. Caching and parallel runs are :mod:`dgt_lib.stages.collect`'s job.
 """
 
@@ -140,8 +140,7 @@ class Episode:
     yaw [rad]. z: (T,) chassis height [m]. speed_mps: (T,) signed speed along the
     heading. angular_rate_dps: (T,) body angular-rate magnitude [°/s].
     valid: (T,) bool, False where the angular rate exceeds the glitch threshold.
-    segment: (T,) int, the segment of each sample (0 until the first turn-around after a
-    stall, then 1, …; see the module docstring). end_reason: one of :data:`END_REASONS`.
+    end_reason: one of :data:`END_REASONS`.
     n_frames: onboard frames rendered.
     bev: the frames' accumulated BEV statistics in sparse form (``None`` when
     loaded without it), see :meth:`BEVAccumulator.to_sparse`.
@@ -159,19 +158,6 @@ class Episode:
     end_reason: str
     n_frames: int
     bev: dict[str, np.ndarray] | None = None
-    segment: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        if self.segment is None:  # one segment (the paper's runs; older artifacts)
-            self.segment = np.zeros(len(self.time_s), np.int16)
-
-    def segments(self) -> list[slice]:
-        """The sample ranges of the episode's segments, in order."""
-        seg = np.asarray(self.segment)
-        cuts = np.flatnonzero(np.diff(seg) != 0) + 1
-        bounds = np.concatenate([[0], cuts, [len(seg)]])
-        return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)
-                if b > a]
 
     @property
     def duration_s(self) -> float:
@@ -185,7 +171,6 @@ class Episode:
             "z": self.z, "speed_mps": self.speed_mps,
             "angular_rate_dps": self.angular_rate_dps, "valid": self.valid,
             "end_reason": np.array(self.end_reason), "n_frames": np.array(self.n_frames),
-            "segment": np.asarray(self.segment, np.int16),
         }
         for k, v in (self.bev or {}).items():
             out[f"bev_{k}"] = v
@@ -200,7 +185,7 @@ class Episode:
             z=arrays["z"], speed_mps=arrays["speed_mps"],
             angular_rate_dps=arrays["angular_rate_dps"], valid=arrays["valid"],
             end_reason=str(arrays["end_reason"]), n_frames=int(arrays["n_frames"]),
-            bev=bev if with_bev and bev else None, segment=arrays.get("segment"),
+            bev=bev if with_bev and bev else None,
         )
 
 
@@ -258,14 +243,13 @@ def run_episode(
         renderer.restart()
     st = sim.reset(float(pose0[0]), float(pose0[1]), float(pose0[2]))
     n_max = int(round(cfg.episode_duration_s / CONTROL_DT_S)) + 1
-    rows = np.empty((n_max, 8))  # t, x, y, yaw, z, speed, |ω| [°/s], segment
+    rows = np.empty((n_max, 7))  # t, x, y, yaw, z, speed, |ω| [°/s]
     n, n_frames, reason = 0, 0, "timeout"
     travelled, next_frame_m, last_xy = 0.0, 0.0, st.position[:2].copy()
-    segment, t0, segment_start = 0, 0.0, st.position[:2].copy()  # t0: the segment's start [s]
     while True:
         rate = math.degrees(float(np.linalg.norm(st.angular_rate)))
-        rows[n] = (t0 + st.time_s, st.position[0], st.position[1], st.yaw, st.position[2],
-                   st.speed_mps, rate, segment)
+        rows[n] = (st.time_s, st.position[0], st.position[1], st.yaw, st.position[2],
+                   st.speed_mps, rate)
         n += 1
         travelled += float(np.hypot(*(st.position[:2] - last_xy)))
         last_xy = st.position[:2].copy()
@@ -279,23 +263,14 @@ def run_episode(
         if st.done_reason is not None:
             reason = st.done_reason
             break
-        if n >= n_max or t0 + st.time_s >= cfg.episode_duration_s - 1e-9:
+        if n >= n_max or st.time_s >= cfg.episode_duration_s - 1e-9:
             break
         if stop is not None and stop(st):
             reason = "stopped"
             break
-        if st.immobilized_s > cfg.immobilized_limit_s:
-            moved = float(np.hypot(*(st.position[:2] - segment_start)))
-            if not cfg.turn_around_after_stall or moved < cfg.turn_around_min_m:
-                reason = "immobilized"
-                break
-            # Turn around where it stopped: a new segment, starting a control step later.
-            t0 += st.time_s + CONTROL_DT_S
-            segment += 1
-            st = sim.reset(float(st.position[0]), float(st.position[1]), st.yaw + math.pi)
-            segment_start, last_xy = st.position[:2].copy(), st.position[:2].copy()
-            ou.value = 0.0
-            continue
+        if st.immobilized_s > cfg.immobilized_limit_s:  # paper: a run ends when immobilised
+            reason = "immobilized"
+            break
         s = steer(st) if steer is not None else _random_steer(st, ou, world, trees, spec, cfg)
         st = sim.step(speed_cmd_mps=cfg.speed_mps, steer=s)
     rows = rows[:n]
@@ -307,8 +282,7 @@ def run_episode(
 
 def _episode(rows: np.ndarray, vehicle: str, index: int, seed: int, reason: str,
              cfg: CollectConfig, n_frames: int, bev: dict[str, np.ndarray] | None) -> Episode:
-    """The :class:`Episode` of a drive's rows (t, x, y, yaw, z, speed, |ω| [°/s],
-    segment), with the rows whose time does not increase dropped."""
+    """The :class:`Episode` of a drive's rows (t, x, y, yaw, z, speed, |ω| [°/s]), with the rows whose time does not increase dropped."""
     keep = np.concatenate([[True], np.diff(rows[:, 0]) > 0])  # strictly increasing time
     rows = rows[keep]
     return Episode(
@@ -317,7 +291,7 @@ def _episode(rows: np.ndarray, vehicle: str, index: int, seed: int, reason: str,
         z=rows[:, 4].astype(np.float32), speed_mps=rows[:, 5].astype(np.float32),
         angular_rate_dps=rows[:, 6].astype(np.float32),
         valid=rows[:, 6] <= cfg.max_angular_rate_dps, end_reason=reason,
-        n_frames=n_frames, bev=bev, segment=rows[:, 7].astype(np.int16),
+        n_frames=n_frames, bev=bev,
     )
 
 

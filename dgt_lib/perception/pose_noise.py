@@ -55,11 +55,6 @@ class PoseNoise:
         """Whether any frame is moved at all."""
         return self.sigma_xy_m > 0 or self.sigma_yaw_rad > 0 or self.drift_m > 0
 
-    def key(self) -> dict[str, float] | None:
-        """The noise as a cache key reads it: None without noise, so the maps built from
-        true poses keep their keys."""
-        return dataclasses.asdict(self) if self.active else None
-
     def localiser(self, seed: int) -> Localiser:
         """A function that places successive frames at their noisy poses, the bias
         drifting from one call to the next; deterministic in ``seed`` and independent of

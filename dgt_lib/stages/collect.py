@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import VEHICLES, BEVConfig, CollectConfig, Profile, as_profile
+from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
 from dgt_lib.core.executors import SerialExecutor, current_executor, limit_threads, run_jobs
 from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
@@ -59,7 +59,6 @@ EPISODE_FIELDS: tuple[str, ...] = (
     "episode_duration_s", "speed_mps", "immobilized_limit_s", "steer_tau_s", "steer_sigma",
     "edge_margin_m", "tree_lookahead_m", "spawn_margin_m", "spawn_max_slope_deg",
     "max_angular_rate_dps", "frame_spacing_m", "frame_max_depth_m",
-    "turn_around_after_stall", "turn_around_min_m",
 )
 """The :class:`CollectConfig` fields an episode depends on (its cache key)."""
 
@@ -86,14 +85,13 @@ def episode_relpath(vehicle: str, index: int) -> str:
 
 def episode_config(profile: Profile, vehicle: str | VehicleSpec, index: int
                    ) -> dict[str, object]:
-    """What one episode depends on (its artifact's cache key); the pose noise only when
-    there is any, so the episodes of true poses keep their keys."""
-    cfg = {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
+    """What one episode depends on (its artifact's cache key; the pose noise is left out
+    while there is none, :mod:`dgt_lib.core.cache_keys`)."""
+    return {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
            "episode": _fields(profile.collect, EPISODE_FIELDS),
            "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
-           "index": int(index), "camera": CAMERA, "lighting": LIGHTING, "physics": PHYSICS}
-    noise = pose_noise(profile.bev).key()
-    return cfg if noise is None else {**cfg, "pose_noise": noise}
+           "index": int(index), "camera": CAMERA, "lighting": LIGHTING, "physics": PHYSICS,
+            "pose_noise": pose_noise(profile.bev)}
 
 
 def _run_training_episode(profile: Profile, vehicle: str | VehicleSpec, index: int) -> Episode:
@@ -201,9 +199,8 @@ def bev_config(world_name: str, profile: Profile) -> dict[str, object]:
     cfg: dict[str, object] = {"world": world_name, "bev_format": BEV_FORMAT,
                               "worlds": profile.worlds, "seed": profile.seed, "camera": CAMERA,
                               "lighting": LIGHTING,
-                              "survey": _fields(profile.collect, SURVEY_FIELDS)}
-    if profile.bev != BEVConfig():  # only when set: the maps of true poses keep their keys
-        cfg["bev_settings"] = profile.bev
+                              "survey": _fields(profile.collect, SURVEY_FIELDS),
+                              "bev_settings": profile.bev}  # left out while at its defaults
     if world_name == "training":  # one digest, not 1,300 configurations in the metadata
         cfg["episodes"] = _episodes_digest(profile)
     return cfg

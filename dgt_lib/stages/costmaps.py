@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import VEHICLES, BEVConfig, Profile, as_profile
+from dgt_lib.core.config import VEHICLES, Profile, as_profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.mapping.baselines import (
     SlopeModel,
@@ -75,9 +75,7 @@ def world_bev(world: World | str, profile: Profile | str | None = None, *,
         return ensure_bev(name, prof, progress=progress), bev_relpath(name)
     config = {"stage": "bev", "bev_format": BEV_FORMAT, "heights": world.heights,
               "colors": world.colors, "trees": world.trees, "grid": world.grid,
-              "collect": prof.collect}
-    if prof.bev != BEVConfig():  # only when set: the maps of true poses keep their keys
-        config["bev_settings"] = prof.bev
+              "collect": prof.collect, "bev_settings": prof.bev}
     relpath = f"bev/custom/{world.name}_{artifacts.config_hash(config)[:10]}.npz"
     arrays = artifacts.ensure(relpath, config,
                               lambda: mapped_world_bev(world, prof, progress=progress)[0]
@@ -174,10 +172,15 @@ source). Not ``batch_size`` (patches per call: the same costmap up to float roun
 ``tau_s_margin`` (the occupancy map, not stored with the costmaps)."""
 
 
+COSTMAP_FORMAT = 1
+"""The version of a stored costmap: bumped by any change that alters the costs."""
+
+
 def costmap_config(prof: Profile, bev_path: str, method: str, source: str) -> dict:
     """The cache key of a stored costmap: the BEV map, the method, its ``source`` (the
     model's or the slope fit's digest) and the :data:`INFERENCE_FIELDS`."""
-    return {"stage": "costmap", "bev_path": bev_path, "method": method, "source": source,
+    return {"stage": "costmap", "format": COSTMAP_FORMAT, "bev_path": bev_path,
+            "method": method, "source": source,
             "bev": artifacts.stored_digest(bev_path, profile=cache_dir(prof)),
             "costmap": {f: getattr(prof.costmap, f) for f in INFERENCE_FIELDS}}
 

@@ -27,11 +27,15 @@ def dataset_fingerprint(dataset: PatchDataset) -> str:
     return artifacts.config_hash(dataset.to_arrays())
 
 
+DATASET_FORMAT = 1
+"""The version of the stored dataset: bumped by any change that alters its patches."""
+
+
 def _dataset_config(prof: Profile, bev: BEVMap) -> dict[str, object]:
     """The dataset artifact's cache key: the collection and world configuration, the
     vehicles and the training world's BEV map itself."""
-    return {"collect": prof.collect, "worlds": prof.worlds, "seed": prof.seed,
-            "vehicles": [get_vehicle(v) for v in VEHICLES], "window_s": WINDOW_S,
+    return {"format": DATASET_FORMAT, "collect": prof.collect, "worlds": prof.worlds,
+            "seed": prof.seed, "vehicles": [get_vehicle(v) for v in VEHICLES], "window_s": WINDOW_S,
             "bev": bev.channels, "bev_observed": bev.observed}
 
 

@@ -11,11 +11,12 @@ The stage's figures, report and recordings are written by the top level
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import BEVConfig, Profile, as_profile, get_profile
+from dgt_lib.core.config import Profile, as_profile, get_profile
 from dgt_lib.core.faults import report_writes
 from dgt_lib.core.overrides import format_setting
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult, run_experiment
@@ -52,25 +53,22 @@ def _model_digests(prof: Profile) -> dict[str, str | None]:
     return out
 
 
-LATER_EXPERIMENT_FIELDS: dict[str, object] = {"eval_hazard_world": False, "controller": "paper"}
-"""ExperimentsConfig fields added after results were cached, with the value that runs exactly
-as before they existed: left out of the key while they have it (as
-``stages.train.LATER_TRAIN_FIELDS``), so stored trials stay valid."""
+EXPERIMENT_FORMAT = 1
+"""The version of a stored experiment's trials: bumped by any change that alters them."""
 
 
 def experiment_config(name: str, prof: Profile) -> dict[str, object]:
-    """What an experiment's trials depend on (its cache key); the ``bev`` settings only when
-    they differ from the paper's (true poses, observed colours)."""
-    later = dict(LATER_EXPERIMENT_FIELDS)
+    """What an experiment's trials depend on (its cache key; settings at their defaults are
+    left out, :mod:`dgt_lib.core.cache_keys`)."""
+    experiments = prof.experiments
     if name != "experiment3":  # only Experiment 3 runs on eval_hazard: 1 and 2 never see it
-        later["eval_hazard_world"] = prof.experiments.eval_hazard_world
-    experiments = artifacts.key_without_later_fields(prof.experiments, later)
-    cfg = {"stage": name, "experiments": experiments, "planner": prof.planner,
-           "costmap": prof.costmap, "seed": prof.seed, "models": _model_digests(prof),
-           "physics": PHYSICS}
+        experiments = replace(experiments, eval_hazard_world=False)
+    cfg = {"stage": name, "format": EXPERIMENT_FORMAT, "experiments": experiments,
+           "planner": prof.planner, "costmap": prof.costmap, "seed": prof.seed,
+           "models": _model_digests(prof), "physics": PHYSICS, "bev": prof.bev}
     if prof.experiments.controller != "paper":  # what the named controller sets, too
         cfg["mppi"] = controller_settings(prof.experiments.controller)
-    return cfg if prof.bev == BEVConfig() else {**cfg, "bev": prof.bev}
+    return cfg
 
 
 def experiment_stem(name: str, prof: Profile) -> str:

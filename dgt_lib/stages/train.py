@@ -73,19 +73,6 @@ def default_rgb_weights() -> Path | None:
     return next((p for p in candidates if p.is_file()), None)
 
 
-LATER_TRAIN_FIELDS: dict[str, object] = {"lr_schedule": "constant", "selection": "best_val",
-                                         "conv_taps": "all", "inputs": "rgbd",
-                                         "scarce_vehicle": "none", "scarce_fraction": 1.0}
-"""TrainConfig fields added after models were cached, with the value that trains exactly as
-before they existed. :func:`train_key` leaves a field out while it has that value, so the
-models already trained (hours for ``paper``) stay valid; any other value is in the key."""
-
-
-def train_key(cfg: TrainConfig) -> dict[str, object]:
-    """``cfg`` as the model cache key sees it (see :data:`LATER_TRAIN_FIELDS`)."""
-    return artifacts.key_without_later_fields(cfg, LATER_TRAIN_FIELDS)
-
-
 def rgb_weights_for(cfg: TrainConfig, rgb_weights: str | Path | None) -> Path | str | None:
     """The ImageNet RGB weights a training uses: ``rgb_weights`` when given, else
     :func:`default_rgb_weights` for width 64 (the ResNet-18 they fit), else None."""
@@ -98,10 +85,11 @@ def model_config(profile: Profile, dataset: PatchDataset | None, kind: str = "mu
                  seed: int | None = None, rgb_weights: str | Path | None = None,
                  dataset_hash: str | None = None) -> dict[str, Any]:
     """What model ``kind`` of ``profile`` depends on (its artifact's cache key): the
-    dataset (``dataset_hash``, default :func:`dataset_fingerprint`), ``profile.train``
-    (:func:`train_key`), the kind, the seed (default ``profile.seed``), whether ImageNet
-    RGB weights were used (``rgb_weights``, default :func:`default_rgb_weights`, only
-    with width 64) and the checkpoint layout. Computed without torch."""
+    dataset (``dataset_hash``, default :func:`dataset_fingerprint`), ``profile.train`` (its
+    settings at their defaults left out, :mod:`dgt_lib.core.cache_keys`), the kind, the seed
+    (default ``profile.seed``), whether ImageNet RGB weights were used (``rgb_weights``,
+    default :func:`default_rgb_weights`, only with width 64) and the checkpoint layout.
+    Computed without torch."""
     vehicles = parse_kind(kind)
     cfg = profile.train
     rgb_weights = rgb_weights_for(cfg, rgb_weights)
@@ -109,7 +97,7 @@ def model_config(profile: Profile, dataset: PatchDataset | None, kind: str = "mu
     if rgb_weights is not None:
         rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
     return {"stage": "train", "kind": kind, "vehicles": list(vehicles),
-            "dataset": dataset_hash or dataset_fingerprint(dataset), "train": train_key(cfg),
+            "dataset": dataset_hash or dataset_fingerprint(dataset), "train": cfg,
             "seed": profile.seed if seed is None else seed, "rgb_weights": rgb,
             "checkpoint_version": CHECKPOINT_VERSION}
 

@@ -3,8 +3,7 @@
 The vehicle rectangle (length × width, centred on the pose) is covered by an
 odd number of equal circles on its long axis (``footprint_circles``). A circle
 centre is snapped to its cell, and the cell is blocked when an occupied or
-unobserved cell centre lies closer than r_circle + ``safety_margin_m`` +
-res·√2/2, so no occupied cell centre lies inside the vehicle rectangle at any
+unobserved cell centre lies closer than r_circle + res·√2/2, so no occupied cell centre lies inside the vehicle rectangle at any
 checked pose. The blocked map carries a blocked border wide enough that every
 sub-step of a primitive from an on-map pose indexes it without clipping.
 """
@@ -35,13 +34,13 @@ class BlockedMap:
     """
 
     def __init__(self, occupancy: np.ndarray, grid: GridSpec, circle_offsets: np.ndarray,
-                 circle_radius_m: float, safety_margin_m: float, reach_m: float, substeps: int):
+                 circle_radius_m: float, reach_m: float, substeps: int):
         res = grid.resolution
         H, W = grid.shape
         self.grid = grid
         self.circle_offsets = circle_offsets
         self.occupied_distance = ndimage.distance_transform_edt(occupancy == 0) * res
-        self.clearance_m = circle_radius_m + safety_margin_m + res * math.sqrt(2) / 2
+        self.clearance_m = circle_radius_m + res * math.sqrt(2) / 2
         self.blocked = self.occupied_distance < self.clearance_m
         # border width: ≥ 1 cell past the farthest sub-step circle of a primitive from any
         # on-map pose, so that primitive_hits needs no clipping (see there)

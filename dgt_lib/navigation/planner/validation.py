@@ -32,8 +32,6 @@ def check_config(cfg: PlannerConfig) -> None:
         raise ValueError("PlannerConfig.theta_bins and max_expansions must be ≥ 1")
     if cfg.shot_distance_m < 0:
         raise ValueError(f"PlannerConfig.shot_distance_m must be ≥ 0, got {cfg.shot_distance_m}")
-    if cfg.safety_margin_m < 0:
-        raise ValueError(f"PlannerConfig.safety_margin_m must be ≥ 0, got {cfg.safety_margin_m}")
 
 
 def check_maps(costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec) -> None:
