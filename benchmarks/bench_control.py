@@ -28,6 +28,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from dgt_lib.core.controller import CONTROLLERS, MPPIConfig, controller_settings  # noqa: E402
 from dgt_lib.core.geometry import GridSpec  # noqa: E402
 from dgt_lib.core.vehicles import get_vehicle  # noqa: E402
 from dgt_lib.navigation.control.bicycle import (  # noqa: E402
@@ -36,8 +37,7 @@ from dgt_lib.navigation.control.bicycle import (  # noqa: E402
     simulate_tracking,
 )
 from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E402
-from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint  # noqa: E402
-from dgt_lib.navigation.control.profiles import CONTROLLERS, controller_settings  # noqa: E402
+from dgt_lib.navigation.control.mppi_config import vehicle_footprint  # noqa: E402
 from dgt_lib.navigation.control.sampling import draw_noise  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep

@@ -113,7 +113,7 @@ def main() -> None:
 
     stride = tuple(args.stride) if args.stride else profile.costmap.stride
     cfg = ExploreConfig(stride=stride, time_limit_s=60.0, change_tolerance=args.tolerance,
-                        mppi_batch_size=profile.experiments.mppi_batch_size)
+                        mppi_batch_size=profile.mppi.batch_size)
     full_wall, full_cpu, error, mean_error = [], [], [], []
     by_box = (DenseIncrementalCostmap(grid, model, cfg.n_headings, vehicles=(args.vehicle,))
               if args.pooled else

@@ -393,8 +393,7 @@ def drive_query(world: World, vehicle: str | VehicleSpec, plan: PlanResult, goal
     limit = trial_time_limit_s(profile.experiments, plan.length_m)
     return drive_path(world, vehicle, plan.path, goal, occupancy=maps.occupancy,
                       grid=maps.grid, time_limit_s=limit,
-                      mppi_batch_size=profile.experiments.mppi_batch_size, seed=profile.seed,
-                      **trial_controller(profile, cost))
+                      seed=profile.seed, **trial_controller(profile, cost))
 
 
 def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:

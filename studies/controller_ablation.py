@@ -23,11 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import CONTROLLERS
 from dgt_lib.evaluation.driven_cost import driven_cost
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.statistics import wilson_interval
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
-from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.stages.experiments import (
     experiment_path,
     reproduce_command,

@@ -26,15 +26,16 @@ import collections
 import multiprocessing
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 
 import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import CONTROLLERS
 from dgt_lib.core.executors import limit_threads
 from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
 from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
-from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.navigation.drive import drive
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
@@ -59,12 +60,11 @@ def _drive(job: tuple) -> tuple[str, bool, float]:
         named = profile.with_overrides({"experiments.controller": variant})
         control = trial_controller(named, method_costmap(maps, method, vehicle))
     else:
-        control = {"mppi_settings": variant}
+        control = {"mppi": replace(profile.mppi, **variant)}
     length_m = float(np.hypot(*np.diff(path[:, :2], axis=0).T).sum())
     outcome, _, _ = drive(world, vehicle, path, goal, occupancy=maps.occupancy, grid=maps.grid,
                           time_limit_s=trial_time_limit_s(profile.experiments, length_m),
-                          mppi_batch_size=profile.experiments.mppi_batch_size, seed=seed,
-                          **control)
+                          seed=seed, **control)
     return outcome.reason, outcome.success, outcome.duration_s
 
 

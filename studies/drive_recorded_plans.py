@@ -23,8 +23,8 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import CONTROLLERS
 from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
-from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.navigation.drive import drive
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.world.terrain import get_world
@@ -46,7 +46,7 @@ def main() -> None:
         world = get_world(task.world, prof)
         maps = trial_maps(task.world, task.method, task.vehicle, prof)
         cost = method_costmap(maps, task.method, task.vehicle)
-        recorded = task.profile.experiments  # the trial's batch size and time limit
+        recorded = task.profile.experiments  # the trial's time limit
         length_m = float(np.hypot(*np.diff(rec.path[:, :2], axis=0).T).sum())
         end = rec.trajectory[-1, 1:3]
         print(f"#{i} {task.method} {task.vehicle} {task.query.label} (route {rec.route}): "
@@ -54,11 +54,12 @@ def main() -> None:
               f"({end[0]:.1f}, {end[1]:.1f}) m")
         for name in args.controller or CONTROLLERS:
             t0 = time.perf_counter()
-            named = prof.with_overrides({"experiments.controller": name})
+            # the trial's own MPPI samples, with the named preset
+            named = task.profile.with_overrides({"experiments.controller": name})
             outcome, traj, _ = drive(
                 world, task.vehicle, rec.path, task.query.goal, occupancy=maps.occupancy,
                 grid=maps.grid, time_limit_s=trial_time_limit_s(recorded, length_m),
-                mppi_batch_size=recorded.mppi_batch_size, seed=task.seed,
+                seed=task.seed,
                 **trial_controller(named, cost))
             print(f"    {name:<7} {outcome.reason} after {outcome.duration_s:.1f} s at "
                   f"({traj[-1, 1]:.1f}, {traj[-1, 2]:.1f}) m  [{time.perf_counter() - t0:.0f} s]")

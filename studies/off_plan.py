@@ -31,12 +31,12 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import CONTROLLERS
 from dgt_lib.core.executors import limit_threads
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.driven_cost import driven_cost
 from dgt_lib.evaluation.statistics import wilson_interval
 from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
-from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.navigation.drive import drive
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
@@ -105,7 +105,7 @@ def _drive(job: tuple) -> tuple[str, float, float, np.ndarray]:
     outcome, traj, _ = drive(
         world, vehicle, rest, goal, occupancy=maps.occupancy, grid=maps.grid,
         time_limit_s=trial_time_limit_s(profile.experiments, length_m),
-        mppi_batch_size=profile.experiments.mppi_batch_size, seed=seed, start_pose=start,
+        seed=seed, start_pose=start,
         **trial_controller(named, method_costmap(maps, method, vehicle)))
     dgt = trial_maps(world_name, "dgt", vehicle, profile)
     return (outcome.reason, driven_cost(traj, dgt.costmap("dgt", vehicle), dgt.grid),

@@ -29,14 +29,15 @@ import argparse
 import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, nullcontext
+from dataclasses import replace
 
 import numpy as np
 
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import CONTROLLERS
 from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_time_limit_s
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
-from dgt_lib.navigation.control.profiles import CONTROLLERS
 from dgt_lib.navigation.drive import drive
 from dgt_lib.stages.experiments import (
     experiment_path,
@@ -145,7 +146,7 @@ def main() -> None:
     maps = trial_maps(task.world, task.method, task.vehicle, prof)
     control = trial_controller(prof, method_costmap(maps, task.method, task.vehicle))
     if args.mppi:
-        control["mppi_settings"] = {**control.get("mppi_settings", {}), **args.mppi}
+        control["mppi"] = replace(control["mppi"], **args.mppi)
     length_m = float(np.hypot(*np.diff(rec.path[:, :2], axis=0).T).sum())
     next_print = [args.from_s]
     print(f"{'t [s]':>6} {'x [m]':>6} {'y [m]':>6} {'z-h':>5} {'yaw':>4} {'pitch':>6} "
@@ -174,7 +175,6 @@ def main() -> None:
         outcome, traj, _ = drive(world, task.vehicle, rec.path, task.query.goal,
                                  occupancy=maps.occupancy, grid=maps.grid,
                                  time_limit_s=trial_time_limit_s(prof.experiments, length_m),
-                                 mppi_batch_size=prof.experiments.mppi_batch_size,
                                  seed=task.seed, on_command=show, **control)
     same = (outcome.reason == rec.outcome.reason
             and np.allclose(traj[-1, 1:3], rec.trajectory[-1, 1:3], atol=0.05))

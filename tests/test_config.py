@@ -107,7 +107,7 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
         get_profile("demo").with_overrides({"planner.bta": 50})
     assert "planner.beta" in str(err.value) and "planner.step_m" in str(err.value)
     with pytest.raises(InvalidOverrideError, match="worlds, collect, bev, train, costmap, planner, "
-                                                   "experiments, ground_truth, conditioned, "
+                                                   "experiments, mppi, ground_truth, conditioned, "
                                                    "or one of seed, seeds, workers"):
         get_profile("demo").with_overrides({"plan.beta": 50})
     with pytest.raises(InvalidOverrideError, match="unknown setting 'name'"):
@@ -258,7 +258,7 @@ def test_every_setting_that_multiplies_work_or_memory_has_an_upper_bound(name, o
 
 @pytest.mark.parametrize("setting, value", [
     ("costmap.n_headings", 100_000), ("worlds.hfield_resolution_m", 1e-6), ("seed", 10**300),
-    ("workers", 10**6), ("seeds", 10**9), ("experiments.mppi_batch_size", 10**9),
+    ("workers", 10**6), ("seeds", 10**9), ("mppi.batch_size", 10**9),
     ("worlds.training_seed", 2**63),
 ])
 def test_values_that_could_never_fit_in_memory_are_refused_in_one_line(setting, value):

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.control.bicycle import (
     KinematicBicycle,
@@ -19,11 +20,7 @@ from dgt_lib.navigation.control.bicycle import (
     steering_from_twist,
 )
 from dgt_lib.navigation.control.mppi import MPPIController
-from dgt_lib.navigation.control.mppi_config import (
-    MPPIConfig,
-    parse_mppi_settings,
-    vehicle_footprint,
-)
+from dgt_lib.navigation.control.mppi_config import parse_mppi_settings, vehicle_footprint
 
 WHEELBASE, MAX_STEER = 2.46, math.radians(35.0)  # the jeep
 R_MIN = WHEELBASE / math.tan(MAX_STEER)  # 3.51 m
@@ -476,10 +473,10 @@ def test_a_trial_stepped_by_hand_is_the_trial_drive_runs():
     path = np.column_stack([np.linspace(10, 40, 76), np.full(76, 20.0), np.zeros(76)])
     seen = []
     outcome, traj, _ = drive(world, "jeep", path, (40.0, 20.0), time_limit_s=20.0,
-                             mppi_batch_size=64, seed=4,
+                             mppi=MPPIConfig(batch_size=64), seed=4,
                              on_command=lambda s, v, steer: seen.append((s.time_s, v, steer)))
     sim = Simulator(world, "jeep")
-    policy = start_trial(sim, path, mppi_batch_size=64, seed=4)
+    policy = start_trial(sim, path, mppi=MPPIConfig(batch_size=64), seed=4)
     steps = list(drive_steps(sim, policy, OutcomeRule(time_limit_s=20.0), goal=(40.0, 20.0),
                              dt_s=MPPI_DT_S))
     sim.close()
@@ -584,7 +581,7 @@ def test_corner_braking_enters_and_holds_a_corner_at_the_plans_corner_speed():
 def test_the_robust_controller_weaves_less_on_a_straight_than_the_papers():
     # a steering lag the model does not know (0.3 s): the paper's yaw-rate noise makes the
     # car weave about the path; robust's half of it steers about half as much
-    from dgt_lib.navigation.control.profiles import controller_settings
+    from dgt_lib.core.controller import controller_settings
 
     rms = {}
     for name in ("paper", "robust"):
@@ -639,7 +636,7 @@ def test_from_rest_on_a_full_lock_start_the_biased_samples_turn_from_the_first_c
     # starts): robust's halved yaw-rate noise leaves its first commands nearly straight, or
     # turning the wrong way; with a tenth of the samples around pure pursuit (robust's own
     # setting) it steers the plan's curvature from the first call
-    from dgt_lib.navigation.control.profiles import ROBUST
+    from dgt_lib.core.controller import ROBUST
 
     assert ROBUST["ancillary_fraction"] == 0.1
 

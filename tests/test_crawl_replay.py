@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import MPPIConfig, with_controller
 from dgt_lib.evaluation.trials import trial_time_limit_s
-from dgt_lib.navigation.control.profiles import controller_settings
 from dgt_lib.navigation.drive import drive
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.world.terrain import get_world
@@ -32,8 +32,8 @@ def drive_plan(controller: str):
     length_m = float(np.hypot(*np.diff(PLAN[:, :2], axis=0).T).sum())
     limit = trial_time_limit_s(get_profile("demo").experiments, length_m)
     return drive(get_world("hill", SMOKE), "carla_cola", PLAN, GOAL, occupancy=maps.occupancy,
-                 grid=maps.grid, time_limit_s=limit, mppi_batch_size=1000, seed=0,
-                 mppi_settings=controller_settings(controller))
+                 grid=maps.grid, time_limit_s=limit, seed=0,
+                 mppi=with_controller(MPPIConfig(), controller))
 
 
 @pytest.mark.parametrize("controller", ["paper", "robust"])

@@ -10,6 +10,7 @@ import pytest
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.evaluation import trials
 from dgt_lib.evaluation.experiments import ExperimentResult, run_experiment
 from dgt_lib.evaluation.journal import Journal, read_journal
@@ -23,7 +24,6 @@ from dgt_lib.evaluation.trials import (
     trial_tasks,
 )
 from dgt_lib.navigation.control.mppi import MPPIController
-from dgt_lib.navigation.control.mppi_config import MPPIConfig
 from dgt_lib.navigation.drive import MPPI_DT_S, drive
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.stages.experiments import (
@@ -37,6 +37,7 @@ from dgt_lib.world.terrain import get_world
 from dgt_lib.world.worlds import from_heightmap
 
 PROFILE = get_profile("smoke")
+FEW = MPPIConfig(batch_size=128)  # the paper's MPPI with fewer samples: fast trials
 
 
 def test_routes_are_recognised_on_the_hill_and_the_ridge():
@@ -69,7 +70,7 @@ def test_a_short_closed_loop_trial_succeeds_on_flat_ground():
     world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
     path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
     outcome, traj, speed = drive(world, "jeep", path, (60.0, 20.0), time_limit_s=30.0,
-                                 mppi_batch_size=128)
+                                 mppi=FEW)
     assert outcome.success and outcome.reason == "success"
     assert np.hypot(*(traj[-1, 1:3] - [60.0, 20.0])) < 5.0
     assert speed.max() > 3.0  # it drove, at close to the commanded 5 m/s
@@ -81,7 +82,7 @@ def test_a_vehicle_started_beside_its_plan_rejoins_it_and_arrives():
     world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
     path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
     outcome, traj, _ = drive(world, "jeep", path, (60.0, 20.0), time_limit_s=30.0,
-                             mppi_batch_size=128, start_pose=(10.0, 22.5, 0.0))
+                             mppi=FEW, start_pose=(10.0, 22.5, 0.0))
     assert abs(traj[0, 2] - 22.5) < 0.3  # it started where it was put, not on the path
     assert outcome.success
     assert abs(traj[-1, 2] - 20.0) < 1.0  # back on the line by the goal
@@ -119,7 +120,7 @@ def test_watching_a_trials_commands_does_not_change_the_trial():
     arc = np.column_stack([10 + 20 * np.sin(t), 40 - 20 * np.cos(t), t])
     path = np.vstack([arc, np.column_stack([np.full(40, 30.0), np.linspace(41, 70, 40),
                                             np.full(40, np.pi / 2)])])
-    kwargs = {"time_limit_s": 30.0, "mppi_batch_size": 128, "seed": 5}
+    kwargs = {"time_limit_s": 30.0, "mppi": FEW, "seed": 5}
     seen = []
     watched = drive(world, "jeep", path, (30.0, 70.0),
                     on_command=lambda s, v, steer: seen.append((s.time_s, v, steer)), **kwargs)
@@ -152,7 +153,7 @@ def test_watching_mppis_sampled_costs_does_not_change_the_trial():
     occupancy[rows, cols] = 1  # a wall 2 m beside the path
     path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
     kwargs = {"occupancy": occupancy, "grid": world.grid, "time_limit_s": 30.0,
-              "mppi_batch_size": 128, "seed": 3}
+              "mppi": FEW, "seed": 3}
     original = MPPIController._sampled_costs_compiled
     reports = []
     with replay.watching_sampled_costs(1.5) as latest:
@@ -171,19 +172,14 @@ def test_watching_mppis_sampled_costs_does_not_change_the_trial():
 
 def test_a_drive_takes_other_mppi_settings_for_itself_only():
     """`studies/controller_variants.py` drives recorded plans with other MPPI settings:
-    a lower target speed is driven slower, the next drive without it at 5 m/s again, and a
-    name that is no MPPI setting is refused."""
+    a lower target speed is driven slower, the next drive without it at 5 m/s again."""
     world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")
     path = np.column_stack([np.linspace(10, 60, 126), np.full(126, 20.0), np.zeros(126)])
-    kwargs = {"time_limit_s": 40.0, "mppi_batch_size": 128}
-    slow = drive(world, "jeep", path, (60.0, 20.0), mppi_settings={"target_speed": 2.5},
-                 **kwargs)
-    again = drive(world, "jeep", path, (60.0, 20.0), **kwargs)
+    slow = drive(world, "jeep", path, (60.0, 20.0), time_limit_s=40.0,
+                 mppi=replace(FEW, target_speed=2.5))
+    again = drive(world, "jeep", path, (60.0, 20.0), time_limit_s=40.0, mppi=FEW)
     assert slow[0].success and again[0].success
     assert slow[2].max() < 3.2 < 4.0 < again[2].max()
-    with pytest.raises(TypeError):
-        drive(world, "jeep", path, (60.0, 20.0), mppi_settings={"no_such_setting": 1.0},
-              **kwargs)
 
 
 def test_a_crashing_trial_is_recorded_as_an_error_not_raised():
@@ -380,7 +376,7 @@ def test_a_recorded_trial_stepped_again_ends_as_it_was_recorded(monkeypatch):
     bev = BEVMap(grid, np.zeros((6, *grid.shape), np.float32), np.ones(grid.shape, bool),
                  np.ones(grid.shape, np.int64))
     maps = WorldMaps("flat", bev, np.zeros(grid.shape, np.uint8), 0.6, {})
-    prof = PROFILE.with_overrides({"experiments.mppi_batch_size": 128})
+    prof = PROFILE.with_overrides({"mppi.batch_size": 128})
     task = TrialTask("experiment2_jeep", "flat", "binary", "jeep",
                      Query((10.0, 20.0, 0.0), (60.0, 20.0), "northbound"), 3, prof, 0)
     recorded = run_trial(task, lambda *args: maps)

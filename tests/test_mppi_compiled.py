@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.control.mppi import MPPIController
-from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint
+from dgt_lib.navigation.control.mppi_config import vehicle_footprint
 
 
 def s_curve(length=60.0, amplitude=4.0, wavelength=40.0):
@@ -132,7 +133,7 @@ def test_compiled_backend_matches_the_reference_with_the_robust_controller():
     # the breakaway model lives in both rollouts, the corner cap in both speed critics; the
     # first-step critic and the roll limit act after them: the commands with every such
     # field on are the same in both backends
-    from dgt_lib.navigation.control.profiles import ROBUST
+    from dgt_lib.core.controller import ROBUST
 
     # (corner_accel_mps2 = 1 caps the s-curve's corners at 3.2 m/s)
     every = {**ROBUST, "first_step_weight": 20.0, "corner_accel_mps2": 1.0,

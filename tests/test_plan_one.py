@@ -8,6 +8,7 @@ import pytest
 from dgt_lib.cli import main
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.controller import MPPIConfig, with_controller
 from dgt_lib.mapping.baselines import SlopeModel, slope_costmap
 from dgt_lib.stages.costmaps import world_bev
 from dgt_lib.world.worlds import from_heightmap
@@ -375,7 +376,6 @@ def test_dgt_plan_drive_drives_the_profile_s_controller_and_seed(data_dir, monke
     said; now it drives what a trial would: the controller's settings, the profile's seed,
     and for the terrain critic the costmap the plan was made on."""
     from dgt_lib.navigation import drive as drive_module
-    from dgt_lib.navigation.control.profiles import controller_settings
     from dgt_lib.plan_one import plan_query
 
     seen = {}
@@ -391,7 +391,8 @@ def test_dgt_plan_drive_drives_the_profile_s_controller_and_seed(data_dir, monke
         plan_query(tiny_world(), "jeep", (8.0, 16.0, 0.0), (40.0, 16.0), method="binary",
                    profile=profile, drive=True, progress=False)
     assert seen["seed"] == 5
-    assert seen.get("mppi_settings", {}) == controller_settings(controller)
+    assert seen["mppi"] == profile.mppi and profile.mppi.batch_size == 256  # smoke's samples
+    assert profile.mppi == with_controller(get_profile("smoke").mppi, controller)
     if controller == "terrain":
         assert seen["costmap"].ndim == 3 and seen["costmap"].shape[1:] == (80, 120)
     else:
@@ -403,7 +404,6 @@ def test_robust_and_paper_controllers_give_different_first_commands_at_a_full_lo
     the robust one (biased samples, half the yaw-rate noise) answer differently, so the
     controller --drive is handed is the one it drives."""
     from dgt_lib.core.vehicles import get_vehicle
-    from dgt_lib.navigation.control.profiles import controller_settings
     from dgt_lib.navigation.drive import drive
 
     radius = get_vehicle("jeep").min_turn_radius_m
@@ -413,8 +413,8 @@ def test_robust_and_paper_controllers_give_different_first_commands_at_a_full_lo
     first = {}
     for name in ("paper", "robust"):
         commands = []
-        drive(tiny_world(), "jeep", path, path[-1, :2], time_limit_s=0.5, mppi_batch_size=256,
-              seed=0, mppi_settings=controller_settings(name),
+        drive(tiny_world(), "jeep", path, path[-1, :2], time_limit_s=0.5, seed=0,
+              mppi=with_controller(MPPIConfig(batch_size=256), name),
               on_command=lambda state, v, steer, out=commands: out.append((v, steer)))
         first[name] = commands[0]
     assert first["paper"] != first["robust"]

@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.geometry import GridSpec, nearest_heading_bin
 from dgt_lib.navigation.control.bicycle import KinematicBicycle, simulate_tracking
 from dgt_lib.navigation.control.critics import heading_bins, terrain_table
 from dgt_lib.navigation.control.mppi import MPPIController
-from dgt_lib.navigation.control.mppi_config import MPPIConfig
 
 WHEELBASE, MAX_STEER = 2.46, math.radians(35.0)  # the jeep
 GRID = GridSpec((-10.0, -20.0), 0.4, (100, 200))

@@ -9,9 +9,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from dgt_lib.core.controller import MPPIConfig  # noqa: E402
 from dgt_lib.core.geometry import GridSpec  # noqa: E402
 from dgt_lib.navigation.control.mppi import MPPIController, warm_start_trace  # noqa: E402
-from dgt_lib.navigation.control.mppi_config import MPPIConfig  # noqa: E402
 from dgt_lib.viz import control as viz_control  # noqa: E402
 
 

@@ -27,13 +27,14 @@ from dgt_lib.beyond.incremental import (
 )
 from dgt_lib.beyond.pooled import PooledNet
 from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.costmap import Predictor
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED, occupancy_map
 from dgt_lib.navigation.control.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.control.mppi import MPPIController
-from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint
+from dgt_lib.navigation.control.mppi_config import vehicle_footprint
 from dgt_lib.navigation.drive import MPPI_DT_S
 from dgt_lib.navigation.outcome import OutcomeRule, TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar, InvalidQueryError

@@ -33,6 +33,7 @@ REMOVED_DEFAULTS: dict[str, object] = {
     "weight_decay": 0.0, "label_weighting": "none", "label_bins": 5,  # TrainConfig
     "max_label_weight": 10.0,
     "safety_margin_m": 0.0,  # PlannerConfig
+    "mppi_batch_size": 1000,  # ExperimentsConfig: now mppi.batch_size
 }
 """Settings deleted when keys took this form, with the value every stored run used:
 :func:`legacy_form` leaves them out wherever a key stored in the older form has them."""

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 
 from dgt_lib.core.constraints import (  # the choices of TrainConfig's text settings
     CONV_TAPS,
@@ -39,6 +39,7 @@ from dgt_lib.core.constraints import (  # the choices of TrainConfig's text sett
     VEHICLES,
     check_settings,
 )
+from dgt_lib.core.controller import CONTROLLERS, MPPIConfig, with_controller
 from dgt_lib.core.overrides import apply_overrides, format_setting
 
 PROFILE_NAMES: tuple[str, ...] = ("smoke", "demo", "paper")
@@ -64,8 +65,8 @@ class CollectConfig:
     Episodes: spawn at a random free pose, drive at ``speed_mps`` with smooth
     random (Ornstein–Uhlenbeck) steering until ``episode_duration_s`` or a simulator
     end (flipped, off_map, diverged); ``immobilized_limit_s`` below the simulator's
-    immobile speed ends the run. Survey: nadir frames of the same camera from ``survey_altitude_m`` above the
-    terrain on a lattice (complete BEV maps).
+    immobile speed ends the run. Survey: nadir frames of the same camera from
+    ``survey_altitude_m`` above the terrain on a lattice (complete BEV maps).
     """
 
     episodes: tuple[int, int, int, int] = (40, 40, 30, 20)  # per vehicle, VEHICLES order
@@ -211,7 +212,6 @@ class ExperimentsConfig:
     n_ridge: int = 50  # Experiment 2, mercedes_van
     n_eval_jeep: int = 100  # Experiment 3
     n_eval_vw_van: int = 99  # Experiment 3
-    mppi_batch_size: int = 1000  # sampled control sequences (Nav2's default)
     start_jitter_m: float = 2.0  # starts and goals vary this much around the landmarks [m]
     heading_jitter_deg: float = 20.0  # start headings vary this much [deg]
     eval_distance_m: tuple[float, float] = (40.0, 90.0)  # random start–goal distance range [m]
@@ -226,9 +226,10 @@ class ExperimentsConfig:
     # Experiment 3 on ``eval_hazard`` (the eval world plus V-ditches sized by the jeep's spec,
     # dgt_lib/world/terrain.py, docs/worlds.md) instead of ``eval``; False = the paper's setup
     eval_hazard_world: bool = False
-    # The trials' controller (navigation/control/profiles.py, docs/controller.md): "paper"
-    # (MPPI as the paper runs it), "robust" (no crawl, corners below the roll limit) or
-    # "terrain" (robust plus the terrain critic on each method's own costmap)
+    # The trials' controller, a preset of the ``mppi`` section (core/controller.py,
+    # docs/controller.md): "paper" (MPPI as the paper runs it), "robust" (no crawl, corners
+    # below the roll limit) or "terrain" (robust plus the terrain critic on each method's
+    # own costmap)
     controller: str = "paper"
 
 
@@ -319,6 +320,8 @@ class Profile:
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     experiments: ExperimentsConfig = field(default_factory=ExperimentsConfig)
+    mppi: MPPIConfig = field(default_factory=MPPIConfig)  # the preset experiments.controller
+    # names, with any mppi.* setting changed on top (core/controller.py)
     # where jobs and networks run, not what they compute: left out of comparisons (and of
     # every cache key), so the same run on another executor or device is the same Profile
     execution: ExecutionConfig = field(default=ExecutionConfig(), compare=False)
@@ -332,6 +335,13 @@ class Profile:
     def __post_init__(self) -> None:
         check_settings(self)  # every setting in its range, on the whole profile (cross-field)
 
+    def __setstate__(self, state: dict[str, object]) -> None:
+        """Unpickle (a stored trial keeps its profile): a section added since the profile
+        was stored gets its default, as the run that stored it had."""
+        missing = {f.name: f.default_factory() for f in fields(self)
+                   if f.name not in state and f.default_factory is not MISSING}
+        self.__dict__.update({**missing, **state})
+
     def with_(self, **changes) -> Profile:
         """A copy with some fields changed, e.g. ``p.with_(seed=3)``."""
         return replace(self, **changes)
@@ -341,13 +351,19 @@ class Profile:
         ``p.with_overrides({"planner.beta": 50, "collect.episodes": "10,10,10,10"})``.
 
         A name is ``section.field`` (a field of a section: ``worlds``, ``collect``, ``bev``,
-        ``train``, ``costmap``, ``planner``, ``experiments``, ``ground_truth``,
+        ``train``, ``costmap``, ``planner``, ``experiments``, ``mppi``, ``ground_truth``,
         ``conditioned``) or ``seed``,
         ``seeds``, ``workers``. A value is converted to the field's type: a string as it
         would be typed on the command line, or a Python value of that type. An unknown name
         or a value that does not fit raises ``InvalidOverrideError`` naming the valid fields
-        or the type expected. The rules: :mod:`dgt_lib.core.overrides`."""
-        return apply_overrides(self, overrides)
+        or the type expected. The rules: :mod:`dgt_lib.core.overrides`. A new
+        ``experiments.controller`` puts its preset in the ``mppi`` section first
+        (:func:`~dgt_lib.core.controller.with_controller`); ``mppi.*`` settings apply on top."""
+        named = {k.strip(): v for k, v in overrides.items()}.get("experiments.controller")
+        base = self
+        if isinstance(named, str) and named.strip() in CONTROLLERS:
+            base = replace(self, mppi=with_controller(self.mppi, named.strip()))
+        return apply_overrides(base, overrides)
 
     def describe(self) -> str:
         """The profile's name and its overrides: ``'demo'`` or
@@ -376,8 +392,8 @@ def _smoke() -> Profile:
         collect=CollectConfig(episodes=(3, 3, 3, 3), episode_duration_s=20.0),
         # width 8: trains in seconds; exercises the same code as the paper's width 64.
         train=TrainConfig(epochs=2, batch_size=64, width=8, fc_hidden=64),
-        experiments=ExperimentsConfig(n_hill=2, n_ridge=2, n_eval_jeep=2, n_eval_vw_van=2,
-                                      mppi_batch_size=256),
+        experiments=ExperimentsConfig(n_hill=2, n_ridge=2, n_eval_jeep=2, n_eval_vw_van=2),
+        mppi=MPPIConfig(batch_size=256),
         costmap=CostmapConfig(slope_trials=60),
         # weighted A* (cost ≤ 1.5 × optimum): ~10× fewer expansions (benchmarks/bench_planner.py)
         planner=PlannerConfig(heuristic_weight=1.5, max_time_s=10.0),

@@ -74,6 +74,17 @@ def count_up_to(high: int) -> Rule:
                 f"an integer in [1, {high:,}]", 0)
 
 
+def at_most(high: float) -> Rule:
+    """``value ≤ high`` (finite)."""
+    return Rule(lambda v: _number(v) and v <= high, f"a finite number ≤ {high:g}", high + 1e-3)
+
+
+def integer_in(low: int, high: int) -> Rule:
+    """An integer in [``low``, ``high``]."""
+    return Rule(lambda v: isinstance(v, int) and not isinstance(v, bool) and low <= v <= high,
+                f"an integer in [{low:,}, {high:,}]", low - 1)
+
+
 def within(low: float, high: float) -> Rule:
     """A finite number in [``low``, ``high``] (a size or resolution: :data:`BOUNDS`)."""
     return Rule(lambda v: _number(v) and low <= v <= high, f"in [{low:g}, {high:g}]",
@@ -162,7 +173,8 @@ BOUNDS: dict[str, Rule] = {
     "experiments.n_hill": count_up_to(100_000), "experiments.n_ridge": count_up_to(100_000),
     "experiments.n_eval_jeep": count_up_to(100_000),
     "experiments.n_eval_vw_van": count_up_to(100_000),
-    "experiments.mppi_batch_size": count_up_to(100_000),
+    # MPPI: samples × horizon × state (8 B) stay below 1 GB (see above)
+    "mppi.batch_size": integer_in(2, 100_000), "mppi.time_steps": integer_in(2, 1_000),
     "ground_truth.cells": count_up_to(1_000_000),
 }
 """The settings bounded above, each with its rule (its ``outside`` value is below it; the
@@ -198,7 +210,7 @@ SETTING_RULES: dict[str, Rule] = {
     "experiments.start_jitter_m": NON_NEGATIVE, "experiments.heading_jitter_deg": between(0, 180),
     "experiments.eval_distance_m": distance_range(), "experiments.eval_min_hazard_m": NON_NEGATIVE,
     "experiments.time_limit_base_s": POSITIVE, "experiments.time_limit_factor": NON_NEGATIVE,
-    "experiments.controller": one_of("paper", "robust", "terrain"),  # CONTROLLERS
+    "experiments.controller": one_of("paper", "robust", "terrain"),  # controller.CONTROLLERS
     "ground_truth.run_up_m": NON_NEGATIVE,
     "ground_truth.past_m": NON_NEGATIVE, "ground_truth.edge_margin_m": NON_NEGATIVE,
     "ground_truth.tree_clearance_m": NON_NEGATIVE, "ground_truth.max_slope_deg": above_up_to(0, 90),
@@ -210,6 +222,20 @@ SETTING_RULES: dict[str, Rule] = {
     "conditioned.generated_vehicles": Rule(
         lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= MAX_GENERATED,
         f"an integer in [0, {MAX_GENERATED}]", MAX_GENERATED + 1),
+    **{f"mppi.{name}": POSITIVE for name in (
+        "model_dt", "temperature", "v_max", "w_max", "accel_max", "decel_max", "target_speed",
+        "goal_decel", "lateral_accel_max", "path_resolution_m", "collision_radius_m",
+        "inflation_radius_m", "ancillary_lookahead_m")},
+    **{f"mppi.{name}": NON_NEGATIVE for name in (
+        "accel_std", "w_rate_std", "speed_time_constant_s", "goal_radius_m", "path_weight",
+        "path_angle_weight", "speed_weight", "goal_weight", "collision_weight",
+        "inflation_weight", "constraint_weight", "terrain_weight", "terrain_beta",
+        "breakaway_speed_mps", "first_step_weight", "roll_limit_fraction",
+        "corner_accel_mps2")},
+    "mppi.v_min": at_most(0), "mppi.smoothing_window": at_least(0, integer=True),
+    "mppi.path_point_step": COUNT, "mppi.ancillary_fraction": between(0, 1, high_open=True),
+    "mppi.footprint_offsets_m": Rule(lambda v: len(v) > 0 and all(_number(x) for x in v),
+                                     "one or more finite numbers", ()),
     **BOUNDS,  # the settings bounded above
 }
 """Every setting's allowed values, by dotted name (``dgt settings`` lists the names)."""
@@ -240,12 +266,34 @@ CROSS_RULES: tuple[CrossRule, ...] = (
               lambda p: p.ground_truth.slope_edges_deg[-1] < p.ground_truth.max_slope_deg,
               "the slope strata end below the steepest cell sampled",
               {"ground_truth.slope_edges_deg": "4,10,18", "ground_truth.max_slope_deg": 18.0}),
+    CrossRule(("mppi.collision_radius_m", "mppi.inflation_radius_m"),
+              lambda p: p.mppi.collision_radius_m < p.mppi.inflation_radius_m,
+              "the occupancy critic rises before a footprint collides",
+              {"mppi.collision_radius_m": 3.0, "mppi.inflation_radius_m": 2.0}),
+    CrossRule(("mppi.ancillary_fraction", "mppi.accel_std", "mppi.w_rate_std"),
+              lambda p: p.mppi.ancillary_fraction == 0 or min(p.mppi.accel_std,
+                                                              p.mppi.w_rate_std) > 0,
+              "biased sampling needs noise around its rollout",
+              {"mppi.ancillary_fraction": 0.1, "mppi.w_rate_std": 0.0}),
 )
 
 
 def _value(profile: object, name: str) -> object:
     section, _, field_ = name.rpartition(".")
     return getattr(getattr(profile, section) if section else profile, field_)
+
+
+def check_section(section: object, name: str) -> None:
+    """Raise :class:`InvalidSettingError` for the first field of a settings object outside
+    its :data:`SETTING_RULES` entry (``name`` is its section, e.g. ``"mppi"``): what a
+    section made on its own (``MPPIConfig(temperature=0)``) is checked against, too."""
+    prefix = name + "."
+    for setting, rule in SETTING_RULES.items():
+        if setting.startswith(prefix):
+            value = getattr(section, setting[len(prefix):])
+            if not rule.check(value):
+                raise InvalidSettingError(f"{setting}={format_setting(value)} is not allowed: "
+                                          f"{setting} must be {rule.allowed}")
 
 
 def check_settings(profile: object) -> None:

@@ -22,7 +22,7 @@ TOP_LEVEL_SETTINGS: tuple[str, ...] = ("seed", "seeds", "workers")
 @cache
 def _schema(profile_type: type) -> tuple[dict[str, object], tuple[str, ...]]:
     """The annotations of a :class:`Profile` class and its sections ``--set`` can change,
-    one per pipeline stage: worlds, collect, bev, train, costmap, planner, experiments,
+    one per pipeline stage: worlds, collect, bev, train, costmap, planner, experiments, mppi,
     ground_truth, conditioned. (``execution`` — where jobs run, not what they compute — is set by
     ``--executor``, ``--address`` and ``--device``.) The class comes from the profile being
     changed, so this module needs no import of :mod:`dgt_lib.core.config`."""
@@ -192,6 +192,8 @@ def apply_overrides(profile: P, overrides: Mapping[str, object]) -> P:
             try:  # a section's own check (TrainConfig's choices)
                 sections[section] = replace(sections.get(section, getattr(profile, section)),
                                             **{name: value})
+            except InvalidOverrideError:
+                raise  # a section's rule: it names the setting and the value
             except ValueError as exc:
                 raise InvalidOverrideError(f"{key.strip()}={format_setting(value)}: {exc}"
                                            ) from None

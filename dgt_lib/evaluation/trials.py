@@ -34,7 +34,6 @@ from dgt_lib.evaluation.journal import Journal, read_journal
 from dgt_lib.evaluation.queries import Query, classify_route
 from dgt_lib.mapping.baselines import binary_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.navigation.control.profiles import controller_settings, reads_costmap
 from dgt_lib.navigation.drive import MPPI_DT_S, DriveStep, drive, drive_steps, start_trial
 from dgt_lib.navigation.outcome import OutcomeRule, TrialOutcome
 from dgt_lib.navigation.planner import HybridAStar
@@ -112,14 +111,11 @@ def _planner(world: str, method: str, vehicle: str, profile: Profile,
 
 
 def trial_controller(prof: Profile, costmap: np.ndarray) -> dict[str, object]:
-    """``drive``'s controller arguments for ``prof.experiments.controller``
-    (:mod:`dgt_lib.navigation.control.profiles`): none for the paper's, else the MPPI
-    settings and, for ``"terrain"``, the method's own ``costmap`` (K, H, W)."""
-    name = prof.experiments.controller
-    if name == "paper":
-        return {}
-    out: dict[str, object] = {"mppi_settings": controller_settings(name)}
-    return {**out, "costmap": costmap} if reads_costmap(name) else out
+    """``drive``'s controller arguments: the profile's ``mppi`` section (the preset
+    ``experiments.controller`` names, :mod:`dgt_lib.core.controller`) and, when its terrain
+    critic is on (``mppi.terrain_weight`` > 0), the method's own ``costmap`` (K, H, W)."""
+    out: dict[str, object] = {"mppi": prof.mppi}
+    return {**out, "costmap": costmap} if prof.mppi.terrain_weight > 0 else out
 
 
 def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
@@ -138,7 +134,6 @@ def run_trial(task: TrialTask, load_maps: MapsLoader) -> TrialResult:
                                      occupancy=maps.occupancy, grid=maps.grid,
                                      time_limit_s=trial_time_limit_s(prof.experiments,
                                                                      plan.length_m),
-                                     mppi_batch_size=prof.experiments.mppi_batch_size,
                                      seed=task.seed, **trial_controller(prof, cost))
         return TrialResult(task, outcome, plan.path, plan.cost, plan.time_s, plan.expansions,
                            classify_route(world, plan.path), traj, speed,
@@ -163,10 +158,9 @@ def step_trial(result: TrialResult, maps: WorldMaps, *, keep_every: int = 60
     rule = OutcomeRule(time_limit_s=trial_time_limit_s(prof.experiments, length_m))
     sim = Simulator(get_world(task.world, prof), task.vehicle)
     try:
+        cost = method_costmap(maps, task.method, task.vehicle)
         policy = start_trial(sim, result.path, occupancy=maps.occupancy, grid=maps.grid,
-                             mppi_batch_size=prof.experiments.mppi_batch_size, seed=task.seed,
-                             **trial_controller(prof, method_costmap(maps, task.method,
-                                                                     task.vehicle)))
+                             seed=task.seed, **trial_controller(prof, cost))
         steps, plans = [], {}
         for step in drive_steps(sim, policy, rule, goal=task.query.goal, dt_s=MPPI_DT_S):
             steps.append(step)

@@ -16,15 +16,16 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
 from dgt_lib.navigation.control.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.control.mppi import MPPIController
-from dgt_lib.navigation.control.mppi_config import MPPIConfig, vehicle_footprint
+from dgt_lib.navigation.control.mppi_config import vehicle_footprint
 from dgt_lib.navigation.control.pure_pursuit import PurePursuit
 from dgt_lib.navigation.outcome import OutcomeRule, TrialOutcome
 from dgt_lib.world.simulator import CONTROL_DT_S, Simulator, VehicleState
@@ -113,19 +114,16 @@ class MPPIPolicy:
         return v_x, steer
 
 
-def trial_mppi_config(spec: VehicleSpec, mppi_batch_size: int = 1000,
-                      mppi_settings: Mapping[str, object] | None = None) -> MPPIConfig:
-    """The trials' MPPI settings: ``mppi_batch_size`` samples, the vehicle's footprint
-    (:func:`vehicle_footprint`) and any ``mppi_settings`` fields changed."""
-    return replace(MPPIConfig(batch_size=mppi_batch_size), **vehicle_footprint(spec),
-                   **(mppi_settings or {}))
+def trial_mppi_config(spec: VehicleSpec, mppi: MPPIConfig | None = None) -> MPPIConfig:
+    """The MPPI settings a trial of ``spec`` runs: ``mppi`` (a profile's ``mppi`` section;
+    default the paper's) with the vehicle's footprint (:func:`vehicle_footprint`)."""
+    return replace(mppi or MPPIConfig(), **vehicle_footprint(spec))
 
 
 def start_trial(sim: Simulator, path: np.ndarray, *, occupancy=None, grid=None,
-                mppi_batch_size: int = 1000, seed: int = 0,
+                mppi: MPPIConfig | None = None, seed: int = 0,
                 on_command: Callable[[VehicleState, float, float], None] | None = None,
-                mppi_settings: Mapping[str, object] | None = None, costmap=None,
-                start_pose: Sequence[float] | None = None) -> Policy:
+                costmap=None, start_pose: Sequence[float] | None = None) -> Policy:
     """Put the simulated vehicle on ``path``'s first pose, or on ``start_pose`` (x [m],
     y [m], yaw [rad]: a vehicle pushed off its plan), and return the trial's policy:
     :class:`MPPIPolicy` tracking the path (``costmap``: for the terrain critic), or
@@ -135,16 +133,15 @@ def start_trial(sim: Simulator, path: np.ndarray, *, occupancy=None, grid=None,
     sim.reset(x, y, yaw)
     if not _has_length(path):
         return lambda state: (0.0, 0.0)  # hold still: nothing to track
-    cfg = trial_mppi_config(sim.vehicle, mppi_batch_size, mppi_settings)
+    cfg = trial_mppi_config(sim.vehicle, mppi)
     return MPPIPolicy(sim.vehicle, path, cfg, seed=seed, occupancy=occupancy, grid=grid,
                       on_command=on_command, costmap=costmap)
 
 
 def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None, grid=None,
-          time_limit_s: float, mppi_batch_size: int = 1000, seed: int = 0,
+          time_limit_s: float, mppi: MPPIConfig | None = None, seed: int = 0,
           on_command: Callable[[VehicleState, float, float], None] | None = None,
-          mppi_settings: Mapping[str, object] | None = None, costmap=None,
-          start_pose: Sequence[float] | None = None
+          costmap=None, start_pose: Sequence[float] | None = None
           ) -> tuple[TrialOutcome, np.ndarray, np.ndarray]:
     """Track ``path`` (N, 3) in MuJoCo with MPPI at 20 Hz from its first pose.
 
@@ -155,11 +152,10 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     it stands (success at t = 0 when that is within 5 m of the goal).
     ``on_command(state, speed_cmd [m/s], steer ∈ [−1, 1] of the steering lock)`` sees every
     command MPPI gives, with the state it answered (``studies/replay_trial.py`` prints
-    them). ``mppi_settings``: :class:`MPPIConfig` fields to change for this drive, e.g.
-    ``{"lateral_accel_max": 2.0}`` (``studies/controller_variants.py``); the experiments
-    use the defaults unless ``experiments.controller`` names another controller.
-    ``costmap``: the plan's directional costmap (K, H, W) on ``grid``,
-    paid by every rollout when ``mppi_settings`` sets ``terrain_weight`` > 0 (the terrain
+    them). ``mppi``: the MPPI settings (a profile's ``mppi`` section, e.g.
+    ``replace(profile.mppi, lateral_accel_max=2.0)`` in ``studies/controller_variants.py``;
+    default the paper's). ``costmap``: the plan's directional costmap (K, H, W) on ``grid``,
+    paid by every rollout when ``mppi.terrain_weight`` > 0 (the terrain
     critic, docs/controller.md; the experiments pass the method's own with
     ``experiments.controller=terrain``). ``start_pose`` (x, y, yaw): start there instead
     of on the path (``studies/off_plan.py``). The same as
@@ -168,8 +164,7 @@ def drive(world: World, vehicle: str, path: np.ndarray, goal, *, occupancy=None,
     sim = Simulator(world, get_vehicle(vehicle))
     try:
         policy = start_trial(sim, path, occupancy=occupancy, grid=grid,
-                             mppi_batch_size=mppi_batch_size, seed=seed,
-                             on_command=on_command, mppi_settings=mppi_settings,
+                             mppi=mppi, seed=seed, on_command=on_command,
                              costmap=costmap, start_pose=start_pose)
         rows, speeds = [], []
         next_log = 0.0

@@ -178,8 +178,8 @@ def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None 
                     window_s: float | None = None) -> dict[str, np.ndarray]:
     """Patches of one run (a :class:`dgt_lib.perception.episodes.Episode`) cut from ``bev`` with
     their labels L_v(t_P) (paper: "each patch P extracted at time t_P is paired with
-    L_v(t_P)"), at :func:`patch_times` of the run; none in the last 2 s of a run that fell off the map or diverged
-    (:data:`ARTIFACT_ENDS`).
+    L_v(t_P)"), at :func:`patch_times` of the run; none in the last 2 s of a run that fell
+    off the map or diverged (:data:`ARTIFACT_ENDS`).
 
     Returns ``times`` (M,), ``pose`` (M, 3), ``patches`` (M, 6, 22, 7) float32,
     ``observed`` (M, 22, 7) bool and ``labels`` (M,) float32 in [0, 1].

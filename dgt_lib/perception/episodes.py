@@ -282,7 +282,8 @@ def run_episode(
 
 def _episode(rows: np.ndarray, vehicle: str, index: int, seed: int, reason: str,
              cfg: CollectConfig, n_frames: int, bev: dict[str, np.ndarray] | None) -> Episode:
-    """The :class:`Episode` of a drive's rows (t, x, y, yaw, z, speed, |ω| [°/s]), with the rows whose time does not increase dropped."""
+    """The :class:`Episode` of a drive's rows (t, x, y, yaw, z, speed, |ω| [°/s]), with the
+    rows whose time does not increase dropped."""
     keep = np.concatenate([[True], np.diff(rows[:, 0]) > 0])  # strictly increasing time
     rows = rows[keep]
     return Episode(

@@ -24,7 +24,6 @@ from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.evaluation.queries import classify_route
 from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.navigation.control.profiles import controller_settings
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
@@ -63,12 +62,10 @@ def experiment_config(name: str, prof: Profile) -> dict[str, object]:
     experiments = prof.experiments
     if name != "experiment3":  # only Experiment 3 runs on eval_hazard: 1 and 2 never see it
         experiments = replace(experiments, eval_hazard_world=False)
-    cfg = {"stage": name, "format": EXPERIMENT_FORMAT, "experiments": experiments,
-           "planner": prof.planner, "costmap": prof.costmap, "seed": prof.seed,
-           "models": _model_digests(prof), "physics": PHYSICS, "bev": prof.bev}
-    if prof.experiments.controller != "paper":  # what the named controller sets, too
-        cfg["mppi"] = controller_settings(prof.experiments.controller)
-    return cfg
+    return {"stage": name, "format": EXPERIMENT_FORMAT, "experiments": experiments,
+            "planner": prof.planner, "costmap": prof.costmap, "seed": prof.seed,
+            "models": _model_digests(prof), "physics": PHYSICS, "bev": prof.bev,
+            "mppi": prof.mppi}
 
 
 def experiment_stem(name: str, prof: Profile) -> str:

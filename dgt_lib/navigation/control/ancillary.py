@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from dgt_lib.navigation.control.mppi_config import MPPIConfig
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.navigation.control.reference_path import ReferencePath
 
 

@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.navigation.control.mppi_config import MPPIConfig
 
 f32 = np.float32
 

@@ -43,11 +43,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_coeffs
 
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.control import critics
 from dgt_lib.navigation.control.ancillary import ancillary_count, bias_noise, pure_pursuit_rollout
 from dgt_lib.navigation.control.bicycle import rollout_unicycle
-from dgt_lib.navigation.control.mppi_config import MPPIConfig
 from dgt_lib.navigation.control.reference_path import ReferencePath
 from dgt_lib.navigation.control.sampling import (
     draw_noise,

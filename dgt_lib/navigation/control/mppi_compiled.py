@@ -31,9 +31,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from dgt_lib.core.controller import MPPIConfig
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.control.critics import constraint_critic, path_terms, total_cost
-from dgt_lib.navigation.control.mppi_config import MPPIConfig
 
 F32 = np.float32
 

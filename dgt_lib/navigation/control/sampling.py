@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
-from dgt_lib.navigation.control.mppi_config import MPPIConfig
+from dgt_lib.core.controller import MPPIConfig
 
 
 def draw_noise(rng: np.random.Generator, eps_v: np.ndarray, eps_w: np.ndarray

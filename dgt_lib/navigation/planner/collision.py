@@ -3,9 +3,10 @@
 The vehicle rectangle (length × width, centred on the pose) is covered by an
 odd number of equal circles on its long axis (``footprint_circles``). A circle
 centre is snapped to its cell, and the cell is blocked when an occupied or
-unobserved cell centre lies closer than r_circle + res·√2/2, so no occupied cell centre lies inside the vehicle rectangle at any
-checked pose. The blocked map carries a blocked border wide enough that every
-sub-step of a primitive from an on-map pose indexes it without clipping.
+unobserved cell centre lies closer than r_circle + res·√2/2, so no occupied cell
+centre lies inside the vehicle rectangle at any checked pose. The blocked map carries a
+blocked border wide enough that every sub-step of a primitive from an on-map pose indexes
+it without clipping.
 """
 
 from __future__ import annotations

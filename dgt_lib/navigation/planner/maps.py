@@ -65,7 +65,8 @@ class PlannerMaps:
         self.cost_flat = self.costmap.ravel()
         self.occupancy = occupancy
         self.blocked = BlockedMap(
-            occupancy, grid, self.circle_offsets, self.circle_radius_m, reach_m=cfg.step_m + float(np.abs(self.circle_offsets).max()),
+            occupancy, grid, self.circle_offsets, self.circle_radius_m,
+            reach_m=cfg.step_m + float(np.abs(self.circle_offsets).max()),
             substeps=math.ceil(cfg.step_m / cfg.substep_m),
         )
         self.bin_table, self.bin_reach = travel_bin_table(
