@@ -37,8 +37,8 @@ def _versions() -> dict[str, object]:
 
 
 def _defaults() -> dict[str, dict[str, object]]:
-    classes = [c for c in vars(config_module).values()
-               if isinstance(c, type) and dataclasses.is_dataclass(c) and c.__name__.endswith("Config")]
+    classes = [c for c in vars(config_module).values() if isinstance(c, type)
+               and dataclasses.is_dataclass(c) and c.__name__.endswith("Config")]
     return {c.__name__: {k: cache_keys.jsonable(v) for k, v in cache_keys.defaults(c).items()}
             for c in sorted(classes, key=lambda c: c.__name__)}
 
