@@ -38,7 +38,8 @@ import torch
 from torch import nn
 
 from dgt_lib.core.config import VEHICLES, TrainConfig
-from dgt_lib.core.vehicles import VEHICLE_SPECS, CameraMount, VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import CameraMount, VehicleSpec
+from dgt_lib.core.vehicles import VEHICLE_SPECS, get_vehicle
 from dgt_lib.learning.checkpoints import TrainResult, load_checkpoint
 from dgt_lib.learning.model import HEAD_PRIOR_CLIP, ArchitectureMismatchError, DGTNet
 from dgt_lib.learning.run import train_network
