@@ -373,7 +373,7 @@ def plan_query(world: str | World, vehicle: str | VehicleSpec, start, goal, *, m
         traj = speed = None
     if report.not_written is None:
         report.recording = _recording(w, maps, cost, report, traj, speed,
-                                      out_dir / f"{stem}.rrd", prof)
+                                      out_dir / f"{stem}.rrd", prof, spec)
     return report
 
 
@@ -414,7 +414,8 @@ def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
     return path
 
 
-def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Profile) -> Path:
+def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Profile,
+               spec: VehicleSpec) -> Path:
     from dgt_lib import recording
 
     with recording.Recording(path, f"plan_{world.name}", profile) as rec:
@@ -427,6 +428,6 @@ def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Prof
             rec.log_path(report.method, np.column_stack([report.plan.path[:, :2], z]))
         if traj is not None and len(traj):
             rec.log_trajectory(report.vehicle, traj[:, 0], traj[:, 1:4], {"speed_mps": speed},
-                               vehicle=report.spec or report.vehicle)
+                               vehicle=spec)
         rec.log_text("summary", "```\n" + report.summary() + "\n```")
     return path
