@@ -49,6 +49,7 @@ from scipy import ndimage
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.planner import HybridAStar
 
 SIZE_M, RES_M, K = 160.0, 0.4, 8
@@ -340,8 +341,8 @@ def run_experiments(profile_name: str, n_queries: int, cfg: PlannerConfig, backe
                 built = {}
                 for b in backends:
                     t = time.perf_counter()
-                    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle,
-                                                      cfg, backend=b)
+                    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid,
+                                                      get_vehicle(vehicle), cfg, backend=b)
                     built[b] = (planner, _build_cost_field(planner, queries[vehicle][0].goal, t))
                 stats, identical = time_queries(
                     {b: p for b, (p, _) in built.items()},

@@ -32,6 +32,7 @@ from PIL import Image  # noqa: E402
 
 from dgt_lib import viz  # noqa: E402
 from dgt_lib.core.config import Profile, get_profile  # noqa: E402
+from dgt_lib.core.vehicles import get_vehicle  # noqa: E402
 from dgt_lib.evaluation.paper import PAPER  # noqa: E402
 from dgt_lib.evaluation.queries import classify_route, hill_queries, ridge_queries  # noqa: E402
 from dgt_lib.mapping.methods import METHOD_LABELS  # noqa: E402
@@ -71,7 +72,7 @@ def save_png(fig, path: Path, dpi: int = DPI, max_bytes: int = MAX_BYTES) -> Pat
 def _plan(maps, vehicle: str, query, prof: Profile) -> PlanResult:
     """DGT-Map's plan of one query for one vehicle, by the experiments' planner settings."""
     planner = HybridAStar.for_vehicle(maps.costmap("dgt", vehicle), maps.occupancy, maps.grid,
-                                      vehicle, prof.planner)
+                                      get_vehicle(vehicle), prof.planner)
     return planner.plan(query.start, query.goal)
 
 

@@ -24,9 +24,9 @@ import numpy as np
 
 from dgt_lib import plan_one
 from dgt_lib.core.config import Profile, as_profile
-from dgt_lib.core.vehicle_file import VehicleRangeWarning, load_vehicle, warn_out_of_range
-from dgt_lib.core.vehicle_rules import check_vehicle
-from dgt_lib.core.vehicles import VEHICLE_SPECS, VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_range import VehicleRangeWarning, resolve_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
+from dgt_lib.core.vehicles import is_named
 from dgt_lib.mapping.baselines import (
     binary_costmap,
     climb_slope_model,
@@ -49,29 +49,13 @@ NEVER_DRIVEN_METHODS: tuple[str, ...] = ("dgt", "isotropic", "slope", "binary")
 """The methods that have a costmap for a vehicle never driven."""
 
 
-def resolve_vehicle(vehicle: str | Path | VehicleSpec) -> tuple[VehicleSpec, bool]:
-    """(spec, never driven) of a named vehicle's name, a TOML file or a spec: a file is read
-    and checked (:func:`~dgt_lib.core.vehicle_file.load_vehicle`: one
-    ``InvalidVehicleError`` line for an impossible spec, a ``VehicleRangeWarning`` naming
-    each field outside the training vehicles' range). Never driven: not exactly a named
-    vehicle's spec."""
-    if isinstance(vehicle, VehicleSpec):
-        spec = check_vehicle(vehicle)
-        warn_out_of_range(spec, spec.name)
-    elif str(vehicle).endswith(".toml"):
-        spec = load_vehicle(vehicle)
-    else:
-        spec = get_vehicle(str(vehicle))  # not a named one: an error listing them
-    return spec, VEHICLE_SPECS.get(spec.name) != spec
-
-
-def range_warnings(vehicle: str | Path | VehicleSpec) -> tuple[VehicleSpec, bool, list[str]]:
-    """:func:`resolve_vehicle`, with its range warnings' messages collected (not shown)."""
+def range_warnings(vehicle: str | Path | VehicleSpec) -> tuple[VehicleSpec, list[str]]:
+    """:func:`~dgt_lib.core.vehicle_range.resolve_vehicle`, with its range warnings'
+    messages collected (not shown)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", VehicleRangeWarning)
-        spec, never = resolve_vehicle(vehicle)
-    return spec, never, [str(w.message) for w in caught
-                         if issubclass(w.category, VehicleRangeWarning)]
+        spec = resolve_vehicle(vehicle)
+    return spec, [str(w.message) for w in caught if issubclass(w.category, VehicleRangeWarning)]
 
 
 def check_method_for(method: str, spec: VehicleSpec) -> None:
@@ -128,17 +112,17 @@ def plan_vehicle_query(world: str | World, vehicle: str | Path | VehicleSpec, st
     never driven plans on :func:`never_driven_maps`, saying where they come from.
     ``query``: the rest of plan_query's options (drive, out_dir, …)."""
     prof = as_profile(profile)
-    spec, never, notes = range_warnings(vehicle)
+    spec, notes = range_warnings(vehicle)
     for note in notes if progress else ():
         print(f"warning: {note}", file=sys.stderr, flush=True)
     source = None
-    if never:
+    if not is_named(spec):
         check_method_for(method, spec)
         source = CostmapSource(
-            spec, lambda w: never_driven_maps(w, spec, method, prof, progress=progress),
+            lambda w: never_driven_maps(w, spec, method, prof, progress=progress),
             never_driven_notice(method, spec, prof),
             never_driven_notice(method, spec, prof, training=False), notes)
-    report = plan_one.plan_query(world, spec.name, start, goal, method=method, profile=prof,
+    report = plan_one.plan_query(world, spec, start, goal, method=method, profile=prof,
                                  progress=progress, source=source, **query)
     report.warnings = notes
     return report

@@ -28,7 +28,8 @@ from dgt_lib.core.config import Profile, as_profile, get_profile
 from dgt_lib.core.faults import is_storage_error, storage_message
 from dgt_lib.core.geometry import nearest_heading_bin
 from dgt_lib.core.outputs import bounded_name
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle, is_named
 from dgt_lib.evaluation.queries import classify_route
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.mapping.world_maps import WorldMaps
@@ -235,7 +236,7 @@ def training_notice(method: str, vehicle: str, profile: Profile) -> str | None:
             "Later queries reuse it.")
 
 
-def check_query(world: World, vehicle: str, start, goal, profile: Profile | str | None = None,
+def check_query(world: World, spec: VehicleSpec, start, goal, profile: Profile | str | None = None,
                 *, progress: bool = True) -> None:
     """Raise :class:`~dgt_lib.navigation.planner.InvalidQueryError` for a start or goal
     that cannot be planned, before any dataset or model is built: first from the world
@@ -243,10 +244,10 @@ def check_query(world: World, vehicle: str, start, goal, profile: Profile | str 
     then on the world's occupancy map, exactly as the planner will check it (needs the
     BEV maps and τ_s — seconds, or the episodes for the training world)."""
     prof = as_profile(profile)
-    check_query_on_world(world, vehicle, start, goal)
+    check_query_on_world(world, spec, start, goal)
     occupancy, grid = world_occupancy(world, prof, progress=progress)
     free = np.zeros((1, *grid.shape), np.float32)  # the costmap plays no part in the check
-    HybridAStar.for_vehicle(free, occupancy, grid, vehicle, prof.planner).check_query(start, goal)
+    HybridAStar.for_vehicle(free, occupancy, grid, spec, prof.planner).check_query(start, goal)
 
 
 PLAN_SECTIONS: tuple[str, ...] = ("worlds", "collect", "bev", "train", "costmap", "planner",
@@ -269,15 +270,16 @@ def settings_tag(profile: Profile | None) -> str:
     return "_set-" + artifacts.config_hash(plan)[:8]
 
 
-def output_stem(world: World, vehicle: str | VehicleSpec, method: str, start, goal, *,
+def output_stem(world: World, spec: VehicleSpec, method: str, start, goal, *,
                 drive: bool = False, profile: Profile | None = None) -> str:
     """File name (no suffix) of a query's figure and recording: readable — world, vehicle,
     method, start x, y [m] and heading [deg], goal x, y [m] — and unique: it ends in a
     hash of the exact query and the world's terrain, so distinct queries (another
     heading, a start 0.3 m away, another heightmap of the same name, driven or not)
     never overwrite each other, and the same query replaces its own files; settings
-    changed from the profile's add :func:`settings_tag`. A vehicle never driven is given
-    as its spec (two files of one name are two vehicles). The world's and vehicle's names
+    changed from the profile's add :func:`settings_tag`. A named vehicle is hashed by its
+    name, any other by its spec (two files of one name are two vehicles). The world's and
+    vehicle's names
     are cut to :func:`~dgt_lib.core.outputs.bounded_name`'s length, so the name fits any
     file system (the hash tells long names apart)."""
     sx, sy, sth = (float(v) for v in start)
@@ -285,10 +287,10 @@ def output_stem(world: World, vehicle: str | VehicleSpec, method: str, start, go
     key = artifacts.config_hash({
         "world": {"name": world.name, "grid": world.grid, "heights": world.heights,
                   "colors": world.colors, "trees": world.trees},
-        "vehicle": vehicle, "method": method, "start": [sx, sy, sth], "goal": [gx, gy],
-        "drive": bool(drive)})[:8]
+        "vehicle": spec.name if is_named(spec) else spec, "method": method,
+        "start": [sx, sy, sth], "goal": [gx, gy], "drive": bool(drive)})[:8]
     heading_deg = float(np.degrees(sth)) % 360.0
-    name = bounded_name(vehicle.name if isinstance(vehicle, VehicleSpec) else vehicle)
+    name = bounded_name(spec.name)
     return (f"{bounded_name(world.name)}_{name}_{method}_{sx:.1f}_{sy:.1f}_{heading_deg:.0f}deg_to_"
             f"{gx:.1f}_{gy:.1f}{'_driven' if drive else ''}_{key}{settings_tag(profile)}")
 
@@ -301,14 +303,13 @@ class CostmapSource:
     built; ``described``, the report's line on where it came from; ``warnings`` on the
     spec."""
 
-    spec: VehicleSpec
     maps: Callable[[World], tuple[WorldMaps, np.ndarray]]
     notice: str | None
     described: str
     warnings: list[str] = field(default_factory=list)
 
 
-def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "dgt",
+def plan_query(world: str | World, vehicle: str | VehicleSpec, start, goal, *, method: str = "dgt",
                profile: Profile | str | None = None, drive: bool = False,
                resolution_m: float = 0.4, vertical_scale_m: float | None = None,
                out_dir: Path | None = None, progress: bool = True, crs_coords: bool = False,
@@ -323,31 +324,31 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
     ``crs_coords``: start and goal x, y are in a DEM file's CRS (:func:`crs_to_local`);
     ``nodata``, ``band``: a DEM's no-data policy and band (:func:`load_world`). Driven, the
     vehicle is tracked by the profile's controller (``experiments.controller``) with the
-    profile's seed, as a trial is (:func:`drive_query`). ``source``: the costmap of a
-    vehicle that is not a named one (its spec, then, is the vehicle; ``vehicle`` is not
-    read).
+    profile's seed, as a trial is (:func:`drive_query`). ``vehicle``: a named vehicle's
+    name or a spec (:func:`~dgt_lib.core.vehicle_range.resolve_vehicle` resolves a file);
+    ``source``: the costmap of a vehicle that is not a named one.
     """
     prof = as_profile(profile)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
-    spec = source.spec if source else get_vehicle(vehicle)  # unknown: an error before any work
-    vehicle = spec if source else spec.name
+    spec = get_vehicle(vehicle)  # an unknown name: an error before any work
     w, georef = load_world(world, prof, resolution_m=resolution_m,
                            vertical_scale_m=vertical_scale_m, nodata=nodata, band=band)
     start = tuple(float(v) for v in start)
     goal = tuple(float(v) for v in goal)[:2]
     if crs_coords:
         start, goal = crs_to_local(georef, start, goal)
-    check_query(w, vehicle, start, goal, prof, progress=progress)
-    notice = source.notice if source else training_notice(method, vehicle, prof)
+    check_query(w, spec, start, goal, prof, progress=progress)
+    notice = source.notice if source else training_notice(method, spec.name, prof)
     if progress and notice:
         print(notice, flush=True)
     if source:
         maps, cost = source.maps(w)
     else:
-        maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
-        cost = maps.costmap(method, vehicle)
-    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle, prof.planner)
+        maps = ensure_world_costmaps(w, (spec.name,), prof, methods=(method,),
+                                     progress=progress)
+        cost = maps.costmap(method, spec.name)
+    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, spec, prof.planner)
     result = planner.plan(start, goal)
     report = QueryReport(w.name, spec.name, method, start, goal, result)
     if source:
@@ -357,7 +358,7 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
         report.high_cost = _high_cost_cells(result.path, cost, maps.grid)
         report.route = classify_route(w, result.path) if w.routes else None
     out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
-    stem = output_stem(w, vehicle, method, start, goal, drive=drive and result.success,
+    stem = output_stem(w, spec, method, start, goal, drive=drive and result.success,
                        profile=prof)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -367,16 +368,16 @@ def plan_query(world: str | World, vehicle: str, start, goal, *, method: str = "
             raise
         report.not_written = storage_message(exc)
     if drive and result.success:
-        report.outcome, traj, speed = drive_query(w, vehicle, result, goal, maps, cost, prof)
+        report.outcome, traj, speed = drive_query(w, spec, result, goal, maps, cost, prof)
     else:
         traj = speed = None
     if report.not_written is None:
         report.recording = _recording(w, maps, cost, report, traj, speed,
-                                      out_dir / f"{stem}.rrd", prof)
+                                      out_dir / f"{stem}.rrd", prof, spec)
     return report
 
 
-def drive_query(world: World, vehicle: str | VehicleSpec, plan: PlanResult, goal, maps: WorldMaps,
+def drive_query(world: World, spec: VehicleSpec, plan: PlanResult, goal, maps: WorldMaps,
                 cost: np.ndarray, profile: Profile) -> tuple[TrialOutcome, np.ndarray,
                                                              np.ndarray]:
     """Drive a found ``plan`` as a trial drives it: the profile's controller
@@ -391,7 +392,7 @@ def drive_query(world: World, vehicle: str | VehicleSpec, plan: PlanResult, goal
     from dgt_lib.navigation.drive import drive as drive_path
 
     limit = trial_time_limit_s(profile.experiments, plan.length_m)
-    return drive_path(world, vehicle, plan.path, goal, occupancy=maps.occupancy,
+    return drive_path(world, spec, plan.path, goal, occupancy=maps.occupancy,
                       grid=maps.grid, time_limit_s=limit,
                       seed=profile.seed, **trial_controller(profile, cost))
 
@@ -412,7 +413,8 @@ def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
     return path
 
 
-def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Profile) -> Path:
+def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Profile,
+               spec: VehicleSpec) -> Path:
     from dgt_lib import recording
 
     with recording.Recording(path, f"plan_{world.name}", profile) as rec:
@@ -425,6 +427,6 @@ def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Prof
             rec.log_path(report.method, np.column_stack([report.plan.path[:, :2], z]))
         if traj is not None and len(traj):
             rec.log_trajectory(report.vehicle, traj[:, 0], traj[:, 1:4], {"speed_mps": speed},
-                               vehicle=report.spec or report.vehicle)
+                               vehicle=spec)
         rec.log_text("summary", "```\n" + report.summary() + "\n```")
     return path

@@ -16,6 +16,7 @@ import argparse
 import numpy as np
 
 from dgt_lib.core.config import get_profile
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.hazards import hazard_map, vehicle_hazards
 from dgt_lib.evaluation.queries import draw_random_queries
 from dgt_lib.mapping.baselines import binary_costmap
@@ -47,7 +48,7 @@ def main() -> None:
                                hazards=hazard_map(world, ("jeep", "vw_van")),
                                planner_cfg=prof.planner)
     planner = HybridAStar.for_vehicle(binary_costmap(maps.grid.shape), maps.occupancy,
-                                      maps.grid, "jeep", prof.planner)
+                                      maps.grid, get_vehicle("jeep"), prof.planner)
     straight = planned = crossing = 0
     for q in draw.queries:
         n = 200

@@ -32,6 +32,7 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation import accuracy
 from dgt_lib.evaluation.queries import classify_route, hill_queries, ridge_queries
 from dgt_lib.learning.run import train_model
@@ -73,8 +74,8 @@ def _routes(world, queries, maps, occupancy, grid, vehicle, prof) -> dict[str, C
     """{method: Counter("label:route")} of the plans on each method's costmap."""
     out = {}
     for method in ("dgt", "single-task"):
-        planner = HybridAStar.for_vehicle(maps[(method, vehicle)], occupancy, grid, vehicle,
-                                          prof.planner)
+        planner = HybridAStar.for_vehicle(maps[(method, vehicle)], occupancy, grid,
+                                          get_vehicle(vehicle), prof.planner)
         counts = Counter()
         for q in queries:
             plan = planner.plan(q.start, q.goal)

@@ -19,7 +19,8 @@ from dgt_lib.beyond.conditioned import (
 )
 from dgt_lib.core.config import VEHICLES, TrainConfig
 from dgt_lib.core.vehicle_generator import generated_vehicles
-from dgt_lib.core.vehicles import GRAVITY_MPS2, get_vehicle
+from dgt_lib.core.vehicle_spec import GRAVITY_MPS2
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.learning.model import DGTNet
 from dgt_lib.learning.run import train_network
 from dgt_lib.learning.synthetic import plane_patches, synthetic_dataset

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from dgt_lib.core.vehicle_file import RANGE_FIELDS
 from dgt_lib.core.vehicle_generator import PATCH_LENGTH_M, PATCH_WIDTH_M, generated_vehicles
+from dgt_lib.core.vehicle_range import RANGE_FIELDS
 from dgt_lib.core.vehicle_rules import check_vehicle, spec_fields
 from dgt_lib.core.vehicles import VEHICLE_SPECS
 from dgt_lib.world.simulator import Simulator

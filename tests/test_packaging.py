@@ -122,3 +122,16 @@ def test_citation_file_cites_the_kit_and_the_paper():
     assert paper["title"].startswith("DGT-Map: Directional Global Traversability Mapping")
     assert [a["family-names"] for a in paper["authors"]] == ["Singh", "Noori", "Xiao",
                                                              "Chamzas"]
+
+
+def test_the_named_vehicles_files_are_package_data():
+    """An installed package (a wheel) carries the files the named vehicles are read from."""
+    from fnmatch import fnmatch
+
+    from dgt_lib.core.vehicles import NAMED_VEHICLE_DIR
+
+    data = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    globs = data["package-data"]["dgt_lib.core"]
+    core = ROOT / "dgt_lib" / "core"
+    files = [p.relative_to(core).as_posix() for p in NAMED_VEHICLE_DIR.glob("*")]
+    assert len(files) == 4 and all(any(fnmatch(f, g) for g in globs) for f in files)

@@ -356,16 +356,18 @@ def test_dgt_plan_under_other_settings_writes_other_files(data_dir, tmp_path, ca
 
 
 def test_output_stem_of_the_profile_s_own_settings_is_unchanged():
+    from dgt_lib.core.vehicles import get_vehicle
     from dgt_lib.plan_one import output_stem
 
-    world = ramp_world()
+    world, jeep = ramp_world(), get_vehicle("jeep")
     smoke = get_profile("smoke")
-    stem = output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0))
-    assert output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=smoke) == stem
+    stem = output_stem(world, jeep, "dgt", (1.0, 2.0, 0.0), (30.0, 2.0))
+    assert stem == "ramp_jeep_dgt_1.0_2.0_0deg_to_30.0_2.0_c57fbca1"  # the stored plans' name
+    assert output_stem(world, jeep, "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=smoke) == stem
     same = smoke.with_overrides({"planner.beta": 150, "seeds": 2})  # nothing the plan reads
-    assert output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=same) == stem
+    assert output_stem(world, jeep, "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=same) == stem
     other = smoke.with_overrides({"planner.beta": 0})
-    tagged = output_stem(world, "jeep", "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=other)
+    tagged = output_stem(world, jeep, "dgt", (1.0, 2.0, 0.0), (30.0, 2.0), profile=other)
     assert tagged.startswith(stem + "_set-") and len(tagged) == len(stem) + 13
 
 

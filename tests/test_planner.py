@@ -7,7 +7,7 @@ import pytest
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import GridSpec, angle_diff
-from dgt_lib.core.vehicles import footprint_circles
+from dgt_lib.core.vehicle_spec import footprint_circles
 from dgt_lib.navigation.planner import (
     HybridAStar,
     InvalidQueryError,

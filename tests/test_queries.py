@@ -40,7 +40,7 @@ def yard_with_bent_lane() -> SimpleNamespace:
 
 def jeep_planner(maps) -> HybridAStar:
     return HybridAStar.for_vehicle(binary_costmap(maps.grid.shape), maps.occupancy, maps.grid,
-                                   "jeep")
+                                   get_vehicle("jeep"))
 
 
 def in_bend(xy) -> bool:

@@ -9,13 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from dgt_lib.core.vehicle_file import (
-    VehicleRangeWarning,
-    load_vehicle,
-    parse_vehicle,
-    training_ranges,
-    vehicle_toml,
-)
+from dgt_lib.core.vehicle_file import load_vehicle, parse_vehicle, vehicle_toml
+from dgt_lib.core.vehicle_range import VehicleRangeWarning, resolve_vehicle, training_ranges
 from dgt_lib.core.vehicle_rules import (
     CROSS_RULES,
     FIELD_RULES,
@@ -137,15 +132,17 @@ def test_the_example_truck_loads_between_the_van_and_the_truck_without_a_warning
     assert math.isclose(math.degrees(truck.max_steer_rad), 34.0)
 
 
-def test_a_vehicle_outside_the_training_range_warns_naming_each_field_and_range():
+def test_a_vehicle_outside_the_training_range_warns_naming_each_field_and_range(tmp_path):
     fields = spec_fields(get_vehicle("carla_cola"))
     fields.update(mass_kg=20000.0, max_steer_deg=45.0)
+    path = tmp_path / "big.toml"
+    path.write_text(vehicle_toml(parse_vehicle(_file(fields))))
     with pytest.warns(VehicleRangeWarning) as caught:
-        spec = parse_vehicle(_file(fields), "big.toml")
+        spec = resolve_vehicle(path)
     assert spec.mass_kg == 20000.0  # a warning, not an error: the vehicle still loads
     (message,) = [str(w.message) for w in caught]
     lo, hi = training_ranges()["mass_kg"]
-    assert message.startswith("big.toml: ")
+    assert message.startswith(f"{path}: ")
     assert f"mass_kg = 20000 (trained on {lo:g} … {hi:g})" in message
     assert "max_steer_deg = 45" in message and "wheelbase_m" not in message
 

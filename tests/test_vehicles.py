@@ -5,14 +5,13 @@ import math
 import pytest
 
 from dgt_lib.core.config import VEHICLES
-from dgt_lib.core.vehicles import VEHICLE_SPECS, UnknownVehicleError, get_vehicle, vehicle_index
+from dgt_lib.core.vehicles import VEHICLE_SPECS, UnknownVehicleError, get_vehicle
 from dgt_lib.world.simulator import ackermann_angles
 from dgt_lib.world.worlds import PATCH_SIZE_M
 
 
 def test_vehicles_in_head_order():
     assert tuple(VEHICLE_SPECS) == VEHICLES == ("jeep", "vw_van", "mercedes_van", "carla_cola")
-    assert [vehicle_index(n) for n in VEHICLES] == [0, 1, 2, 3]
 
 
 def test_unknown_vehicle_lists_valid_names():

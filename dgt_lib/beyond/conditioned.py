@@ -38,7 +38,8 @@ import torch
 from torch import nn
 
 from dgt_lib.core.config import VEHICLES, TrainConfig
-from dgt_lib.core.vehicles import VEHICLE_SPECS, CameraMount, VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import CameraMount, VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle, is_named
 from dgt_lib.learning.checkpoints import TrainResult, load_checkpoint
 from dgt_lib.learning.model import HEAD_PRIOR_CLIP, ArchitectureMismatchError, DGTNet
 from dgt_lib.learning.run import train_network
@@ -137,7 +138,7 @@ class ConditionedNet(DGTNet):
         arch = {**super().architecture(), "name": "ConditionedNet",
                 "vehicles": list(self.vehicles), "film_hidden": self.film_hidden,
                 "features": list(FEATURES)}
-        if any(VEHICLE_SPECS.get(v.name) != v for v in self.specs):
+        if not all(is_named(v) for v in self.specs):
             arch["specs"] = [dataclasses.asdict(v) for v in self.specs]
         return arch
 

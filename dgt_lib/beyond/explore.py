@@ -197,7 +197,8 @@ def replan_path(cost, occ, grid, vehicle: str, planner: PlannerConfig, state, go
     straight line to the goal for MPPI to follow until the next attempt."""
     start = (float(state.position[0]), float(state.position[1]), float(state.yaw))
     try:
-        res = HybridAStar.for_vehicle(cost, occ, grid, vehicle, planner).plan(start, goal)
+        spec = get_vehicle(vehicle)
+        res = HybridAStar.for_vehicle(cost, occ, grid, spec, planner).plan(start, goal)
         if res.success and len(res.path) > 1:
             return np.asarray(res.path, float)
     except InvalidQueryError:

@@ -1,6 +1,7 @@
 """A vehicle from a TOML file: :func:`load_vehicle` reads it into a
-:class:`~dgt_lib.core.vehicles.VehicleSpec`, checked before anything runs
-(docs/vehicles.md has the format, ``examples/my_truck.toml`` an example).
+:class:`~dgt_lib.core.vehicle_spec.VehicleSpec`, checked before anything runs
+(docs/vehicles.md has the format, ``examples/my_truck.toml`` an example). The four named
+vehicles are such files too (:mod:`dgt_lib.core.vehicles`), read by the same function.
 
 The file holds the ``VehicleSpec`` fields with their units in their names, angles in
 degrees (``max_steer_deg``), and an optional ``[camera]`` table (``forward_m``, ``up_m``,
@@ -9,10 +10,10 @@ degrees (``max_steer_deg``), and an optional ``[camera]`` table (``forward_m``, 
 ``drag_area_m2`` and ``color`` may be left out (``VehicleSpec``'s defaults). An unknown,
 missing, mistyped or impossible field stops with one line naming it
 (:class:`~dgt_lib.core.vehicle_rules.InvalidVehicleError`; the rules are
-:mod:`dgt_lib.core.vehicle_rules`' tables). A vehicle outside the range of the vehicles
-the kit trains on (the four named and :func:`~dgt_lib.core.vehicle_generator.
-generated_vehicles`) loads with a :class:`VehicleRangeWarning` naming each field outside
-and its range: a network has never seen such a vehicle.
+:mod:`dgt_lib.core.vehicle_rules`' tables). Whether the vehicle lies inside the range of
+the vehicles the kit trains on is checked where a vehicle enters
+(:func:`~dgt_lib.core.vehicle_range.resolve_vehicle`), not here: the named vehicles
+define that range.
 
 Example::
 
@@ -24,15 +25,11 @@ Example::
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Mapping
-from functools import cache
 from pathlib import Path
 
-from dgt_lib.core.vehicle_generator import generated_vehicles
 from dgt_lib.core.vehicle_rules import (
     CAMERA_FIELDS,
-    FIELD_RULES,
     OPTIONAL_FIELDS,
     InvalidVehicleError,
     check_fields,
@@ -40,43 +37,7 @@ from dgt_lib.core.vehicle_rules import (
     fields_to_spec,
     spec_fields,
 )
-from dgt_lib.core.vehicles import VEHICLE_SPECS, VehicleSpec
-
-RANGE_FIELDS: tuple[str, ...] = tuple(
-    name for name in FIELD_RULES if name not in ("name", "drive", "color")
-    and not name.startswith("camera."))
-"""The fields compared with the training vehicles' range (the camera mount is not: the
-network sees BEV patches, not camera images)."""
-
-
-class VehicleRangeWarning(UserWarning):
-    """A vehicle with a field outside the range of the vehicles the kit trains on."""
-
-
-@cache
-def training_ranges() -> dict[str, tuple[float, float]]:
-    """(lowest, highest) of each :data:`RANGE_FIELDS` field over the training vehicles:
-    the four named ones and ``generated_vehicles()`` (12, seed 0)."""
-    rows = [spec_fields(s) for s in [*VEHICLE_SPECS.values(), *generated_vehicles()]]
-    return {f: (min(r[f] for r in rows), max(r[f] for r in rows)) for f in RANGE_FIELDS}
-
-
-def out_of_range(spec: VehicleSpec) -> dict[str, tuple[float, float, float]]:
-    """``{field: (value, lowest, highest)}`` for each field of ``spec`` outside
-    :func:`training_ranges` (empty when every field is inside)."""
-    values = spec_fields(spec)
-    return {f: (values[f], lo, hi) for f, (lo, hi) in training_ranges().items()
-            if not lo <= values[f] <= hi}
-
-
-def warn_out_of_range(spec: VehicleSpec, where: str) -> None:
-    """Warn (:class:`VehicleRangeWarning`) when :func:`out_of_range` finds a field."""
-    outside = out_of_range(spec)
-    if outside:
-        items = "; ".join(f"{f} = {v:g} (trained on {lo:g} … {hi:g})"
-                          for f, (v, lo, hi) in outside.items())
-        warnings.warn(f"{where}: outside the vehicles the kit trains on: {items}",
-                      VehicleRangeWarning, stacklevel=3)
+from dgt_lib.core.vehicle_spec import VehicleSpec
 
 
 def _flatten(data: Mapping[str, object], where: str) -> dict[str, object]:
@@ -102,9 +63,7 @@ def _flatten(data: Mapping[str, object], where: str) -> dict[str, object]:
 def parse_vehicle(data: Mapping[str, object], where: str = "vehicle") -> VehicleSpec:
     """A checked :class:`VehicleSpec` from a file's parsed TOML ``data``; ``where``
     names the file in messages."""
-    spec = fields_to_spec(check_fields(_flatten(data, where), where))
-    warn_out_of_range(spec, where)
-    return spec
+    return fields_to_spec(check_fields(_flatten(data, where), where))
 
 
 def _toml_reader():

@@ -34,7 +34,8 @@ from dgt_lib.core.vehicle_rules import (
     check_vehicle,
     default_camera,
 )
-from dgt_lib.core.vehicles import GRAVITY_MPS2, VEHICLE_SPECS, VehicleSpec
+from dgt_lib.core.vehicle_spec import GRAVITY_MPS2, VehicleSpec
+from dgt_lib.core.vehicles import VEHICLE_SPECS
 
 PATCH_LENGTH_M, PATCH_WIDTH_M = 8.8, 2.8
 """The paper's patch [m]: every generated footprint fits inside it."""

@@ -2,7 +2,7 @@
 checked before a vehicle from a file (:mod:`dgt_lib.core.vehicle_file`) or a generated one
 (:mod:`dgt_lib.core.vehicle_generator`) reaches the simulator (docs/vehicles.md).
 
-A spec is checked as its *fields*: the :class:`~dgt_lib.core.vehicles.VehicleSpec` field
+A spec is checked as its *fields*: the :class:`~dgt_lib.core.vehicle_spec.VehicleSpec` field
 names, angles in degrees (``max_steer_deg``, ``camera.pitch_down_deg``), the camera mount
 as ``camera.forward_m``, ``camera.up_m``. :data:`FIELD_RULES` says what each may be,
 :data:`CROSS_RULES` how they must fit together: the geometry rules follow from how
@@ -14,12 +14,14 @@ allowed, in the words of :mod:`dgt_lib.core.constraints`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from collections.abc import Mapping
+from dataclasses import MISSING
 
 from dgt_lib.core.constraints import CrossRule, Rule, above, at_least, between, one_of
-from dgt_lib.core.vehicles import CameraMount, VehicleSpec
+from dgt_lib.core.vehicle_spec import CameraMount, VehicleSpec
 
 BELLY_HEIGHT_M = 0.25
 """Thickness of the belly box under the body [m] (``mujoco_model._add_vehicle``)."""
@@ -77,7 +79,7 @@ FIELD_TYPES.update({"name": str, "drive": str, "color": tuple})
 ``color``'s three numbers."""
 
 OPTIONAL_FIELDS: dict[str, object] = {
-    "rolling_resistance": 0.015, "drag_area_m2": 1.5, "color": (0.8, 0.8, 0.8)}
+    f.name: f.default for f in dataclasses.fields(VehicleSpec) if f.default is not MISSING}
 """Fields a file may leave out, with their defaults (``VehicleSpec``'s); the camera table
 may be left out too (:func:`default_camera`)."""
 CAMERA_FIELDS: tuple[str, ...] = ("forward_m", "up_m", "pitch_down_deg")

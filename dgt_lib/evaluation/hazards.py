@@ -5,7 +5,7 @@ random start–goal pairs without one).
 A cell is a **hazard** for a vehicle when either
 
 - its slope (steepest, of the true heights) exceeds the grade the vehicle's motors can
-  hold, :attr:`~dgt_lib.core.vehicles.VehicleSpec.max_climb_deg` (torque-limited), or
+  hold, :attr:`~dgt_lib.core.vehicle_spec.VehicleSpec.max_climb_deg` (torque-limited), or
 - it is a **crest the belly hits**: along one of four directions (x, y, both diagonals)
   the cell stands more than the vehicle's ground clearance above the chord between the
   points half a wheelbase before and after it (:func:`belly_relief`) — a ridge or bump

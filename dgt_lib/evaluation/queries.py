@@ -16,6 +16,7 @@ import numpy as np
 
 from dgt_lib.core.config import ExperimentsConfig, PlannerConfig
 from dgt_lib.core.geometry import wrap_angle
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.hazards import HazardMap
 from dgt_lib.mapping.baselines import binary_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
@@ -135,7 +136,8 @@ def draw_random_queries(maps: WorldMaps, n: int, cfg: ExperimentsConfig, seed: i
     """
     rng = np.random.default_rng(seed)
     planner = HybridAStar.for_vehicle(binary_costmap(maps.grid.shape), maps.occupancy,
-                                      maps.grid, vehicle, cfg=planner_cfg)
+                                      maps.grid, get_vehicle(vehicle),
+                                      cfg=planner_cfg)
     x0, x1, y0, y1 = maps.grid.extent
     lo, hi = cfg.eval_distance_m
     out: list[Query] = []

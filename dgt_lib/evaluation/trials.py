@@ -30,6 +30,7 @@ import numpy as np
 
 from dgt_lib.core.config import ExperimentsConfig, Profile
 from dgt_lib.core.executors import run_jobs
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.journal import Journal, read_journal
 from dgt_lib.evaluation.queries import Query, classify_route
 from dgt_lib.mapping.baselines import binary_costmap
@@ -106,7 +107,7 @@ def _planner(world: str, method: str, vehicle: str, profile: Profile,
     costmap it plans on (Binary's: zeros)."""
     maps = load_maps(world, method, vehicle, profile)
     cost = method_costmap(maps, method, vehicle)
-    return HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle,
+    return HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, get_vehicle(vehicle),
                                    profile.planner), maps, cost
 
 

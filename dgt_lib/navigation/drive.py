@@ -22,7 +22,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from dgt_lib.core.controller import MPPIConfig
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.control.bicycle import rear_axle_pose, steering_from_twist
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import vehicle_footprint

@@ -25,7 +25,8 @@ import numpy as np  # noqa: E402
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, CollectConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.perception.bev import BEVAccumulator, bev_grid
 from dgt_lib.perception.pose_noise import Localiser
 from dgt_lib.world.rendering import onboard_camera_pose, simulator, terrain_renderer

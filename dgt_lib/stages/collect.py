@@ -37,7 +37,8 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
 from dgt_lib.core.executors import SerialExecutor, current_executor, limit_threads, run_jobs
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
 from dgt_lib.perception.colour_shuffle import shuffled_colours
 from dgt_lib.perception.episodes import (

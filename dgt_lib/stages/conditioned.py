@@ -22,7 +22,8 @@ import numpy as np
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, Profile, as_profile
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.learning.checkpoints import TrainResult, checkpoint_dict, prediction_digest
 from dgt_lib.mapping.costmap import directional_costmap
 from dgt_lib.perception.dataset import PatchDataset

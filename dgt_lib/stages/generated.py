@@ -27,7 +27,7 @@ import numpy as np
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, Profile, as_profile
 from dgt_lib.core.vehicle_generator import generated_vehicles
-from dgt_lib.core.vehicles import VehicleSpec
+from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.perception.bev import BEVMap
 from dgt_lib.perception.dataset import PatchDataset, build_dataset
 from dgt_lib.perception.episodes import Episode

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from dgt_lib.core.config import Profile
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.experiments import experiment_queries
 from dgt_lib.evaluation.queries import classify_route
 from dgt_lib.navigation.planner.hybrid_astar import HybridAStar
@@ -38,7 +39,8 @@ def planned_routes(name: str, prof: Profile, costmap: np.ndarray | None = None
     queries = experiment_queries(name, prof, trial_maps)[vehicle]
     maps = trial_maps(world_name, "dgt" if costmap is None else "binary", vehicle, prof)
     cost = maps.costmap("dgt", vehicle) if costmap is None else costmap
-    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, vehicle, prof.planner)
+    planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, get_vehicle(vehicle),
+                                      prof.planner)
     routes: dict[str, dict[str, int]] = {}
     for q in queries:
         plan = planner.plan(q.start, q.goal)

@@ -105,7 +105,7 @@ def _draw_footprint(ax, end, footprint: tuple[float, float]) -> None:
     """The footprint rectangle and its covering circles at pose ``end`` (x, y, θ)."""
     from matplotlib.patches import Circle, Rectangle
 
-    from dgt_lib.core.vehicles import footprint_circles
+    from dgt_lib.core.vehicle_spec import footprint_circles
 
     offsets, radius = footprint_circles(*footprint)
     c, s = math.cos(end[2]), math.sin(end[2])

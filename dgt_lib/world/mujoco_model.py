@@ -22,7 +22,8 @@ import numpy as np
 
 from dgt_lib.core.artifacts import data_root
 from dgt_lib.core.camera import CameraIntrinsics
-from dgt_lib.core.vehicles import GRAVITY_MPS2, VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import GRAVITY_MPS2, VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.world.worlds import World
 
 # Collision bits. The vehicle's underside (wheels, belly, bumpers) touches terrain and

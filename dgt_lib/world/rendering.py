@@ -18,7 +18,8 @@ import numpy as np  # noqa: E402
 
 from dgt_lib.core.camera import RGBDFrame
 from dgt_lib.core.config import CollectConfig
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.world.mujoco_model import CAMERA, MAX_DEPTH_M
 from dgt_lib.world.simulator import FrameRenderers, Simulator, look_at
 from dgt_lib.world.worlds import World, from_heightmap

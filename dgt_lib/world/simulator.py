@@ -31,7 +31,8 @@ import mujoco  # dgt_lib/__init__.py has set MUJOCO_GL=egl before this import
 import numpy as np
 
 from dgt_lib.core.camera import CameraIntrinsics, RGBDFrame
-from dgt_lib.core.vehicles import AIR_DENSITY_KGPM3, VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import AIR_DENSITY_KGPM3, VehicleSpec
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.world.mujoco_model import (
     BIT_TERRAIN,
     BIT_TREE,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from dgt_lib.core.vehicles import AIR_DENSITY_KGPM3, GRAVITY_MPS2, VehicleSpec
+from dgt_lib.core.vehicle_spec import AIR_DENSITY_KGPM3, GRAVITY_MPS2, VehicleSpec
 
 
 @dataclass

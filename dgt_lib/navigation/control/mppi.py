@@ -194,7 +194,7 @@ class MPPIController:
     def from_vehicle(cls, vehicle, cfg: MPPIConfig | None = None, seed: int = 0,
                      backend: str = "compiled"):
         """Build from an object with ``wheelbase_m``, ``max_steer_rad``, ``min_turn_radius_m``
-        and optionally ``rollover_accel_mps2`` (e.g. ``dgt_lib.core.vehicles.VehicleSpec``)."""
+        and optionally ``rollover_accel_mps2`` (e.g. ``dgt_lib.core.vehicle_spec.VehicleSpec``)."""
         return cls(cfg, wheelbase_m=vehicle.wheelbase_m, max_steer_rad=vehicle.max_steer_rad,
                    min_turn_radius_m=vehicle.min_turn_radius_m, seed=seed, backend=backend,
                    roll_accel_mps2=getattr(vehicle, "rollover_accel_mps2", None))

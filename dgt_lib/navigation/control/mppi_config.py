@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import fields
 
 from dgt_lib.core.controller import MPPIConfig
-from dgt_lib.core.vehicles import footprint_circles
+from dgt_lib.core.vehicle_spec import footprint_circles
 
 
 def vehicle_footprint(vehicle, margin_m: float = 0.2) -> dict[str, object]:
@@ -15,7 +15,7 @@ def vehicle_footprint(vehicle, margin_m: float = 0.2) -> dict[str, object]:
 
         cfg = dataclasses.replace(MPPIConfig(), **vehicle_footprint(spec))
 
-    The planner's circles (:func:`dgt_lib.core.vehicles.footprint_circles`, covering the
+    The planner's circles (:func:`dgt_lib.core.vehicle_spec.footprint_circles`, covering the
     length × width rectangle around the body centre) moved to the rear-axle
     reference (the body centre is ℓ/2 ahead of it, equal overhangs), radius plus
     ``margin_m``; the inflation radius is set 1.5 m beyond it.

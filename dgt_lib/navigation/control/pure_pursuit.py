@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from dgt_lib.core.vehicles import VehicleSpec
+from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.world.simulator import VehicleState
 
 

@@ -51,7 +51,7 @@ The modules, the footprint check, the conventions and the heuristic's proof:
 docs/planner.md.
 """
 
-from dgt_lib.core.vehicles import footprint_circles
+from dgt_lib.core.vehicle_spec import footprint_circles
 from dgt_lib.navigation.planner.heuristics import HEURISTICS, CostToGo, step_cell_bounds
 from dgt_lib.navigation.planner.hybrid_astar import BACKENDS, HybridAStar, plan
 from dgt_lib.navigation.planner.maps import PlannerMaps

@@ -10,7 +10,7 @@ import numpy as np
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import GridSpec, wrap_angle
-from dgt_lib.core.vehicles import VehicleSpec, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.navigation.planner.compiled_search import CompiledSearch
 from dgt_lib.navigation.planner.maps import PlannerMaps, Query
 from dgt_lib.navigation.planner.result import InvalidQueryError, PlanResult
@@ -96,12 +96,11 @@ class HybridAStar:
 
     @classmethod
     def for_vehicle(cls, costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec,
-                    vehicle: str | VehicleSpec, cfg: PlannerConfig | None = None,
+                    spec: VehicleSpec, cfg: PlannerConfig | None = None,
                     backend: str = "compiled", edge_cost: EdgeCost | None = None
                     ) -> HybridAStar:
-        """The planner of one vehicle: its centre turning radius and its footprint
-        (length × width) from :mod:`dgt_lib.core.vehicles`."""
-        spec = get_vehicle(vehicle)
+        """The planner of one vehicle: its centre turning radius [m] and its footprint
+        (length × width [m]) from its spec."""
         return cls(costmap, occupancy, grid, min_turn_radius_m=spec.centre_turn_radius_m,
                    footprint=(spec.length_m, spec.width_m), cfg=cfg, backend=backend,
                    edge_cost=edge_cost)

@@ -11,7 +11,7 @@ import numpy as np
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.core.vehicles import footprint_circles
+from dgt_lib.core.vehicle_spec import footprint_circles
 from dgt_lib.navigation.planner.collision import BlockedMap
 from dgt_lib.navigation.planner.heuristics import CostToGo
 from dgt_lib.navigation.planner.primitives import PrimitiveSet, travel_bin_table

@@ -9,7 +9,7 @@ import numpy as np
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import GridSpec
-from dgt_lib.core.vehicles import VehicleSpec, footprint_circles, get_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec, footprint_circles
 from dgt_lib.navigation.planner.heuristics import HEURISTICS
 from dgt_lib.navigation.planner.result import InvalidQueryError
 from dgt_lib.world.worlds import World
@@ -49,7 +49,7 @@ def check_maps(costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec) -> No
         raise ValueError("occupancy values must be 0 (free), 1 (occupied) or 2 (unobserved)")
 
 
-def check_query_on_world(world: World, vehicle: str | VehicleSpec, start, goal) -> None:
+def check_query_on_world(world: World, spec: VehicleSpec, start, goal) -> None:
     """Raise :class:`InvalidQueryError` for a query that no map of ``world`` can make
     valid, judged from the world alone (no BEV, costmap or model: milliseconds).
 
@@ -63,7 +63,6 @@ def check_query_on_world(world: World, vehicle: str | VehicleSpec, start, goal) 
     a trunk's occupied ring), so this adds no rule of its own; slopes, steps and
     unobserved terrain need the occupancy map (‖∇H̄‖ > τ_s) and are left to it.
     """
-    spec = get_vehicle(vehicle)
     start = np.asarray(start, dtype=np.float64).ravel()
     goal = np.asarray(goal, dtype=np.float64).ravel()
     if start.shape != (3,) or not np.all(np.isfinite(start)):
