@@ -150,6 +150,16 @@ def test_checkpoint_round_trip_gives_identical_predictions(trained, dataset, tmp
     assert loaded.config == trained.config
 
 
+def test_a_checkpoint_written_with_settings_deleted_since_still_loads(trained):
+    """Models trained before a setting nobody changed was deleted (``weight_decay`` at 0)
+    are loaded, not refused: hours of ``paper`` training stay usable."""
+    ckpt = checkpoint_dict(trained)
+    ckpt["train_config"] = {**ckpt["train_config"], "weight_decay": 0.0,
+                            "label_weighting": "none"}
+    loaded = load_checkpoint(ckpt)
+    assert loaded.config == trained.config
+
+
 def test_prediction_digest_follows_the_weights_not_the_training_record(trained):
     ckpt = checkpoint_dict(trained)
     digest = prediction_digest(ckpt)

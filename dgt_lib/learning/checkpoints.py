@@ -8,7 +8,7 @@ cache's key (:data:`CHECKPOINT_VERSION`) is checked by ``dgt plan`` without it."
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -135,7 +135,10 @@ def load_checkpoint(
         raise ArchitectureMismatchError(f"{where}: weights do not fit {arch}: {exc}") from exc
     model.rgb_pretrained = bool(ckpt.get("rgb_pretrained", False))
     model.to(device).eval()
-    cfg = TrainConfig(**ckpt["train_config"]) if ckpt.get("train_config") else None
+    cfg = None
+    if ckpt.get("train_config"):  # settings deleted since it was written are left out
+        known = {f.name for f in fields(TrainConfig)}
+        cfg = TrainConfig(**{k: v for k, v in ckpt["train_config"].items() if k in known})
     return TrainResult(model=model, history=ckpt["history"], best_epoch=ckpt["best_epoch"],
                        metrics=ckpt["metrics"], interrupted=ckpt["interrupted"], config=cfg,
                        seed=ckpt.get("seed"))
