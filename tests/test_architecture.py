@@ -195,3 +195,22 @@ def test_the_paper_path_is_counted_and_does_not_reach_beyond():
             "dgt_lib.core.config"} <= reached
     counts = code_size.sizes(PACKAGE, reached)
     assert "beyond" not in counts and sum(counts.values()) > 5000
+
+
+PAPER_PATH_BUDGET = 13_760
+"""Code lines the paper path (notebooks 01–09 and what they reach) may hold: the size it
+has, lowered whenever the code shrinks (aim: 8,000)."""
+PACKAGE_BUDGET = 16_700
+"""Code lines ``dgt_lib`` may hold, lowered whenever the code shrinks (aim: 12,000)."""
+
+
+def test_the_library_stays_within_its_size_budget():
+    """A ratchet: a change that adds code deletes as much elsewhere (docs/ARCHITECTURE.md);
+    when the library shrinks, lower the budget to its new size."""
+    code_size = _code_size()
+    notebooks = sorted(p for p in (PACKAGE.parent / "notebooks").glob("*.ipynb")
+                       if p.name.startswith(code_size.PAPER_NOTEBOOKS))
+    paper = sum(code_size.sizes(PACKAGE, code_size.paper_path(PACKAGE, notebooks)[0]).values())
+    package = sum(code_size.sizes(PACKAGE, set(code_size.package_modules(PACKAGE))).values())
+    assert paper <= PAPER_PATH_BUDGET, f"the paper path is {paper:,} code lines"
+    assert package <= PACKAGE_BUDGET, f"dgt_lib is {package:,} code lines"
