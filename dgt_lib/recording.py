@@ -44,6 +44,7 @@ import numpy as np
 import rerun as rr
 from matplotlib import colormaps
 
+from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicles import get_vehicle
@@ -149,7 +150,9 @@ class Recording:
             rec.log_path("dgt", path_xyz)
 
     The blueprint is built from what was logged and the file completed (flushed) when
-    the ``with`` block ends.
+    the ``with`` block ends. Until then rerun writes a hidden file beside ``path``, renamed
+    over it when complete: a recording stopped half-way (Ctrl-C, a crash) leaves ``path``
+    as it was, never half a recording.
     """
 
     def __init__(self, path: str | Path, name: str, profile: Profile):
@@ -157,7 +160,8 @@ class Recording:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.recording_id = recording_id(name, profile)
         self.stream = rr.RecordingStream(application_id(name), recording_id=self.recording_id)
-        self.stream.save(str(self.path))
+        self._partial = self.path.with_name(f".{self.path.name[:80]}.{os.getpid()}.partial.rrd")
+        self.stream.save(str(self._partial))
         self.layout = Layout()
         self._terrain_top_m = 0.0
         self._elapsed_s = 0.0
@@ -171,6 +175,10 @@ class Recording:
         self.stream.send_blueprint(self.layout.blueprint())
         self.stream.flush()
         self.stream.disconnect()
+        if self._partial.exists():  # (a second close finds it renamed)
+            artifacts.fsync_path(self._partial)
+            os.replace(self._partial, self.path)
+            artifacts.fsync_path(self.path.parent)
         return self.path
 
     def __enter__(self) -> Recording:

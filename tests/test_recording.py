@@ -174,6 +174,21 @@ def test_recording_with_every_kind_of_entity_verifies(tmp_path):
     dgt_rr.verify(path)
 
 
+def test_a_recording_replaces_its_file_only_when_complete(tmp_path):
+    """A recording stopped half-way (``dgt plan`` interrupted while it logs) leaves the
+    earlier file as it was; a complete one replaces it whole and leaves nothing beside it."""
+    grid = GridSpec((0.0, 0.0), 0.4, (30, 40))
+    path = tmp_path / "plan.rrd"
+    path.write_bytes(b"the earlier recording")
+    rec = dgt_rr.Recording(path, "test", SMOKE)
+    rec.log_terrain(0.1 * grid.cell_centers()[0], None, grid)
+    rec.stream.flush()
+    assert path.read_bytes() == b"the earlier recording"  # still logging: untouched
+    rec.close()
+    dgt_rr.verify(path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.rrd"]
+
+
 def test_map_image_puts_north_at_the_top():
     grid_array = np.array([[0, 0], [1, 1]])  # row 1 is further north (larger y)
     assert dgt_rr._map_image(grid_array)[0].tolist() == [1, 1]

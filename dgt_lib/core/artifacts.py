@@ -118,6 +118,11 @@ def _atomic_write(path: Path, write: Callable[[Path], None],
             tmp_path.unlink()
 
 
+def fsync_path(path: Path) -> None:
+    """Flush a file, or a directory's entries (a rename in it), to disk."""
+    _fsync(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if path.is_dir() else 0))
+
+
 def _fsync(path: Path, flags: int) -> None:
     """``fsync`` a file or directory by its path (a directory that refuses it is let be)."""
     fd = os.open(path, flags)
