@@ -68,6 +68,15 @@ def test_every_mppi_setting_can_be_set_and_is_checked():
         SMOKE.with_overrides({"mppi.temperature": 0.0})
 
 
+@pytest.mark.parametrize("name, value", [("mppi.collision_radius_m", 2.0),
+                                         ("mppi.footprint_offsets_m", "0,1")])
+def test_what_each_drive_takes_from_its_vehicle_cannot_be_set(name, value):
+    """The footprint circles come from the driven vehicle: a value given for them would be
+    replaced at every drive, so it is refused in one line instead of being ignored."""
+    with pytest.raises(ValueError, match=f"^{name}=.*footprint for every drive"):
+        SMOKE.with_overrides({name: value})
+
+
 def test_an_unknown_controller_is_refused():
     with pytest.raises(ValueError, match="controller"):
         SMOKE.with_overrides({"experiments.controller": "fast"})

@@ -39,7 +39,7 @@ from dgt_lib.core.constraints import (  # the choices of TrainConfig's text sett
     VEHICLES,
     check_settings,
 )
-from dgt_lib.core.controller import CONTROLLERS, MPPIConfig, with_controller
+from dgt_lib.core.controller import MPPIConfig, mppi_before_overrides
 from dgt_lib.core.overrides import apply_overrides, format_setting
 
 PROFILE_NAMES: tuple[str, ...] = ("smoke", "demo", "paper")
@@ -359,10 +359,7 @@ class Profile:
         or the type expected. The rules: :mod:`dgt_lib.core.overrides`. A new
         ``experiments.controller`` puts its preset in the ``mppi`` section first
         (:func:`~dgt_lib.core.controller.with_controller`); ``mppi.*`` settings apply on top."""
-        named = {k.strip(): v for k, v in overrides.items()}.get("experiments.controller")
-        base = self
-        if isinstance(named, str) and named.strip() in CONTROLLERS:
-            base = replace(self, mppi=with_controller(self.mppi, named.strip()))
+        base = replace(self, mppi=mppi_before_overrides(self.mppi, overrides))
         return apply_overrides(base, overrides)
 
     def describe(self) -> str:

@@ -180,6 +180,12 @@ BOUNDS: dict[str, Rule] = {
 """The settings bounded above, each with its rule (its ``outside`` value is below it; the
 tests try ``high + 1`` too)."""
 
+FROM_THE_VEHICLE_TEXT = "set from each vehicle's footprint for every drive"
+FROM_THE_VEHICLE: tuple[str, ...] = ("mppi.footprint_offsets_m", "mppi.collision_radius_m",
+                                     "mppi.inflation_radius_m")
+"""MPPI fields a drive takes from its vehicle (``mppi_config.vehicle_footprint``): shown by
+``dgt settings``, refused by ``--set`` (a value there would not be the one driven)."""
+
 SETTING_RULES: dict[str, Rule] = {
     "seed": SEED,
     "worlds.training_seed": SEED,
@@ -224,8 +230,7 @@ SETTING_RULES: dict[str, Rule] = {
         f"an integer in [0, {MAX_GENERATED}]", MAX_GENERATED + 1),
     **{f"mppi.{name}": POSITIVE for name in (
         "model_dt", "temperature", "v_max", "w_max", "accel_max", "decel_max", "target_speed",
-        "goal_decel", "lateral_accel_max", "path_resolution_m", "collision_radius_m",
-        "inflation_radius_m", "ancillary_lookahead_m")},
+        "goal_decel", "lateral_accel_max", "path_resolution_m", "ancillary_lookahead_m")},
     **{f"mppi.{name}": NON_NEGATIVE for name in (
         "accel_std", "w_rate_std", "speed_time_constant_s", "goal_radius_m", "path_weight",
         "path_angle_weight", "speed_weight", "goal_weight", "collision_weight",
@@ -234,8 +239,10 @@ SETTING_RULES: dict[str, Rule] = {
         "corner_accel_mps2")},
     "mppi.v_min": at_most(0), "mppi.smoothing_window": at_least(0, integer=True),
     "mppi.path_point_step": COUNT, "mppi.ancillary_fraction": between(0, 1, high_open=True),
-    "mppi.footprint_offsets_m": Rule(lambda v: len(v) > 0 and all(_number(x) for x in v),
-                                     "one or more finite numbers", ()),
+    **{name: Rule(check, FROM_THE_VEHICLE_TEXT, outside) for name, check, outside in (
+        ("mppi.footprint_offsets_m", lambda v: len(v) > 0 and all(_number(x) for x in v), ()),
+        ("mppi.collision_radius_m", lambda v: _number(v) and v > 0, 0.0),
+        ("mppi.inflation_radius_m", lambda v: _number(v) and v > 0, 0.0))},
     **BOUNDS,  # the settings bounded above
 }
 """Every setting's allowed values, by dotted name (``dgt settings`` lists the names)."""
@@ -266,10 +273,6 @@ CROSS_RULES: tuple[CrossRule, ...] = (
               lambda p: p.ground_truth.slope_edges_deg[-1] < p.ground_truth.max_slope_deg,
               "the slope strata end below the steepest cell sampled",
               {"ground_truth.slope_edges_deg": "4,10,18", "ground_truth.max_slope_deg": 18.0}),
-    CrossRule(("mppi.collision_radius_m", "mppi.inflation_radius_m"),
-              lambda p: p.mppi.collision_radius_m < p.mppi.inflation_radius_m,
-              "the occupancy critic rises before a footprint collides",
-              {"mppi.collision_radius_m": 3.0, "mppi.inflation_radius_m": 2.0}),
     CrossRule(("mppi.ancillary_fraction", "mppi.accel_std", "mppi.w_rate_std"),
               lambda p: p.mppi.ancillary_fraction == 0 or min(p.mppi.accel_std,
                                                               p.mppi.w_rate_std) > 0,

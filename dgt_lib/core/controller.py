@@ -20,9 +20,16 @@ robust preset with one of its settings changed: the preset is applied first, the
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 
-from dgt_lib.core.constraints import check_section
+from dgt_lib.core.constraints import (
+    FROM_THE_VEHICLE,
+    FROM_THE_VEHICLE_TEXT,
+    InvalidSettingError,
+    check_section,
+)
+from dgt_lib.core.overrides import format_setting
 
 
 @dataclass(frozen=True)
@@ -123,3 +130,20 @@ def with_controller(mppi: MPPIConfig, name: str) -> MPPIConfig:
     paper = MPPIConfig()
     reset = {f.name: getattr(paper, f.name) for f in fields(MPPIConfig) if f.name in PRESET_FIELDS}
     return replace(mppi, **{**reset, **controller_settings(name)})
+
+
+def mppi_before_overrides(mppi: MPPIConfig, overrides: Mapping[str, object]) -> MPPIConfig:
+    """The ``mppi`` section a set of overrides starts from: the preset a new
+    ``experiments.controller`` names, else ``mppi`` as it is. Raises
+    :class:`InvalidSettingError` for a change to a field each drive sets from its vehicle
+    (:data:`~dgt_lib.core.constraints.FROM_THE_VEHICLE`)."""
+    given = {k.strip(): v for k, v in overrides.items()}
+    for key in set(given) & set(FROM_THE_VEHICLE):
+        now, value = getattr(mppi, key.partition(".")[2]), given[key]
+        if value != now and str(value).strip() != format_setting(now):  # (as typed: "0.0")
+            raise InvalidSettingError(f"{key}={format_setting(value)} is not allowed: "
+                                      f"{key} is {FROM_THE_VEHICLE_TEXT}")
+    named = given.get("experiments.controller")
+    if isinstance(named, str) and named.strip() in CONTROLLERS:
+        return with_controller(mppi, named.strip())
+    return mppi
