@@ -288,7 +288,7 @@ def _plan(args: argparse.Namespace) -> int:
                                 resolution_m=args.resolution,
                                 vertical_scale_m=args.vertical_scale,
                                 crs_coords=args.crs_coords, nodata=args.nodata,
-                                band=args.band)
+                                band=args.band, image=args.image)
     except (InvalidQueryError, FileNotFoundError, ValueError) as exc:
         print(f"dgt plan: error: {exc}", file=sys.stderr)
         return 2
@@ -365,6 +365,10 @@ def _add_world_options(parser: argparse.ArgumentParser, vehicle_file: bool = Fal
     parser.add_argument("--band", type=band_arg, default=None, metavar="N",
                         help="DEM: the band that holds the heights (default 1; a file of "
                              "several bands says which it read)")
+    parser.add_argument("--image", default=None, metavar="ORTHO.tif",
+                        help="DEM: an 8-bit RGB GeoTIFF covering it, resampled to its grid "
+                             "as the map's colour for the RGB-D model; without it a DEM is "
+                             "mapped from its geometry alone")
     _add_set_option(parser)
     _device_arg(parser)
 

@@ -18,7 +18,7 @@ from dgt_lib.core.outputs import check_output_path
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.export import nav2_stem, write_geotiff, write_nav2
 from dgt_lib.mapping.methods import METHODS
-from dgt_lib.plan_one import load_world, training_notice
+from dgt_lib.plan_one import costmap_profile, load_world, training_notice
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.world.dem import import_rasterio
 from dgt_lib.world.worlds import World
@@ -31,27 +31,32 @@ def export_costmap(world: str | World, vehicle: str, out: str | Path, *, method:
                    fmt: str = "geotiff", profile: Profile | str | None = None,
                    resolution_m: float = 0.4, vertical_scale_m: float | None = None,
                    nodata: str = "error", progress: bool = True,
-                   band: int | None = None) -> list[Path]:
+                   band: int | None = None, image: str | Path | None = None) -> list[Path]:
     """Write ``method``'s K-heading costmap of ``vehicle`` on ``world`` (a kit world, a
     heightmap or DEM file: :func:`~dgt_lib.plan_one.load_world`) to ``out`` in ``fmt``
     (:data:`FORMATS`), georeferenced when the world came from a DEM. Returns the files
     written (the GeoTIFF, or the YAML files). ``out`` is checked before any work
-    (:func:`output_target`); ``band``: a DEM's band (:func:`~dgt_lib.world.dem.read_dem`)."""
-    prof = as_profile(profile)
+    (:func:`output_target`); ``band``: a DEM's band (:func:`~dgt_lib.world.dem.read_dem`);
+    ``image``: a DEM's orthophoto. With ``progress``, says on stderr what the costmap
+    read (:func:`~dgt_lib.plan_one.costmap_profile`: a DEM without imagery, geometry only)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r}; valid formats: {', '.join(FORMATS)}")
     get_vehicle(vehicle)
+    prof, read = costmap_profile(world, method, as_profile(profile), image)
     if fmt == "geotiff":
         import_rasterio()  # missing: a one-line error now, not after the costmap is built
-    target = output_target(out, fmt, f"{vehicle}_{method}",
-                           inputs=() if isinstance(world, World) else (world,))
+    files = (() if isinstance(world, World) else (world,)) + ((image,) if image else ())
+    target = output_target(out, fmt, f"{vehicle}_{method}", inputs=files)
     w, georef = load_world(world, prof, resolution_m=resolution_m,
-                           vertical_scale_m=vertical_scale_m, nodata=nodata, band=band)
+                           vertical_scale_m=vertical_scale_m, nodata=nodata, band=band,
+                           image=image)
     notice = training_notice(method, vehicle, prof)
     if progress and notice:
         print(notice, flush=True)
+    if progress:
+        print(f"[dgt] costmap input: {read}", file=sys.stderr, flush=True)
     maps = ensure_world_costmaps(w, (vehicle,), prof, methods=(method,), progress=progress)
     cost = maps.costmap(method, vehicle)
     if fmt == "geotiff":
@@ -87,7 +92,7 @@ def run_command(args: argparse.Namespace, profile: Profile) -> int:
         paths = export_costmap(args.world, args.vehicle, args.out, method=args.method,
                                fmt=args.fmt, profile=profile, resolution_m=args.resolution,
                                vertical_scale_m=args.vertical_scale, nodata=args.nodata,
-                               band=args.band)
+                               band=args.band, image=args.image)
     except (FileNotFoundError, ValueError) as exc:
         print(f"dgt costmap: error: {exc}", file=sys.stderr)
         return 2

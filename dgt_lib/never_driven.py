@@ -78,7 +78,9 @@ def never_driven_notice(method: str, spec: VehicleSpec, profile: Profile, *,
     line = (f"never driven: costmap from the vehicle-conditioned network trained on "
             f"{', '.join(seen_vehicles(None))} (profile {profile.name}, seed {profile.seed}), "
             f"given {spec.name}'s spec")
-    if training and not (data_dir(profile) / conditioned_relpath(None)).exists():
+    model = conditioned_relpath(None, profile.conditioned.generated_vehicles,
+                                profile.train.inputs)
+    if training and not (data_dir(profile) / model).exists():
         line += "; training it first on the profile's dataset (later queries reuse it)"
     return line
 
@@ -111,7 +113,7 @@ def plan_vehicle_query(world: str | World, vehicle: str | Path | VehicleSpec, st
     vehicles' range is a warning (printed with ``progress``, and in the report); a vehicle
     never driven plans on :func:`never_driven_maps`, saying where they come from.
     ``query``: the rest of plan_query's options (drive, out_dir, …)."""
-    prof = as_profile(profile)
+    prof = plan_one.costmap_profile(world, method, as_profile(profile), query.get("image"))[0]
     spec, notes = range_warnings(vehicle)
     for note in notes if progress else ():
         print(f"warning: {note}", file=sys.stderr, flush=True)

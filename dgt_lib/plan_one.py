@@ -51,14 +51,18 @@ HIGH_COST = 0.5
 
 def load_world(world: str | World, profile: Profile, *, resolution_m: float = 0.4,
                vertical_scale_m: float | None = None, nodata: str = "error",
-               band: int | None = None) -> tuple[World, Georeference | None]:
+               band: int | None = None, image: str | Path | None = None
+               ) -> tuple[World, Georeference | None]:
     """A :class:`World` and, for a DEM, its :class:`~dgt_lib.world.dem.Georeference`.
 
     A DEM (GeoTIFF ``.tif``, ESRI ASCII grid ``.asc``) is resampled to the profile's
     ``worlds.hfield_resolution_m`` (:func:`~dgt_lib.world.dem.load_dem`; ``nodata``: what
-    to do with its no-data cells; ``band``: which band holds heights); a ``.npy``/``.png``
+    to do with its no-data cells; ``band``: which band holds heights; ``image``: an
+    orthophoto for its colour, else it is one grey); a ``.npy``/``.png``
     heightmap has ``resolution_m``
     [m/pixel] and no georeference, nor does a kit world or a World."""
+    if image is not None and not (isinstance(world, str) and is_dem_path(world)):
+        raise ValueError("--image colours a DEM world (.tif / .asc); this world is not one")
     if isinstance(world, World):
         return world, None
     if world in WORLD_NAMES:
@@ -68,7 +72,8 @@ def load_world(world: str | World, profile: Profile, *, resolution_m: float = 0.
         raise FileNotFoundError(f"{world!r} is neither a world ({', '.join(WORLD_NAMES)}) "
                                 "nor an existing .npy/.png heightmap or .tif/.asc DEM file")
     if is_dem_path(path):
-        return load_dem(path, profile.worlds.hfield_resolution_m, nodata=nodata, band=band)
+        return load_dem(path, profile.worlds.hfield_resolution_m, nodata=nodata, band=band,
+                        image=image)
     if path.suffix.lower() == ".npy" and not _is_npy(path):
         raise ValueError(f"{world} is not a NumPy heightmap: a .npy file starts with "
                          "NumPy's header (np.save writes one); this one does not")
@@ -80,6 +85,31 @@ def _is_npy(path: Path) -> bool:
     pickle file renamed ``.npy`` is called what it is, not a pickle to allow."""
     with open(path, "rb") as f:
         return f.read(6) == b"\x93NUMPY"
+
+
+def costmap_profile(world: str | World, method: str, profile: Profile,
+                    image: str | Path | None = None) -> tuple[Profile, str]:
+    """The profile whose models map ``world``, and the words saying what its costmap read.
+
+    A DEM without ``image`` has no colour to read: its costmap comes from the profile's
+    geometry-only models (``train.inputs=geometry``, trained on the same dataset when
+    first needed, cached beside the RGB-D ones); with ``image``, the RGB-D models read
+    the orthophoto's colours. The slope and binary methods read heights alone."""
+    if isinstance(world, str) and is_dem_path(world) and image is None:
+        if profile.train.inputs != "geometry":
+            profile = profile.with_overrides({"train.inputs": "geometry"})
+        return profile, "geometry only (no imagery)"
+    if method in ("slope", "binary"):
+        return profile, "geometry only (the method reads no colour)"
+    seen = {"rgbd": "RGB-D", "geometry": "geometry only", "rgb": "RGB only"}[
+        profile.train.inputs]
+    if image is not None:
+        return profile, f"{seen} with imagery from {Path(image).name}"
+    if isinstance(world, str) and world in WORLD_NAMES:
+        return profile, f"{seen} (the simulated world's colours)"
+    if isinstance(world, World):
+        return profile, f"{seen} (the world's colours)"
+    return profile, f"{seen} (a height map has no colour: painted from its slope)"
 
 
 def crs_to_local(georef: Georeference | None, start, goal) -> tuple[tuple, tuple]:
@@ -121,11 +151,14 @@ class QueryReport:
     """Its spec's fields outside the vehicles the kit trains on."""
     spec: VehicleSpec | None = None
     """The vehicle's spec when it is not a named one."""
+    inputs: str = ""
+    """What the costmap read (:func:`costmap_profile`): "geometry only (no imagery)" …"""
 
     def summary(self) -> str:
         p = self.plan
         lines = [f"{METHOD_LABELS[self.method]} plan for {self.vehicle} on {self.world}: "
                  f"{self.start} → {self.goal}"]
+        lines += [f"  costmap input: {self.inputs}"] if self.inputs else []
         lines += [f"  {self.never_driven}"] if self.never_driven else []
         lines += [f"  warning: {w}" for w in self.warnings]
         if p.success and len(p.path) < 2:
@@ -161,8 +194,8 @@ class QueryReport:
         was found (else why: ``failure``, "no_path" or "budget" as in
         :attr:`PlanResult.failure`, and ``reason`` in words), the path's rows [x m, y m,
         yaw rad], its length [m] and cost, the named route, the drive's outcome (None when
-        not driven) and the files written. Non-finite numbers (an unknown goal distance)
-        become None."""
+        not driven), the files written and what the costmap read (``input``). Non-finite
+        numbers (an unknown goal distance) become None."""
         p = self.plan
         out = {"world": self.world, "vehicle": self.vehicle, "method": self.method,
                "start": list(self.start), "goal": list(self.goal), "found": bool(p.success),
@@ -176,6 +209,7 @@ class QueryReport:
                "figure": None if self.figure is None else str(self.figure),
                "recording": None if self.recording is None else str(self.recording),
                "not_written": self.not_written, "never_driven": self.never_driven,
+               "input": self.inputs,
                "warnings": list(self.warnings)}
         if self.outcome is not None:
             o = self.outcome
@@ -225,7 +259,9 @@ def training_notice(method: str, vehicle: str, profile: Profile) -> str | None:
     how long the stages take depends on the machine (``dgt reproduce`` prints each one's)."""
     if method in ("dgt", "isotropic", "single-task"):
         kind = "multitask" if method in ("dgt", "isotropic") else f"single:{vehicle}"
-        relpath, missing, what = model_relpath(kind), f"trained {kind} model", "training it"
+        inputs = profile.train.inputs
+        relpath, what = model_relpath(kind, inputs), "training it"
+        missing = f"trained {'' if inputs == 'rgbd' else inputs + '-only '}{kind} model"
     elif method == "slope":
         relpath, missing, what = SLOPE_FIT_RELPATH, "slope-based fit", "fitting it"
     else:
@@ -314,7 +350,7 @@ def plan_query(world: str | World, vehicle: str | VehicleSpec, start, goal, *, m
                resolution_m: float = 0.4, vertical_scale_m: float | None = None,
                out_dir: Path | None = None, progress: bool = True, crs_coords: bool = False,
                nodata: str = "error", source: CostmapSource | None = None,
-               band: int | None = None) -> QueryReport:
+               band: int | None = None, image: str | Path | None = None) -> QueryReport:
     """Plan (and optionally drive) one query; see the module docstring.
 
     start (x, y, yaw) [m, m, rad], goal (x, y) [m]. Raises
@@ -322,18 +358,20 @@ def plan_query(world: str | World, vehicle: str | VehicleSpec, start, goal, *, m
     or in an obstacle (the message names which) — found before any dataset or model is
     built (:func:`check_query`). With ``progress``, prints when a model must be trained.
     ``crs_coords``: start and goal x, y are in a DEM file's CRS (:func:`crs_to_local`);
-    ``nodata``, ``band``: a DEM's no-data policy and band (:func:`load_world`). Driven, the
+    ``nodata``, ``band``, ``image``: a DEM's no-data policy, band and orthophoto
+    (:func:`load_world`); the models that map the world: :func:`costmap_profile`. Driven, the
     vehicle is tracked by the profile's controller (``experiments.controller``) with the
     profile's seed, as a trial is (:func:`drive_query`). ``vehicle``: a named vehicle's
     name or a spec (:func:`~dgt_lib.core.vehicle_range.resolve_vehicle` resolves a file);
     ``source``: the costmap of a vehicle that is not a named one.
     """
-    prof = as_profile(profile)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+    prof, inputs = costmap_profile(world, method, as_profile(profile), image)
     spec = get_vehicle(vehicle)  # an unknown name: an error before any work
     w, georef = load_world(world, prof, resolution_m=resolution_m,
-                           vertical_scale_m=vertical_scale_m, nodata=nodata, band=band)
+                           vertical_scale_m=vertical_scale_m, nodata=nodata, band=band,
+                           image=image)
     start = tuple(float(v) for v in start)
     goal = tuple(float(v) for v in goal)[:2]
     if crs_coords:
@@ -350,7 +388,7 @@ def plan_query(world: str | World, vehicle: str | VehicleSpec, start, goal, *, m
         cost = maps.costmap(method, spec.name)
     planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, spec, prof.planner)
     result = planner.plan(start, goal)
-    report = QueryReport(w.name, spec.name, method, start, goal, result)
+    report = QueryReport(w.name, spec.name, method, start, goal, result, inputs=inputs)
     if source:
         report.never_driven, report.warnings, report.spec = (source.described,
                                                              list(source.warnings), spec)

@@ -38,7 +38,12 @@ from dgt_lib.stages.generated import (
     training_generated,
 )
 from dgt_lib.stages.paths import cache_dir, data_dir
-from dgt_lib.stages.train import SNAPSHOT_EVERY_S, model_config, rgb_weights_for
+from dgt_lib.stages.train import (
+    SNAPSHOT_EVERY_S,
+    inputs_suffix,
+    model_config,
+    rgb_weights_for,
+)
 from dgt_lib.world.worlds import World
 
 if TYPE_CHECKING:
@@ -58,17 +63,20 @@ def seen_vehicles(leave_out: str | None) -> tuple[str, ...]:
     return tuple(v for v in VEHICLES if v != leave_out)
 
 
-def conditioned_stem(leave_out: str | None, generated: int = 0) -> str:
+def conditioned_stem(leave_out: str | None, generated: int = 0, inputs: str = "rgbd") -> str:
     """``conditioned`` (trained on all four) or ``conditioned_without_<vehicle>``, with
-    ``_gen<N>`` when N > 0 generated vehicles joined its training."""
+    ``_gen<N>`` when N > 0 generated vehicles joined its training and
+    :func:`~dgt_lib.stages.train.inputs_suffix` when it reads other ``train.inputs``."""
     seen_vehicles(leave_out)
     stem = "conditioned" if leave_out is None else f"conditioned_without_{leave_out}"
-    return stem if generated == 0 else f"{stem}_gen{generated}"
+    stem = stem if generated == 0 else f"{stem}_gen{generated}"
+    return stem + inputs_suffix(inputs)
 
 
-def conditioned_relpath(leave_out: str | None, generated: int = 0) -> Path:
+def conditioned_relpath(leave_out: str | None, generated: int = 0,
+                        inputs: str = "rgbd") -> Path:
     """Where a conditioned model lives in the seed's data directory: ``models/<stem>.pt``."""
-    return Path("models") / f"{conditioned_stem(leave_out, generated)}.pt"
+    return Path("models") / f"{conditioned_stem(leave_out, generated, inputs)}.pt"
 
 
 def conditioned_config(profile: Profile, dataset: PatchDataset | None,
@@ -126,7 +134,7 @@ def ensure_conditioned_model(profile: Profile, dataset: PatchDataset,
     config = conditioned_config(prof, dataset, leave_out, seed=seed, rgb_weights=rgb_weights,
                                 dataset_hash=dataset_hash)
     n_generated = prof.conditioned.generated_vehicles
-    relpath = conditioned_relpath(leave_out, n_generated)
+    relpath = conditioned_relpath(leave_out, n_generated, prof.train.inputs)
     snapshot = data_dir(prof) / relpath.with_suffix(".resume.pt")
     heads = conditioned_heads(prof, leave_out)
     run = {"seed": seed, "film_hidden": FILM_HIDDEN, "device": device, "progress": progress,
@@ -156,7 +164,8 @@ def conditioned_digest(profile: Profile, leave_out: str | None = None, *,
     the cache's metadata; trained first when missing or stale."""
     prof = as_profile(profile)
     dataset_hash = dataset_hash or dataset_digest(prof, progress=progress)
-    relpath = conditioned_relpath(leave_out, prof.conditioned.generated_vehicles)
+    relpath = conditioned_relpath(leave_out, prof.conditioned.generated_vehicles,
+                                  prof.train.inputs)
     config = conditioned_config(prof, None, leave_out, dataset_hash=dataset_hash)
     if not artifacts.is_fresh(relpath, config, profile=cache_dir(prof)):
         ensure_conditioned_model(prof, ensure_dataset(prof, progress=progress), leave_out,
@@ -179,7 +188,7 @@ def ensure_conditioned_costmaps(world: World | str, specs: tuple[VehicleSpec | s
     specs = tuple(get_vehicle(s) for s in specs)
     names = [s.name for s in specs]
     bev, bev_path = world_bev(world, prof, progress=progress)
-    stem = conditioned_stem(leave_out, prof.conditioned.generated_vehicles)
+    stem = conditioned_stem(leave_out, prof.conditioned.generated_vehicles, prof.train.inputs)
     config = {**costmap_config(prof, bev_path, "conditioned",
                                conditioned_digest(prof, leave_out, progress=progress)),
               "specs": list(specs)}

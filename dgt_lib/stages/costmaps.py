@@ -49,7 +49,7 @@ from dgt_lib.stages.collect import (
 from dgt_lib.stages.dataset import dataset_digest, dataset_fingerprint, ensure_dataset
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
-from dgt_lib.stages.train import ensure_model, model_digest
+from dgt_lib.stages.train import ensure_model, inputs_suffix, model_digest
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
@@ -209,8 +209,8 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
     """The costmaps of ``methods`` for ``vehicles`` (default: the experiment's) on a world
     (a name of the kit's worlds, or any :class:`World`, e.g. your own terrain). Cached
     under ``costmaps/<world>/``: the multi-task (``dgt``) and slope maps of all four
-    vehicles in one file each, one file per single-task model; isotropic and binary are
-    derived on the fly."""
+    vehicles in one file each, one file per single-task model (``dgt_geometry.npz`` …
+    for ``train.inputs=geometry``); isotropic and binary are derived on the fly."""
     prof = as_profile(profile)
     world_name = world if isinstance(world, str) else world.name
     vehicles = tuple(vehicles or EXPERIMENT_VEHICLES.get(world_name, VEHICLES))
@@ -226,6 +226,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
     kwargs = {"stride": prof.costmap.stride, "batch_size": prof.costmap.batch_size,
               "progress": progress}
     k = prof.costmap.n_headings
+    sfx = inputs_suffix(prof.train.inputs)  # a geometry model's maps beside the RGB-D one's
     maps: dict[tuple[str, str], np.ndarray] = {}
 
     @functools.cache
@@ -252,7 +253,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
             cost, heads = model_costmap("multitask")
             return dict(zip(heads, cost, strict=True))
 
-        dgt = artifacts.ensure(f"costmaps/{key}/dgt.npz", config, build_dgt,
+        dgt = artifacts.ensure(f"costmaps/{key}/dgt{sfx}.npz", config, build_dgt,
                                profile=cache_dir(prof))
         for v in vehicles:
             if "dgt" in methods:
@@ -270,7 +271,7 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
                 return {"cost": model_costmap(kind)[0][0]}
 
             maps[("single-task", v)] = artifacts.ensure(
-                f"costmaps/{key}/single_{v}.npz", config, build_st,
+                f"costmaps/{key}/single_{v}{sfx}.npz", config, build_st,
                 profile=cache_dir(prof))["cost"]
     if "slope" in methods:
         slope = _slope_costmaps(prof, bev, bev_path, key, ds_hash, kwargs)

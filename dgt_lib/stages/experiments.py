@@ -43,7 +43,7 @@ def trial_maps(world: str, method: str, vehicle: str, profile: Profile) -> World
 def _model_digests(prof: Profile) -> dict[str, str | None]:
     """The stored digests of every model and of the slope fits (None where missing)."""
     out: dict[str, str | None] = {}
-    for kind, rel in [(k, model_relpath(k)) for k in MODEL_KINDS] + [
+    for kind, rel in [(k, model_relpath(k, prof.train.inputs)) for k in MODEL_KINDS] + [
             ("slope", "baselines/slope_models.json")]:
         try:
             out[kind] = artifacts.stored_digest(rel, profile=cache_dir(prof))

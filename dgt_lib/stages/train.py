@@ -51,16 +51,24 @@ def parse_kind(kind: str) -> tuple[str, ...]:
     raise ValueError(f"unknown model kind {kind!r}; valid: {', '.join(MODEL_KINDS)}")
 
 
-def model_relpath(kind: str) -> Path:
-    """Where model ``kind`` lives in the profile's data directory: ``models/single_vw_van.pt`` …"""
+def inputs_suffix(inputs: str = "rgbd") -> str:
+    """What a model's and its costmaps' file names add for ``TrainConfig.inputs``: nothing
+    for ``rgbd``, else ``_<inputs>`` (``_geometry``), so a model that reads other channels
+    is cached beside the RGB-D one instead of replacing it."""
+    return "" if inputs == "rgbd" else f"_{inputs}"
+
+
+def model_relpath(kind: str, inputs: str = "rgbd") -> Path:
+    """Where model ``kind`` reading ``inputs`` lives in the profile's data directory:
+    ``models/single_vw_van.pt``, ``models/multitask_geometry.pt`` …"""
     parse_kind(kind)
-    return Path("models") / f"{kind.replace(':', '_')}.pt"
+    return Path("models") / f"{kind.replace(':', '_')}{inputs_suffix(inputs)}.pt"
 
 
-def snapshot_relpath(kind: str) -> Path:
+def snapshot_relpath(kind: str, inputs: str = "rgbd") -> Path:
     """Where model ``kind``'s unfinished training is kept between runs
     (:mod:`dgt_lib.learning.resume`): ``models/single_vw_van.resume.pt`` …"""
-    return model_relpath(kind).with_suffix(".resume.pt")
+    return model_relpath(kind, inputs).with_suffix(".resume.pt")
 
 
 def default_rgb_weights() -> Path | None:
@@ -115,7 +123,8 @@ def ensure_model(
 ) -> TrainResult:
     """The trained model ``kind`` of ``profile`` from the artifact cache, trained if needed.
 
-    Stored at ``models/<kind>.pt`` (``single:vw_van`` → ``single_vw_van.pt``), keyed by
+    Stored at ``models/<kind>.pt`` (``single:vw_van`` → ``single_vw_van.pt``; a model of
+    other ``train.inputs`` than RGB-D beside it: :func:`model_relpath`), keyed by
     :func:`model_config` (the dataset, ``profile.train``, the kind, the seed, the RGB
     weights). The artifact's fingerprint, which keys the costmaps and
     experiments built on the model, is its
@@ -143,7 +152,7 @@ def ensure_model(
     rgb_weights = rgb_weights_for(cfg, rgb_weights)
     config = model_config(profile, dataset, kind, seed=seed, rgb_weights=rgb_weights,
                           dataset_hash=dataset_hash)
-    snapshot = data_dir(profile) / snapshot_relpath(kind)
+    snapshot = data_dir(profile) / snapshot_relpath(kind, cfg.inputs)
 
     def build() -> dict[str, Any]:
         return checkpoint_dict(train_model(
@@ -151,8 +160,8 @@ def ensure_model(
             rgb_weights=rgb_weights, keep_best_on_interrupt=False,
             snapshot_path=snapshot, snapshot_key=config, snapshot_every_s=SNAPSHOT_EVERY_S))
 
-    ckpt = artifacts.ensure(model_relpath(kind), config, build, profile=cache_dir(profile),
-                            fingerprint=prediction_digest)
+    ckpt = artifacts.ensure(model_relpath(kind, cfg.inputs), config, build,
+                            profile=cache_dir(profile), fingerprint=prediction_digest)
     snapshot.unlink(missing_ok=True)
     return load_checkpoint(ckpt, vehicles=vehicles, device=device)
 
@@ -169,11 +178,12 @@ def model_digest(profile: Profile, dataset: PatchDataset | None, kind: str = "mu
     if dataset is None and dataset_hash is None:
         raise ValueError("model_digest needs the dataset or its dataset_hash")
     config = model_config(profile, dataset, kind, dataset_hash=dataset_hash)
-    if not artifacts.is_fresh(model_relpath(kind), config, profile=cache_dir(profile)):
+    relpath = model_relpath(kind, profile.train.inputs)
+    if not artifacts.is_fresh(relpath, config, profile=cache_dir(profile)):
         if dataset is None:
             dataset = ensure_dataset(profile, progress=progress)
         ensure_model(profile, dataset, kind, dataset_hash=dataset_hash, progress=progress)
-    return artifacts.stored_digest(model_relpath(kind), profile=cache_dir(profile))
+    return artifacts.stored_digest(relpath, profile=cache_dir(profile))
 
 
 def models_stage(profile: Profile, dataset: PatchDataset,
@@ -197,7 +207,7 @@ def models_stage(profile: Profile, dataset: PatchDataset,
             print(f"[dgt] {parts[-1]}")
             continue
         result = ensure_model(profile, dataset, kind, progress=progress)
-        paths.append(data_dir(profile) / model_relpath(kind))
+        paths.append(data_dir(profile) / model_relpath(kind, profile.train.inputs))
         scores = ", ".join(f"{v} mse {m['mse']:.3f} ρ {m['spearman']:.2f}"
                            for v, m in result.metrics.items())
         parts.append(f"{kind} (best epoch {result.best_epoch}: {scores})")
@@ -214,7 +224,7 @@ def cached_model_metrics(profile: Profile) -> dict[str, dict[str, dict[str, floa
     that is in the cache (nothing is trained): what the results report prints."""
     out = {}
     for kind in MODEL_KINDS:
-        path = data_dir(profile) / model_relpath(kind)
+        path = data_dir(profile) / model_relpath(kind, profile.train.inputs)
         if path.exists():
             out[kind] = artifacts.load(path)["metrics"]
     return out

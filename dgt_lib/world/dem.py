@@ -13,6 +13,11 @@ invented heights would be planned over as real ground); ``nodata="crop"`` keeps 
 largest rectangle of valid cells instead. The edges that reprojection leaves outside a
 DEM's rotated footprint are always cropped: they were never part of the DEM. Heights are
 taken to be metres.
+
+A DEM has no colour, and none is invented: its world is one grey (:data:`NO_IMAGERY_GREY`)
+and mapped by a geometry-only model, unless an orthophoto is given (:func:`read_image`:
+any 8-bit RGB GeoTIFF covering the DEM, reprojected and resampled to its grid), which
+becomes the ground's colour the survey camera sees.
 """
 
 from __future__ import annotations
@@ -367,13 +372,70 @@ def _ascii_size(p: Path, header: dict[str, str]) -> tuple[int, int]:
     return ncols, nrows
 
 
+NO_IMAGERY_GREY = 0.5
+"""The albedo of a DEM's world without imagery, the same everywhere: its map's RGB then
+holds nothing the file does not (no rock painted where it is steep)."""
+
+
 def load_dem(path: str | Path, resolution_m: float, *, nodata: str = "error",
-             name: str | None = None, band: int | None = None) -> tuple[World, Georeference]:
+             name: str | None = None, band: int | None = None,
+             image: str | Path | None = None) -> tuple[World, Georeference]:
     """A :class:`World` from a DEM file (:func:`read_dem` → :func:`from_heightmap`) and the
-    :class:`Georeference` that places it on Earth."""
+    :class:`Georeference` that places it on Earth; its colours are ``image``'s
+    (:func:`read_image`), or :data:`NO_IMAGERY_GREY` without one."""
     dem = read_dem(path, resolution_m, nodata=nodata, band=band)
-    world = from_heightmap(dem.heights, dem.resolution, name=name or Path(path).stem)
+    colors = (read_image(image, dem) if image is not None
+              else np.full((*dem.heights.shape, 3), NO_IMAGERY_GREY, np.float32))
+    world = from_heightmap(dem.heights, dem.resolution, colors=colors,
+                           name=name or Path(path).stem)
     return world, dem.georef
+
+
+def read_image(path: str | Path, dem: Dem) -> np.ndarray:
+    """An orthophoto (a GeoTIFF of 3 bands, 8-bit RGB) on ``dem``'s grid: (H, W, 3) uint8,
+    row 0 the south edge, reprojected from its CRS to the DEM's metric one and resampled
+    (bilinear); a file without a CRS is taken to be in the DEM file's coordinates. Raises
+    :class:`HeightmapError` (one line naming the file) for a missing or unreadable file,
+    another band count or type, or an image that does not cover the whole DEM."""
+    rasterio = import_rasterio()
+    p = Path(path)
+    if not p.is_file():
+        raise HeightmapError(f"image file not found: {p}")
+    try:
+        with rasterio.open(p) as src:
+            if src.count != 3 or set(src.dtypes) != {"uint8"}:
+                raise HeightmapError(f"{p} has {src.count} band(s) of "
+                                     f"{'/'.join(sorted(set(src.dtypes)))}: --image needs 3 "
+                                     "bands of 8-bit RGB")
+            rgb = _resample_image(src, dem)
+    except _gdal_errors() as exc:
+        raise HeightmapError(f"cannot read {p} as an image: {_one_line(exc)}") from None
+    covered = np.isfinite(rgb).all(axis=0)
+    if not covered.all():
+        how = (f"covers only {math.floor(100 * covered.mean())} % of" if covered.any()
+               else "does not overlap")
+        raise HeightmapError(f"{p} {how} the DEM: --image must cover all of it (crop the "
+                             "DEM to the image first, e.g. gdal_translate -projwin)")
+    return np.clip(np.rint(rgb), 0, 255).astype(np.uint8).transpose(1, 2, 0)[::-1]
+
+
+def _resample_image(src, dem: Dem) -> np.ndarray:
+    """``src``'s three bands on ``dem``'s grid, north row first: (3, H, W) float32, NaN
+    where the image has no data or does not reach."""
+    from rasterio.transform import Affine
+    from rasterio.warp import Resampling, reproject
+
+    g, res = dem.georef, dem.resolution
+    h, w = dem.heights.shape
+    dst_transform = Affine(res, 0.0, g.origin[0], 0.0, -res, g.origin[1] + h * res)
+    crs = g.crs if g.crs is not None else "EPSG:3857"  # no CRS: a stand-in, as _resample's
+    src_crs = (src.crs if g.crs is not None else None) or g.source_crs or crs
+    source = src.read(masked=True).astype(np.float32).filled(np.nan)
+    out = np.full((3, h, w), np.nan, np.float32)
+    reproject(source, out, src_transform=src.transform, src_crs=src_crs,
+              dst_transform=dst_transform, dst_crs=crs, src_nodata=np.nan, dst_nodata=np.nan,
+              resampling=Resampling.bilinear)
+    return out
 
 
 def is_dem_path(path: str | Path) -> bool:
