@@ -7,13 +7,9 @@ import numpy as np
 import pytest
 
 from dgt_lib.cli import main
-from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
-from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.plan_one import load_world
-from dgt_lib.stages import costmaps, train
 from dgt_lib.stages.costmaps import world_bev
-from dgt_lib.stages.dataset import dataset_fingerprint
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world import worlds
 
@@ -52,15 +48,9 @@ def write_ortho(path, *, cell=0.5, west=WEST, bands=3, dtype="uint8"):
 
 
 @pytest.fixture
-def quick(tmp_path, monkeypatch):
+def quick(synthetic_pipeline):
     """A private data directory and a synthetic dataset (no driving episodes: seconds)."""
-    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
-    dataset = synthetic_dataset((120, 60, 60, 40), seed=0)
-    for module in (costmaps, train):  # where the model's key and its training look it up
-        monkeypatch.setattr(module, "ensure_dataset", lambda prof, progress=True: dataset)
-    monkeypatch.setattr(costmaps, "dataset_digest",
-                        lambda prof, progress=True: dataset_fingerprint(dataset))
-    return tmp_path
+    return synthetic_pipeline
 
 
 def costmap(dem, out, *extra):

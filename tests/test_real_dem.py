@@ -5,13 +5,9 @@ import numpy as np
 import pytest
 
 from dgt_lib.cli import main
-from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.vehicles import get_vehicle
-from dgt_lib.learning.synthetic import synthetic_dataset
 from dgt_lib.mapping.occupancy import FREE
-from dgt_lib.stages import costmaps, train
-from dgt_lib.stages.dataset import dataset_fingerprint
 from dgt_lib.world.dem import read_dem
 from examples.real_dem import WINDOW_CELLS, choose_window, load_sample, write_window
 
@@ -75,18 +71,13 @@ def test_the_window_becomes_a_metric_world_of_its_size_and_heights(sample, tmp_p
 
 
 @pytest.mark.filterwarnings("ignore:.*near-constant")  # a model of 2 epochs learns little
-def test_dgt_costmap_on_the_window_writes_k_headings_in_utm(sample, tmp_path, monkeypatch,
+def test_dgt_costmap_on_the_window_writes_k_headings_in_utm(sample, synthetic_pipeline,
                                                              capsys):
     """End to end on the smoke profile with a model trained on a synthetic dataset (no
     driving episodes: seconds), on the 2 × 2 cells at the middle of the window (its survey takes a
     sixth of the whole window's)."""
     dem, (row, col) = sample
-    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
-    dataset = synthetic_dataset((120, 60, 60, 40), seed=0)
-    for module in (costmaps, train):  # where the model's key and its training look it up
-        monkeypatch.setattr(module, "ensure_dataset", lambda prof, progress=True: dataset)
-    monkeypatch.setattr(costmaps, "dataset_digest",
-                        lambda prof, progress=True: dataset_fingerprint(dataset))
+    tmp_path = synthetic_pipeline
     path = write_window(tmp_path / "corner.tif", dem, row + 2, col + 2, cells=2)
     out = tmp_path / "cola.tif"
     assert main(["costmap", "--world", str(path), "--vehicle", "carla_cola", "--profile",
