@@ -125,8 +125,9 @@ def test_an_unknown_setting_is_an_error_naming_the_valid_ones():
     ("planner.heuristic", 3, "planner.heuristic expects a string"),
     ("seeds", "0", "seeds=0 is not allowed: seeds must be an integer in [1, 1,000]"),
     # a choice is checked when set, not when training reaches it an hour later
-    ("train.conv_taps", "half", "train.conv_taps=half: unknown conv_taps 'half'; valid: all, live"),
-    ("train.lr_schedule", "step", "unknown lr_schedule 'step'; valid: constant, cosine"),
+    ("train.conv_taps", "half",
+     "train.conv_taps=half is not allowed: train.conv_taps must be one of all, live"),
+    ("train.lr_schedule", "step", "train.lr_schedule must be one of constant, cosine"),
 ])
 def test_a_value_of_the_wrong_type_is_a_clear_error(key, value, expected):
     with pytest.raises(InvalidOverrideError, match=re.escape(expected)):

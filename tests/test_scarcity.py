@@ -70,7 +70,7 @@ def test_training_reads_only_the_kept_runs(dataset):
 def test_settings_are_checked():
     with pytest.raises(ValueError, match="scarce_vehicle"):
         TrainConfig(scarce_fraction=0.3)
-    with pytest.raises(ValueError, match="unknown scarce_vehicle"):
+    with pytest.raises(ValueError, match="train.scarce_vehicle must be one of none, jeep"):
         TrainConfig(scarce_vehicle="tank", scarce_fraction=0.3)
     with pytest.raises(InvalidSettingError):
         get_profile("smoke").with_overrides({"train.scarce_vehicle": "vw_van",

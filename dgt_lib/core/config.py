@@ -30,13 +30,14 @@ import os
 from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, field, fields, replace
 
-from dgt_lib.core.constraints import (  # the choices of TrainConfig's text settings
-    CONV_TAPS,
+from dgt_lib.core.constraints import (  # noqa: F401 - the vehicles and the text settings'
+    CONV_TAPS,  # choices, re-exported: `from dgt_lib.core.config import VEHICLES`
     HEAD_INITS,
     INPUTS,
     LR_SCHEDULES,
     SELECTIONS,
     VEHICLES,
+    check_section,
     check_settings,
 )
 from dgt_lib.core.controller import MPPIConfig, mppi_before_overrides
@@ -135,13 +136,7 @@ class TrainConfig:
     scarce_fraction: float = 1.0
 
     def __post_init__(self):
-        for name, valid in (("head_init", HEAD_INITS),
-                            ("lr_schedule", LR_SCHEDULES), ("selection", SELECTIONS),
-                            ("conv_taps", CONV_TAPS), ("inputs", INPUTS),
-                            ("scarce_vehicle", ("none",) + VEHICLES)):
-            if getattr(self, name) not in valid:
-                raise ValueError(f"unknown {name} {getattr(self, name)!r}; valid: "
-                                 f"{', '.join(valid)}")
+        check_section(self, "train")  # each field's rule (core/constraints.py)
         if 0 < self.scarce_fraction < 1 and self.scarce_vehicle == "none":  # (else: rules)
             raise ValueError("train.scarce_fraction needs train.scarce_vehicle: whose runs "
                              "to thin out")

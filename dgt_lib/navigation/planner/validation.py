@@ -8,30 +8,18 @@ import math
 import numpy as np
 
 from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.constraints import check_section
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicle_spec import VehicleSpec, footprint_circles
-from dgt_lib.navigation.planner.heuristics import HEURISTICS
 from dgt_lib.navigation.planner.result import InvalidQueryError
 from dgt_lib.world.worlds import World
 
 
 def check_config(cfg: PlannerConfig) -> None:
-    """Raise ValueError for a :class:`PlannerConfig` the planner cannot use."""
-    if cfg.heuristic not in HEURISTICS:
-        raise ValueError(f"heuristic must be one of {HEURISTICS}, got {cfg.heuristic!r}")
-    positive = ("step_m", "goal_tolerance_m", "goal_heading_tolerance_rad", "max_time_s",
-                "closed_cell_m", "substep_m")
-    for name in positive:
-        if not getattr(cfg, name) > 0:
-            raise ValueError(f"PlannerConfig.{name} must be > 0, got {getattr(cfg, name)}")
-    if cfg.heuristic_weight < 1:
-        raise ValueError(f"PlannerConfig.heuristic_weight must be ≥ 1, got {cfg.heuristic_weight}")
-    if cfg.beta < 0:
-        raise ValueError(f"PlannerConfig.beta must be ≥ 0, got {cfg.beta}")
-    if cfg.theta_bins < 1 or cfg.max_expansions < 1:
-        raise ValueError("PlannerConfig.theta_bins and max_expansions must be ≥ 1")
-    if cfg.shot_distance_m < 0:
-        raise ValueError(f"PlannerConfig.shot_distance_m must be ≥ 0, got {cfg.shot_distance_m}")
+    """Raise ValueError for a :class:`PlannerConfig` the planner cannot use: a field outside
+    its rule in the one table of rules (:mod:`dgt_lib.core.constraints`), which a planner
+    made in code (not through a Profile) is checked against too."""
+    check_section(cfg, "planner")
 
 
 def check_maps(costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec) -> None:
