@@ -159,7 +159,8 @@ def test_train_model_starts_each_head_at_its_mean_training_label(jeep_and_van, h
 
 
 def test_an_unknown_head_init_is_a_clear_error(jeep):
-    with pytest.raises(ValueError, match="train.head_init=zeros is not allowed: train.head_init must be one of prior, default"):
+    with pytest.raises(ValueError, match="train.head_init=zeros is not allowed: "
+                                         "train.head_init must be one of prior, default"):
         train_model(jeep, TrainConfig(head_init="zeros"), vehicles=("jeep",), progress=False)
 
 
