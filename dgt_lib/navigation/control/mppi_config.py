@@ -32,7 +32,7 @@ def vehicle_footprint(vehicle, margin_m: float = 0.2) -> dict[str, object]:
 
 def parse_mppi_settings(text: str) -> dict[str, object]:
     """``"lateral_accel_max=2.0,w_rate_std=0.75"`` → :class:`MPPIConfig` fields for
-    ``drive(mppi_settings=…)``, each typed by its default (``20`` for a float field is
+    ``replace(profile.mppi, **fields)``, each typed by its default (``20`` for a float field is
     20.0). Raises ValueError naming the valid fields for anything else."""
     defaults = MPPIConfig()
     out: dict[str, object] = {}
