@@ -31,7 +31,7 @@ from dgt_lib.stages.ground_truth import (
     ensure_ground_truth,
 )
 from dgt_lib.stages.output import StageOutput
-from dgt_lib.stages.paths import data_dir, profile_root
+from dgt_lib.stages.paths import data_dir, profile_root, results_dir
 from dgt_lib.world.terrain import get_world
 
 
@@ -111,7 +111,7 @@ def _accuracy_section(prof: Profile, out: Path) -> list[str]:
 
 def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
     """Write ``results/README.md`` and its figures; returns the markdown's path."""
-    out = data_dir(prof) / "results"
+    out = results_dir(prof)
     out.mkdir(parents=True, exist_ok=True)
     parts = [f"# Results — profile {_title(prof)}", "",
              "Every number below was measured by `dgt reproduce` on this machine; the paper's "

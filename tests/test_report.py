@@ -34,23 +34,31 @@ def test_report_has_every_table_and_its_figures(tmp_path, monkeypatch):
     assert "Not measured for this seed: run `dgt reproduce --stages ground_truth`" in text
 
 
-def test_a_report_made_with_changed_settings_says_which(tmp_path, monkeypatch):
-    """`dgt reproduce --set planner.beta=50` writes where the profile's results go: the
-    title says so, and so does the seed's summary that the pooled report reads."""
+def test_a_report_made_with_changed_settings_says_which_and_leaves_the_run_s_own(
+        tmp_path, monkeypatch):
+    """`dgt reproduce --set planner.beta=50` writes its report and run record beside the
+    seed's own: the title and the record say which settings changed, and the profile's
+    record (the one `records publish` copies) is still the plain run's."""
     import json
 
-    from dgt_lib.records.record import SUMMARY_RELPATH, write_seed_record
-    from dgt_lib.stages.paths import data_dir
+    from dgt_lib.records.record import SUMMARY_NAME, seed_summaries, write_seed_record
+    from dgt_lib.stages.paths import results_dir
 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
-    plain = write_results([_experiment3()], get_profile("smoke")).read_text()
+    smoke = get_profile("smoke")
+    plain_path = write_results([_experiment3()], smoke)
+    write_seed_record([_experiment3()], smoke)
+    plain = plain_path.read_text()
     assert plain.splitlines()[0] == "# Results — profile `smoke`"
-    prof = get_profile("smoke").with_overrides({"planner.beta": 50})
-    text = write_results([_experiment3()], prof).read_text()
+    prof = smoke.with_overrides({"planner.beta": 50})
+    variant_path = write_results([_experiment3()], prof)
+    assert variant_path != plain_path and plain_path.read_text() == plain
+    text = variant_path.read_text()
     assert text.splitlines()[0] == "# Results — profile `smoke` with planner.beta=50.0"
     write_seed_record([_experiment3()], prof)
-    summary = json.loads((data_dir(prof) / SUMMARY_RELPATH).read_text())
+    summary = json.loads((results_dir(prof) / SUMMARY_NAME).read_text())
     assert summary["overrides"] == {"planner.beta": "50.0"}
+    assert [s["overrides"] for s in seed_summaries(smoke.with_(seeds=1))] == [{}]
 
 
 def _accuracy_rows(mt_mae, st_mae):
@@ -117,15 +125,15 @@ def test_the_seeds_report_pools_the_accuracy_and_checks_claim_4_per_seed(tmp_pat
                                                                           monkeypatch):
     import json
 
-    from dgt_lib.records.record import SUMMARY_RELPATH
+    from dgt_lib.records.record import SUMMARY_NAME
     from dgt_lib.report import write_seeds_report
-    from dgt_lib.stages.paths import data_dir
+    from dgt_lib.stages.paths import results_dir
 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
     prof = get_profile("smoke").with_(seeds=2)
     for p, (mt, st, closer) in zip(prof.seed_profiles(), ((0.1, 0.2, "multi-task"),
                                                           (0.3, 0.2, "neither")), strict=True):
-        path = data_dir(p) / SUMMARY_RELPATH
+        path = results_dir(p) / SUMMARY_NAME
         path.parent.mkdir(parents=True)
         path.write_text(json.dumps({"seed": p.seed, "experiments": {}, "models": {},
                                     "collapsed": {}, "accuracy": _accuracy_rows(mt, st),

@@ -19,14 +19,15 @@ from dgt_lib.evaluation.experiments import ExperimentResult
 from dgt_lib.learning.training import collapsed_heads
 from dgt_lib.records.provenance import provenance
 from dgt_lib.stages.ground_truth import cached_costmap_accuracy
-from dgt_lib.stages.paths import data_dir
+from dgt_lib.stages.paths import results_dir
 from dgt_lib.stages.train import cached_model_metrics
 
 SCHEMA = 1
 """The record format's version: raised when a field changes meaning."""
 
-SUMMARY_RELPATH = "results/summary.json"
-"""One seed's record, under the seed's data directory."""
+SUMMARY_NAME = "summary.json"
+"""One seed's record, in the seed's results directory
+(:func:`~dgt_lib.stages.paths.results_dir`)."""
 
 
 def claim_checks(summary: dict) -> dict[str, list]:
@@ -59,7 +60,7 @@ def seed_record(results: list[ExperimentResult], prof: Profile) -> dict:
 
 def write_seed_record(results: list[ExperimentResult], prof: Profile) -> Path:
     """Write :func:`seed_record` to ``results/summary.json`` of the seed; its path."""
-    path = data_dir(prof) / SUMMARY_RELPATH
+    path = results_dir(prof) / SUMMARY_NAME
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(seed_record(results, prof), indent=1, ensure_ascii=False))
     return path
@@ -71,7 +72,7 @@ def seed_summaries(profile: Profile | str | None, *, require_all: bool = False) 
     prof = as_profile(profile)
     records = []
     for p in prof.seed_profiles():
-        path = data_dir(p) / SUMMARY_RELPATH
+        path = results_dir(p) / SUMMARY_NAME
         if path.exists():
             records.append(json.loads(path.read_text()))
         elif require_all:

@@ -38,7 +38,7 @@ from dgt_lib.mapping.methods import METHODS
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_tau_s, ensure_world_costmaps
 from dgt_lib.stages.output import StageOutput
-from dgt_lib.stages.paths import cache_dir, data_dir, profile_root
+from dgt_lib.stages.paths import cache_dir, data_dir, profile_root, results_dir
 from dgt_lib.world.mujoco_model import PHYSICS
 from dgt_lib.world.terrain import get_world
 
@@ -233,7 +233,7 @@ def ensure_costmap_accuracy(profile: Profile | str | None = None, *,
                 "ground_truth": {f"{w}/{v}": gt.summary() for (w, v), gt in truths.items()}}
 
     result = artifacts.ensure(ACCURACY_RELPATH, config, build, profile=cache_dir(prof))
-    out = data_dir(prof) / "results"
+    out = results_dir(prof)
     with report_writes("results/accuracy.md"):
         out.mkdir(parents=True, exist_ok=True)
         (out / "accuracy.md").write_text(accuracy_markdown(result))
@@ -270,5 +270,5 @@ def stage_ground_truth(profile: Profile) -> StageOutput:
              f"{c['mae_b']:.3f} (closer: {c['closer']})" for c in result["multitask"]]
     measured = "; ".join(result["ground_truth"].values())
     return StageOutput([profile_root(prof) / "ground_truth", data_dir(prof) / ACCURACY_RELPATH,
-                        data_dir(prof) / "results" / "accuracy.md"],
+                        results_dir(prof) / "accuracy.md"],
                        "; ".join(parts) + f" — {measured}")
