@@ -3,24 +3,24 @@ ended, and the mean cost of the driven paths, pooled over run seeds.
 
     .venv/bin/python studies/controller_ablation.py --profile demo --seeds 3
     .venv/bin/python studies/controller_ablation.py --profile demo --seed 0 --seed 4
-    .venv/bin/python studies/controller_ablation.py --profile demo --seeds 3 --hazard \\
-        --out docs/controller_ablation.md
+    .venv/bin/python studies/controller_ablation.py --profile demo --seeds 3 --hazard --publish
 
 Reads the cached experiments of ``dgt reproduce --seed S --set experiments.controller=NAME``
 (``--hazard``: with ``experiments.eval_hazard_world=true`` too, Experiment 3 on
 ``eval_hazard``); it runs nothing, and names each missing one with the command that makes it.
 The driven cost is :func:`dgt_lib.evaluation.driven_cost.driven_cost` on the vehicle's
 DGT-Map costmap — one yardstick for every method and controller. It also lists every failed
-DGT-Map trial of Experiment 1 (where, when, why), the ones the page must explain.
+DGT-Map trial of Experiment 1 (where, when, why), the ones the page must explain, and a
+summary of the arrivals by controller. ``--publish`` writes the record that
+docs/controller_ablation.md and docs/controller.md quote.
 """
 
 from __future__ import annotations
 
-import argparse
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
+from runner import Study
 
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.controller import CONTROLLERS
@@ -28,6 +28,7 @@ from dgt_lib.evaluation.driven_cost import driven_cost
 from dgt_lib.evaluation.experiments import EXPERIMENTS, ExperimentResult
 from dgt_lib.evaluation.statistics import wilson_interval
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
+from dgt_lib.records.study import table
 from dgt_lib.stages.experiments import (
     experiment_path,
     reproduce_command,
@@ -67,8 +68,8 @@ def row_cells(results: list, dgt_cost) -> list[str]:
 
 
 def experiment_table(name: str, by_controller: dict[str, list[tuple[int, ExperimentResult]]],
-                     profile: str) -> str:
-    """Markdown: one row per (vehicle, method, controller), pooled over the seeds given."""
+                     profile: str) -> dict:
+    """One row per (vehicle, method, controller), pooled over the seeds given."""
     seed_of = {id(r): seed for runs in by_controller.values() for seed, res in runs
                for r in res.results}
 
@@ -78,27 +79,37 @@ def experiment_table(name: str, by_controller: dict[str, list[tuple[int, Experim
         return driven_cost(r.trajectory, maps.costmap("dgt", r.task.vehicle), maps.grid)
 
     first = [res for _, res in next(iter(by_controller.values()))]
-    world = first[0].world
-    seeds = ", ".join(str(seed) for seed, _ in next(iter(by_controller.values())))
-    lines = [f"**{name}** ({world}, {profile}, seeds pooled: {seeds})", "",
-             "| vehicle | method | controller | arrived (SR, 95 %) | immobilized | flipped "
-             "| other | driven cost |", "|---|---|---|---|---|---|---|---|"]
-    vehicles = sorted({r.task.vehicle for res in first for r in res.results})
-    for vehicle in vehicles:
+    rows = []
+    for vehicle in sorted({r.task.vehicle for res in first for r in res.results}):
         for method in METHODS:
             for controller, runs in by_controller.items():
                 rs = [r for _, res in runs for r in res.results
                       if r.task.vehicle == vehicle and r.task.method == method]
                 if rs:
-                    cells = row_cells(rs, dgt_cost)
-                    lines.append(f"| {vehicle} | {METHOD_LABELS[method]} | {controller} | "
-                                 + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+                    rows.append([vehicle, METHOD_LABELS[method], controller,
+                                 *row_cells(rs, dgt_cost)])
+    return table(f"{name} ({first[0].world})",
+                 ["vehicle", "method", "controller", "arrived (SR, 95 %)", "immobilized",
+                  "flipped", "other", "driven cost"], rows)
+
+
+def arrivals_by_controller(tables: dict[str, dict], controllers: list[str]) -> dict:
+    """The experiments' arrivals side by side: one row per (experiment, vehicle, method),
+    one column per controller, k/n pooled over the seeds."""
+    rows = []
+    for tab in tables.values():
+        cells: dict[tuple[str, str], dict[str, str]] = {}
+        for vehicle, method, controller, arrived, *_ in tab["rows"]:
+            cells.setdefault((vehicle, method), {})[controller] = arrived.split(" ")[0]
+        for (vehicle, method), by in cells.items():
+            rows.append([tab["title"], vehicle, method, *(by.get(c, "–") for c in controllers)])
+    return table("arrivals by controller, k/n",
+                 ["experiment", "vehicle", "method", *(f"`{c}`" for c in controllers)], rows)
 
 
 def failures(runs: dict[str, list[tuple[int, ExperimentResult]]], method: str = "dgt"
              ) -> str:
-    """Markdown list of every failed trial of ``method``: seed, query, route, how and where."""
+    """Every failed trial of ``method``: seed, query, route, how and where, a line each."""
     lines = []
     for controller, seeded in runs.items():
         for seed, res in seeded:
@@ -107,46 +118,40 @@ def failures(runs: dict[str, list[tuple[int, ExperimentResult]]], method: str = 
                 label = r.task.query.label
                 if r.task.method == method and not r.outcome.success:
                     end = r.trajectory[-1, 1:3] if len(r.trajectory) else (np.nan, np.nan)
-                    lines.append(f"- {controller}, seed {seed}, {label} #{index[label]} "
+                    lines.append(f"{controller}, seed {seed}, {label} #{index[label]} "
                                  f"(route {r.route}): {r.outcome.reason} after "
                                  f"{r.outcome.duration_s:.1f} s at ({end[0]:.1f}, {end[1]:.1f}) m")
                 if r.task.method == method:
                     index[label] += 1
-    return "\n".join(lines) or "- none"
+    return lines
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--profile", default="demo")
-    which = ap.add_mutually_exclusive_group()
-    which.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
-    which.add_argument("--seed", type=int, action="append", default=None,
-                       help="these run seeds instead (repeatable)")
-    ap.add_argument("--controller", action="append", choices=CONTROLLERS, default=None,
-                    help="controllers to compare (default: all)")
-    ap.add_argument("--hazard", action="store_true",
-                    help="Experiment 3 on eval_hazard (experiments.eval_hazard_world=true)")
-    ap.add_argument("--experiment", action="append", choices=list(EXPERIMENTS), default=None)
-    ap.add_argument("--out", type=Path, default=None, help="also write the tables here")
-    args = ap.parse_args()
+    study = Study("controller_ablation", __doc__)
+    study.parser.add_argument("--controller", action="append", choices=CONTROLLERS,
+                              default=None, help="controllers to compare (default: all)")
+    study.parser.add_argument("--hazard", action="store_true",
+                              help="Experiment 3 on eval_hazard "
+                                   "(experiments.eval_hazard_world=true)")
+    study.parser.add_argument("--experiment", action="append", choices=list(EXPERIMENTS),
+                              default=None)
+    args = study.parse()
     controllers = args.controller or list(CONTROLLERS)
     names = args.experiment or (["experiment3"] if args.hazard else list(EXPERIMENTS))
-    seeds = args.seed or list(range(args.seeds))
-    parts = []
+    tables, lists = {}, {}
     for name in names:
-        seeded = {c: [(s, res) for s in seeds
+        seeded = {c: [(s, res) for s in study.seeds
                       if (res := stored(name, s, args.profile, c, args.hazard)) is not None]
                   for c in controllers}
         if not all(seeded.values()) or len({len(v) for v in seeded.values()}) != 1:
             print(f"{name}: not every controller has every seed; skipped")
             continue
-        parts.append(experiment_table(name, seeded, args.profile))
+        tables[name] = experiment_table(name, seeded, args.profile)
         if name == "experiment1":
-            parts.append("Failed DGT-Map trials of experiment1:\n\n" + failures(seeded) + "\n")
-    text = "\n".join(parts)
-    print(text)
-    if args.out:
-        args.out.write_text(text)
+            lists["experiment1_failures"] = failures(seeded)
+    if tables:
+        tables["arrivals"] = arrivals_by_controller(tables, controllers)
+    study.finish(tables, lists, variant="hazard" if args.hazard else "")
 
 
 if __name__ == "__main__":

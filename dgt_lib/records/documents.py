@@ -10,7 +10,9 @@ A generated block in a Markdown file sits between two comments::
 ``docs/runs/cited.json`` names (per profile, the folder whose records the README and
 docs rest on) and from every published run (the cross-machine table). ``check`` renders
 without writing and lists the files whose committed text differs: a test runs it, so a
-hand-edited number inside a block fails the suite, and so does a stale one.
+hand-edited number inside a block fails the suite, and so does a stale one. A page of
+docs/ may also quote a study's table in a block named ``study:<record>/<table>``
+(:mod:`dgt_lib.records.study`); every page that does is rendered too.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from statistics import median
 
-from dgt_lib.records import tables
+from dgt_lib.records import study, tables
 from dgt_lib.records.provenance import ROOT
 from dgt_lib.records.tables import Run
 
@@ -125,28 +127,44 @@ BLOCKS: dict[str, dict[str, Renderer]] = {
 }
 """Each file's generated blocks and the function that renders each."""
 
-_BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)"
+_BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w:./-]+) -->\n)(?P<body>.*?)"
                     r"(<!-- end generated: (?P=name) -->)", re.S)
 
 
 def render_text(text: str, renderers: dict[str, Renderer], cited, every, root: Path,
                 path: str) -> str:
-    """``text`` with each generated block replaced by its renderer's output; ValueError
-    for a block without a renderer or a renderer whose block is missing."""
-    found = [m["name"] for m in _BLOCK.finditer(text)]
+    """``text`` with each generated block replaced by its renderer's output (a study's
+    block, ``study:…``, by :func:`~dgt_lib.records.study.render_block`); ValueError for a
+    block without a renderer or a renderer whose block is missing."""
+    found = [m["name"] for m in _BLOCK.finditer(text)
+             if not m["name"].startswith(study.BLOCK_PREFIX)]
     unknown, missing = set(found) - set(renderers), set(renderers) - set(found)
     if unknown or missing:
         raise ValueError(f"{path}: generated blocks without a renderer {sorted(unknown)}, "
                          f"renderers without a block {sorted(missing)}")
-    return _BLOCK.sub(lambda m: m.group(1) + renderers[m["name"]](cited, every, root) + m.group(4),
-                      text)
+
+    def body(m: re.Match) -> str:
+        if m["name"].startswith(study.BLOCK_PREFIX):
+            return study.render_block(m["name"], root / path, root)
+        return renderers[m["name"]](cited, every, root)
+
+    return _BLOCK.sub(lambda m: m.group(1) + body(m) + m.group(4), text)
+
+
+def pages(root: Path = ROOT) -> list[str]:
+    """The files ``make docs`` renders: those of :data:`BLOCKS` and every page of docs/
+    that quotes a study (``<!-- generated: study:…``)."""
+    quoting = sorted(p.relative_to(root).as_posix() for p in (root / "docs").rglob("*.md")
+                     if f"<!-- generated: {study.BLOCK_PREFIX}" in p.read_text())
+    return list(BLOCKS) + [p for p in quoting if p not in BLOCKS]
 
 
 def render_all(root: Path = ROOT) -> dict[Path, str]:
-    """{file: its text with every generated block rendered} for :data:`BLOCKS`."""
+    """{file: its text with every generated block rendered} for :func:`pages`."""
     cited, every = load_runs(root)
-    return {root / rel: render_text((root / rel).read_text(), renderers, cited, every, root, rel)
-            for rel, renderers in BLOCKS.items()}
+    return {root / rel: render_text((root / rel).read_text(), BLOCKS.get(rel, {}), cited,
+                                    every, root, rel)
+            for rel in pages(root)}
 
 
 def stale(root: Path = ROOT) -> list[Path]:

@@ -1,0 +1,85 @@
+"""What every study shares: its arguments (profile, run seeds, data directory) and its
+record.
+
+    from runner import Study
+
+    study = Study("controller_ablation", __doc__)            # --profile, --seeds/--seed,
+    study.parser.add_argument("--hazard", action="store_true")  # --data-dir, --publish
+    args = study.parse()
+    for seed in study.seeds: …
+    study.finish({"experiment1": table(…)}, lists={…})
+
+``finish`` prints the tables as Markdown; with ``--publish`` it also writes the study's
+record to ``docs/runs/studies/`` (:mod:`dgt_lib.records.study`), which a docs page quotes in
+a generated block and ``make docs`` renders.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from dgt_lib.core.artifacts import DATA_ENV_VAR
+from dgt_lib.core.config import PROFILE_NAMES
+from dgt_lib.records.study import publish_study, render_table, study_record
+
+
+class Study:
+    """One study script's command line and its record."""
+
+    def __init__(self, name: str, doc: str | None, *, profile: str = "demo", seeds: int = 3,
+                 per_seed: bool = True) -> None:
+        self.name = name
+        self.parser = argparse.ArgumentParser(
+            prog=f"studies/{name}.py", description=(doc or name).strip(),
+            formatter_class=argparse.RawDescriptionHelpFormatter)
+        self.parser.add_argument("--profile", default=profile, choices=PROFILE_NAMES)
+        if per_seed:
+            which = self.parser.add_mutually_exclusive_group()
+            which.add_argument("--seeds", type=int, default=seeds,
+                               help=f"run seeds 0 … N-1 (default {seeds})")
+            which.add_argument("--seed", type=int, action="append", default=None,
+                               help="these run seeds instead (repeatable)")
+        self.parser.add_argument("--data-dir", type=Path, default=None,
+                                 help=f"the artifact cache to read (default ${DATA_ENV_VAR} "
+                                      "or data/)")
+        self.parser.add_argument("--publish", action="store_true",
+                                 help="also write the study's record to docs/runs/studies/")
+        self.args: argparse.Namespace | None = None
+
+    def parse(self, argv: Sequence[str] | None = None) -> argparse.Namespace:
+        """Parse the command line; ``--data-dir`` becomes the cache every stage reads."""
+        self.argv = list(sys.argv[1:] if argv is None else argv)
+        self.args = self.parser.parse_args(self.argv)
+        if self.args.data_dir is not None:
+            os.environ[DATA_ENV_VAR] = str(self.args.data_dir)
+        return self.args
+
+    @property
+    def seeds(self) -> list[int]:
+        """The run seeds asked for: ``--seed`` as given, else 0 … ``--seeds``−1."""
+        a = self.args
+        if getattr(a, "seed", None):
+            return list(a.seed)
+        return list(range(getattr(a, "seeds", 1)))
+
+    def finish(self, tables: dict[str, dict], lists: dict[str, list[str]] | None = None,
+               seeds: Sequence[int] | None = None, variant: str = "") -> dict:
+        """Print every table and list; with ``--publish`` write the record (and say where).
+        ``variant`` keeps one of the study's several records apart. Returns the record."""
+        record = study_record(self.name, self.args.profile,
+                              self.seeds if seeds is None else seeds, tables, lists,
+                              argv=[a for a in self.argv if a != "--publish"] + ["--publish"],
+                              variant=variant)
+        for tab in tables.values():
+            print(render_table(tab))
+        for name, lines in (lists or {}).items():
+            print(f"{name}:\n" + "\n".join(f"- {line}" for line in lines or ["none"]) + "\n")
+        if self.args.publish:
+            path = publish_study(record)
+            print(f"published {path}: quote its tables with <!-- generated: "
+                  f"study:{path.stem}/<table> --> blocks and run `make docs`")
+        return record

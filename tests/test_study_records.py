@@ -1,0 +1,93 @@
+"""A study's record and the docs tables rendered from it: a table a study measured reaches
+its page only through ``make docs``, with the run it rests on named beside it."""
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from dgt_lib.core import artifacts
+from dgt_lib.records import documents, study
+
+ROOT = Path(__file__).resolve().parent.parent
+PROC = {"model": "Test CPU", "family": "1", "model_id": "2", "flags": ["avx2"], "cpus": 2}
+
+
+def _record(**over) -> dict:
+    rec = {"schema": 1, "commit": "abcdef0123456", "processor": PROC,
+           "versions": {"python": "3"}, "date_utc": "2026-01-02T03:04:05Z",
+           "study": "toy", "variant": "", "profile": "demo", "seeds": [0, 1, 2],
+           "command": "python studies/toy.py --seeds 3 --publish",
+           "tables": {"arrivals": study.table("arrivals", ["method", "k/n"],
+                                              [["DGT-Map", "17/18"], ["Binary", "9/18"]])},
+           "lists": {"failures": ["seed 0, ascent #0: immobilized"]}}
+    return {**rec, **over}
+
+
+def _page(root: Path, block: str) -> Path:
+    page = root / "docs" / "toy.md"
+    page.parent.mkdir(parents=True, exist_ok=True)
+    page.write_text(f"# Toy\n\n<!-- generated: {block} -->\n<!-- end generated: {block} -->\n")
+    return page
+
+
+def test_a_study_table_renders_with_its_run_and_a_typed_number_is_caught(tmp_path):
+    path = study.publish_study(_record(), tmp_path / "docs" / "runs" / "studies")
+    assert path.name == "toy_demo_test-cpu-f1m2_2026-01-02.json"
+    page = _page(tmp_path, f"study:{path.stem}/arrivals")
+    text = documents.render_text(page.read_text(), {}, [], [], tmp_path, "docs/toy.md")
+    assert "| DGT-Map | 17/18 |" in text and "| Binary | 9/18 |" in text
+    assert ("*`demo`, seeds 0–2, Test CPU (family 1 model 2, AVX2), 2 CPUs, commit `abcdef0`: "
+            "`python studies/toy.py --seeds 3 --publish`; record: "
+            f"[{path.name}](runs/studies/{path.name})*") in text
+    page.write_text(text.replace("17/18", "18/18"))  # a count changed by hand
+    again = documents.render_text(page.read_text(), {}, [], [], tmp_path, "docs/toy.md")
+    assert again == text and again != page.read_text()
+
+
+def test_a_study_list_renders_and_an_unknown_part_or_record_is_named(tmp_path):
+    path = study.publish_study(_record(), tmp_path / "docs" / "runs" / "studies")
+    page = _page(tmp_path, f"study:{path.stem}/failures")
+    text = documents.render_text(page.read_text(), {}, [], [], tmp_path, "docs/toy.md")
+    assert "- seed 0, ascent #0: immobilized\n" in text
+    with pytest.raises(ValueError, match="no table or list 'missing'"):
+        study.render_block(f"study:{path.stem}/missing", page, tmp_path)
+    with pytest.raises(FileNotFoundError, match="not published"):
+        study.render_block("study:nobody_demo_x_2026-01-01/arrivals", page, tmp_path)
+
+
+def test_a_study_s_variants_are_kept_apart_and_an_oversized_record_is_refused(tmp_path):
+    plain = study.publish_study(_record(), tmp_path)
+    hazard = study.publish_study(_record(variant="hazard"), tmp_path)
+    assert plain != hazard and hazard.name.startswith("toy-hazard_demo_")
+    rows = [["x" * 100, str(i)] for i in range(600)]
+    with pytest.raises(ValueError, match="over 50000"):
+        study.publish_study(_record(tables={"big": study.table("big", ["a", "b"], rows)}),
+                            tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([plain.name, hazard.name])
+    with pytest.raises(ValueError, match="3 cells under 2 columns"):
+        study.table("t", ["a", "b"], [["1", "2", "3"]])
+
+
+def test_the_study_runner_reads_seeds_and_data_dir_and_publishes(tmp_path, monkeypatch, capsys):
+    monkeypatch.syspath_prepend(str(ROOT / "studies"))
+    from runner import Study
+
+    monkeypatch.setattr(study, "STUDIES", tmp_path / "studies")
+    monkeypatch.delenv(artifacts.DATA_ENV_VAR, raising=False)
+    toy = Study("toy", "A toy study.")
+    args = toy.parse(["--seed", "1", "--seed", "4", "--data-dir", str(tmp_path / "d"),
+                      "--publish"])
+    assert toy.seeds == [1, 4] and args.profile == "demo"
+    assert artifacts.data_root() == tmp_path / "d"
+    record = toy.finish({"arrivals": study.table("arrivals", ["m", "k/n"], [["DGT-Map", "1/2"]])})
+    assert record["command"] == ("python studies/toy.py --seed 1 --seed 4 --data-dir "
+                                 f"{tmp_path / 'd'} --publish")
+    written = json.loads(next((tmp_path / "studies").glob("toy_demo_*.json")).read_text())
+    assert written["seeds"] == [1, 4] and written["tables"] == record["tables"]
+    assert "| DGT-Map | 1/2 |" in capsys.readouterr().out
+    default = Study("toy", None)
+    default.parse([])
+    assert default.seeds == [0, 1, 2] and not default.args.publish
+    sys.modules.pop("runner", None)
