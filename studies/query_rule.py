@@ -11,49 +11,59 @@ there also the jeep's hazards with its bumper (``vehicle_hazards(..., bumpers=Tr
 ditches) and the share of kept lines that cross one; and a row for the training world's
 jeep hazards, the terrain its costmap learns from.
 
-    .venv/bin/python studies/query_rule.py [PROFILE ...] [--candidates N]
+    .venv/bin/python studies/query_rule.py [--profile P ...] [--candidates N] [--publish]
+
+``--publish`` writes the record whose table docs/worlds.md quotes.
 """
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
+from runner import Study
 
-from dgt_lib.core.config import PROFILE_NAMES, get_profile
+from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.experiments import EXPERIMENTS
 from dgt_lib.evaluation.hazards import HazardMap, hazard_map, line_stats, vehicle_hazards
+from dgt_lib.records.study import table
 from dgt_lib.world.terrain import get_world
 
 
+def pct(x: float) -> str:
+    return f"{100 * x:.2f} %"
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("profiles", nargs="*", default=list(PROFILE_NAMES))
-    ap.add_argument("--candidates", type=int, default=5000)
-    args = ap.parse_args()
+    study = Study("query_rule", __doc__, per_seed=False, several_profiles=True)
+    study.parser.add_argument("--candidates", type=int, default=5000)
+    args = study.parse()
     _, vehicles, _ = EXPERIMENTS["experiment3"]
-    for name in args.profiles:
+    rows = []
+    for name in args.profile:
         prof = get_profile(name)
         ex = prof.experiments
         for world_name in ("eval", "eval_hazard"):
             world = get_world(world_name, prof)
             hz = hazard_map(world, vehicles)
-            per_vehicle = ", ".join(f"{v} {100 * vehicle_hazards(world, v).mean():.2f} %"
-                                    for v in vehicles)
             jeep = HazardMap(world.grid, vehicle_hazards(world, "jeep", bumpers=True))
             st = line_stats(hz, jeep, ex.eval_distance_m, ex.eval_min_hazard_m, prof.seed,
                             args.candidates)
-            print(f"{name}: {world_name} {world.grid.extent[1]:.0f} m, hazard cells "
-                  f"{100 * hz.fraction:.2f} % ({per_vehicle}; jeep with its bumper "
-                  f"{100 * jeep.fraction:.2f} %); of {len(st.lengths)} on-map candidates "
-                  f"({ex.eval_distance_m[0]:.0f}–{ex.eval_distance_m[1]:.0f} m) the rule "
-                  f"(≥ {ex.eval_min_hazard_m:g} m of hazard) keeps {100 * st.kept.mean():.0f} %; "
-                  f"median hazard on the line {np.median(st.lengths):.1f} m; "
-                  f"{100 * st.kept_crossing:.0f} % of the kept cross a jeep hazard")
+            rows.append([name, world_name, f"{world.grid.extent[1]:.0f} m",
+                         *(pct(vehicle_hazards(world, v).mean()) for v in vehicles),
+                         pct(jeep.fraction), pct(hz.fraction),
+                         f"{100 * st.kept.mean():.0f} % of {len(st.lengths)}",
+                         f"{np.median(st.lengths):.1f} m", f"{100 * st.kept_crossing:.0f} %"])
         train = get_world("training", prof)
-        print(f"{name}: training {train.grid.extent[1]:.0f} m, jeep hazard cells "
-              f"{100 * vehicle_hazards(train, 'jeep').mean():.2f} % (with its bumper "
-              f"{100 * vehicle_hazards(train, 'jeep', bumpers=True).mean():.2f} %)")
+        rows.append([name, "training", f"{train.grid.extent[1]:.0f} m",
+                     *("–" if v != "jeep" else pct(vehicle_hazards(train, v).mean())
+                       for v in vehicles),
+                     pct(vehicle_hazards(train, "jeep", bumpers=True).mean()),
+                     "–", "–", "–", "–"])
+    columns = ["profile", "world", "side", *(f"{v} hazard cells" for v in vehicles),
+               "jeep with its bumper", "hazard cells (either vehicle)",
+               "on-map candidates kept by the rule", "median hazard on a candidate line",
+               "kept lines crossing a jeep hazard"]
+    title = f"Experiment 3's query rule, {args.candidates} candidate lines a world"
+    study.finish({"hazards": table(title, columns, rows)}, seeds=[])
 
 
 if __name__ == "__main__":

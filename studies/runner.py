@@ -31,12 +31,17 @@ class Study:
     """One study script's command line and its record."""
 
     def __init__(self, name: str, doc: str | None, *, profile: str = "demo", seeds: int = 3,
-                 per_seed: bool = True) -> None:
+                 per_seed: bool = True, several_profiles: bool = False) -> None:
         self.name = name
+        self.several_profiles = several_profiles
         self.parser = argparse.ArgumentParser(
             prog=f"studies/{name}.py", description=(doc or name).strip(),
             formatter_class=argparse.RawDescriptionHelpFormatter)
-        self.parser.add_argument("--profile", default=profile, choices=PROFILE_NAMES)
+        if several_profiles:
+            self.parser.add_argument("--profile", action="append", choices=PROFILE_NAMES,
+                                     default=None, help="repeatable (default: every profile)")
+        else:
+            self.parser.add_argument("--profile", default=profile, choices=PROFILE_NAMES)
         if per_seed:
             which = self.parser.add_mutually_exclusive_group()
             which.add_argument("--seeds", type=int, default=seeds,
@@ -54,6 +59,8 @@ class Study:
         """Parse the command line; ``--data-dir`` becomes the cache every stage reads."""
         self.argv = list(sys.argv[1:] if argv is None else argv)
         self.args = self.parser.parse_args(self.argv)
+        if self.several_profiles and not self.args.profile:
+            self.args.profile = list(PROFILE_NAMES)
         if self.args.data_dir is not None:
             os.environ[DATA_ENV_VAR] = str(self.args.data_dir)
         return self.args
@@ -70,7 +77,8 @@ class Study:
                seeds: Sequence[int] | None = None, variant: str = "") -> dict:
         """Print every table and list; with ``--publish`` write the record (and say where).
         ``variant`` keeps one of the study's several records apart. Returns the record."""
-        record = study_record(self.name, self.args.profile,
+        profile = self.args.profile
+        record = study_record(self.name, ", ".join(profile) if self.several_profiles else profile,
                               self.seeds if seeds is None else seeds, tables, lists,
                               argv=[a for a in self.argv if a != "--publish"] + ["--publish"],
                               variant=variant)

@@ -91,6 +91,8 @@ def publish_study(record: dict, dest: Path | None = None) -> Path:
 
 
 def _seeds(seeds: Sequence[int]) -> str:
+    if not seeds:
+        return "no run's artifacts (the worlds alone)"
     if len(seeds) > 2 and list(seeds) == list(range(seeds[0], seeds[-1] + 1)):
         return f"seeds {seeds[0]}–{seeds[-1]}"
     return f"seed{'s' if len(seeds) != 1 else ''} " + ", ".join(map(str, seeds))
