@@ -33,7 +33,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from variant_runs import link, stored_or_run, write_scores
+from runner import link, stored_or_run, write_scores
 
 from dgt_lib.stages.planned import PLANNED, planned_routes, planning_profile
 from dgt_lib.stages.planned import claim_share as _share

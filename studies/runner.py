@@ -12,12 +12,19 @@ record.
 ``finish`` prints the tables as Markdown; with ``--publish`` it also writes the study's
 record to ``docs/runs/studies/`` (:mod:`dgt_lib.records.study`), which a docs page quotes in
 a generated block and ``make docs`` renders.
+
+Studies that rerun the pipeline with other settings (``map_inputs``, ``scarcity``) run each
+variant in its own data directory, linked to what it shares with the profile's own run
+(:func:`link`), in a process of its own, and store its scores as JSON so that a rerun
+resumes (:func:`stored_or_run`, :func:`write_scores`).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -91,3 +98,31 @@ class Study:
             print(f"published {path}: quote its tables with <!-- generated: "
                   f"study:{path.stem}/<table> --> blocks and run `make docs`")
         return record
+
+
+def link(target: Path, link_path: Path) -> None:
+    """``link_path`` → ``target`` (a file or directory of the profile's run), made once;
+    nothing while ``target`` does not exist."""
+    if link_path.is_symlink() or not target.exists():
+        return
+    link_path.parent.mkdir(parents=True, exist_ok=True)
+    link_path.symlink_to(target.resolve(), target_is_directory=target.is_dir())
+
+
+def stored_or_run(path: Path, root: Path, command: list[str], what: str) -> dict:
+    """The JSON scores at ``path``; if missing, ``command`` runs first (``python`` + its
+    arguments) with ``root`` as its data directory and must write them."""
+    if path.exists():
+        return json.loads(path.read_text())
+    print(f"[{Path(command[0]).stem}] {what} in {root}", flush=True)
+    subprocess.run([sys.executable, *command], env={**os.environ, DATA_ENV_VAR: str(root)},
+                   check=True)
+    return json.loads(path.read_text())
+
+
+def write_scores(path: Path, scores: dict) -> None:
+    """Store one variant's scores (written whole, then renamed: a crash leaves none)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(scores, indent=1))
+    tmp.replace(path)

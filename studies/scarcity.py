@@ -30,7 +30,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from variant_runs import link, stored_or_run, write_scores
+from runner import link, stored_or_run, write_scores
 
 STUDIED = ("vw_van", "carla_cola")
 FRACTIONS = (1.0, 0.3, 0.1, 0.03)

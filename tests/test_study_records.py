@@ -61,6 +61,7 @@ def test_a_study_s_variants_are_kept_apart_and_an_oversized_record_is_refused(tm
     plain = study.publish_study(_record(), tmp_path)
     hazard = study.publish_study(_record(variant="hazard"), tmp_path)
     assert plain != hazard and hazard.name.startswith("toy-hazard_demo_")
+    assert study.record_name(_record(profile="smoke, demo")).startswith("toy_smoke-demo_test")
     rows = [["x" * 100, str(i)] for i in range(600)]
     with pytest.raises(ValueError, match="over 50000"):
         study.publish_study(_record(tables={"big": study.table("big", ["a", "b"], rows)}),

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shlex
 import sys
 from collections.abc import Sequence
@@ -70,7 +71,8 @@ def study_record(study: str, profile: str, seeds: Sequence[int], tables: dict[st
 def record_name(record: dict) -> str:
     """``<study>[-<variant>]_<profile>_<processor slug>_<date>``: the record's file stem."""
     study = record["study"] + (f"-{record['variant']}" if record.get("variant") else "")
-    return (f"{study}_{record['profile']}_{processor_slug(record['processor'])}"
+    profile = re.sub(r"[^\w.]+", "-", record["profile"])  # "smoke, demo" → smoke-demo
+    return (f"{study}_{profile}_{processor_slug(record['processor'])}"
             f"_{record['date_utc'][:10]}")
 
 
