@@ -292,9 +292,34 @@ class MPPIController:
         ``(H, W)`` on ``grid`` (0 free, 1 occupied, 2 unobserved; outside the grid counts
         as occupied) enables the occupancy critic; a directional ``costmap`` ``(K, H, W)``
         on the same grid, the terrain critic when ``cfg.terrain_weight`` > 0. Steps 1–5
-        of the module docstring.
+        of the module docstring; the lines marked *ours* are options the paper's MPPI
+        (``experiments.controller=paper``) leaves off.
         """
-        cfg, ref = self.cfg, self._reference()
+        cfg = self.cfg
+        x0, y0, yaw0 = self._checked_pose(pose, speed, occupancy, grid, costmap)
+        terrain = self._set_maps(occupancy, grid, costmap)
+        i_robot = self._reference().update_progress(x0, y0)
+        if self._last_v is None:
+            self._last_v = float(np.clip(speed, cfg.v_min, cfg.v_max))
+        # 1–3. sample B sequences around the warm start, roll them out, score them: S_b
+        sampled_costs = (self._sampled_costs_compiled if self.backend == "compiled"
+                         else self._sampled_costs)
+        v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid, terrain)
+        if cfg.first_step_weight > 0:  # ours: the first speed held near the path's
+            cost = cost + self._first_step_cost(v[0], i_robot)
+        self.last_costs = cost
+        # 4. weight them, w_b = exp(−(S_b − min S)/λ)/η, and average: u*_t = Σ_b w_b u_b,t
+        nominal = weighted_sequence(v, w, self.weighting(cost, cfg.temperature), self._nominal)
+        self._smooth_and_bound(nominal)
+        if self.roll_accel_mps2 is not None and cfg.roll_limit_fraction > 0:  # ours
+            slow_corners(nominal, cfg.roll_limit_fraction * self.roll_accel_mps2)
+        self.optimal_trajectory = self._predicted(nominal, (x0, y0, yaw0), speed)
+        # 5. send u*_0, keep u*_1…T−1 as the next call's warm start
+        return self._send(nominal)
+
+    def _checked_pose(self, pose, speed: float, occupancy, grid, costmap
+                      ) -> tuple[float, float, float]:
+        """(x, y, yaw) of ``pose`` as floats; ValueError for inputs that do not fit."""
         if (occupancy is None) != (grid is None):
             raise ValueError("occupancy and grid must be given together")
         if costmap is not None and (grid is None or np.shape(costmap)[1:] != grid.shape):
@@ -302,36 +327,48 @@ class MPPIController:
         x0, y0, yaw0 = (float(p) for p in pose)
         if not all(math.isfinite(p) for p in (x0, y0, yaw0, speed)):
             raise ValueError(f"pose and speed must be finite, got {pose}, {speed}")
+        return x0, y0, yaw0
+
+    def _set_maps(self, occupancy, grid, costmap) -> bool:
+        """Cache the occupancy's and the costmap's per-cell fields; whether the terrain
+        critic runs this call."""
         if occupancy is not None:
             self._set_occupancy(occupancy, grid)
         terrain = self._terrain_on(costmap)
         if terrain:
             self._set_costmap(costmap)
-        i_robot = ref.update_progress(x0, y0)
-        if self._last_v is None:
-            self._last_v = float(np.clip(speed, cfg.v_min, cfg.v_max))
-        sampled_costs = (self._sampled_costs_compiled if self.backend == "compiled"
-                         else self._sampled_costs)
-        v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid, terrain)  # steps 1–3
-        if cfg.first_step_weight > 0:
-            remaining = ref.remaining_m(i_robot)
-            v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining),
-                        float(ref.v_cap[i_robot]))
-            cost = cost + critics.first_step_critic(v[0], v_ref, cfg)
-        self.last_costs = cost
-        weights = self.weighting(cost, cfg.temperature)  # step 4
-        nominal = weighted_sequence(v, w, weights, self._nominal)
+        return terrain
+
+    def _first_step_cost(self, v_first: np.ndarray, i_robot: int) -> np.ndarray:
+        """Ours: each sample's cost of its first speed ``(B,)`` against the path's speed
+        there — the target speed, capped by the goal's braking and the corners' limits
+        (:func:`~dgt_lib.navigation.control.critics.first_step_critic`)."""
+        cfg, ref = self.cfg, self._ref
+        remaining = ref.remaining_m(i_robot)
+        v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining),
+                    float(ref.v_cap[i_robot]))
+        return critics.first_step_critic(v_first, v_ref, cfg)
+
+    def _smooth_and_bound(self, nominal: np.ndarray) -> None:
+        """Nav2's Savitzky–Golay smoothing of ω over the past commands, then |ω| clipped to
+        what the speed allows at the minimum turning radius (and ``w_max``), in place."""
         if len(self._w_history):
             nominal[:, 1] = smooth_yaw_rates(nominal[:, 1], self._w_history, self._savgol)
-        bound = np.minimum(np.abs(nominal[:, 0]) / self.min_turn_radius_m, cfg.w_max)
+        bound = np.minimum(np.abs(nominal[:, 0]) / self.min_turn_radius_m, self.cfg.w_max)
         np.clip(nominal[:, 1], -bound, bound, out=nominal[:, 1])
-        if self.roll_accel_mps2 is not None and cfg.roll_limit_fraction > 0:
-            slow_corners(nominal, cfg.roll_limit_fraction * self.roll_accel_mps2)
+
+    def _predicted(self, nominal: np.ndarray, pose: tuple[float, float, float],
+                   speed: float) -> np.ndarray:
+        """The (x, y, yaw) ``(T, 3)`` the vehicle is predicted to drive with ``nominal``."""
         vo, wo = vehicle_response(nominal[:, :1], nominal[:, 1:], speed, self._alpha,
-                                  cfg.breakaway_speed_mps)
-        xo, yo, yawo = rollout_unicycle((x0, y0, yaw0), vo, wo, cfg.model_dt)
-        self.optimal_trajectory = np.stack([xo[:, 0], yo[:, 0], yawo[:, 0]], axis=1)
-        v_cmd, w_cmd = float(nominal[0, 0]), float(nominal[0, 1])  # step 5
+                                  self.cfg.breakaway_speed_mps)
+        xo, yo, yawo = rollout_unicycle(pose, vo, wo, self.cfg.model_dt)
+        return np.stack([xo[:, 0], yo[:, 0], yawo[:, 0]], axis=1)
+
+    def _send(self, nominal: np.ndarray) -> tuple[float, float]:
+        """The first command of ``nominal``; it joins the smoothing's history and the rest
+        of the sequence, shifted, becomes the warm start."""
+        v_cmd, w_cmd = float(nominal[0, 0]), float(nominal[0, 1])
         self._last_v = v_cmd
         if len(self._w_history):
             self._w_history[:-1] = self._w_history[1:]
