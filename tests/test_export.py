@@ -237,6 +237,8 @@ def test_two_writers_of_one_path_never_mix_their_bands(tmp_path):
         assert proc.returncode == 0
     _whole(target)
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
+    # the user's folder shows what they asked for; the writers' lock is hidden
+    assert [p.name for p in tmp_path.iterdir() if not p.name.startswith(".")] == ["costmap.tif"]
 
 
 @pytest.mark.parametrize("out, said", [

@@ -140,9 +140,10 @@ def write_atomically(path: str | Path, write: Callable[[Path], None], *,
     """A file a user pointed the kit at (``dgt costmap --out``, ``dgt plan``'s figure),
     written as the cache writes its artifacts: under :func:`build_lock` (two writers of one
     path take turns, never mixing their bytes) through :func:`_atomic_write` (the target
-    holds the old file or the whole new one). Returns ``path``."""
+    holds the old file or the whole new one). The lock beside it is hidden
+    (``.<name>.lock``): a user's folder shows only what they asked for. Returns ``path``."""
     path = Path(path)
-    with build_lock(path):
+    with build_lock(path, hidden=True):
         _atomic_write(path, write, tmp_suffix=tmp_suffix)
     return path
 
@@ -320,14 +321,15 @@ def _load_if_fresh(path: Path, config: Any) -> tuple[str | None, Any]:
 
 
 @contextlib.contextmanager
-def build_lock(path: Path) -> Iterator[None]:
+def build_lock(path: Path, *, hidden: bool = False) -> Iterator[None]:
     """Hold an exclusive lock on ``<path>.lock`` beside the artifact while it is built:
     runs sharing a data directory build it once (the others wait here, then load it)
     instead of reading it half-way through and calling it corrupt. Inside, the directory
     is known to be writable: a read-only or refused one raises its ``OSError`` (naming
     ``path``) before anything is built. The lock file stays (removing it would let a
-    waiting run and a new one lock different files)."""
-    lock = path.with_name(path.name + ".lock")
+    waiting run and a new one lock different files); ``hidden`` names it ``.<name>.lock``,
+    for files in a user's folder."""
+    lock = path.with_name(("." if hidden else "") + path.name + ".lock")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         # read-only suffices to lock, so a lock file another user made can be locked too

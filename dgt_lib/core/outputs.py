@@ -18,8 +18,8 @@ import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
-BESIDE_BYTES = len(".lock")
-"""Bytes the kit adds to a target's name for the files beside it: ``<name>.lock`` (the
+BESIDE_BYTES = len("..lock")
+"""Bytes the kit adds to a target's name for the files beside it: ``.<name>.lock`` (the
 writers' lock, :func:`dgt_lib.core.artifacts.build_lock`); the temporary file's name is
 cut to fit (:func:`dgt_lib.core.artifacts._atomic_write`)."""
 

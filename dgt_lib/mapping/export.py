@@ -139,7 +139,7 @@ def write_nav2(path: str | Path, cost: np.ndarray, occupancy: np.ndarray,
     Returns the YAML files, headings first."""
     _check(cost, occupancy, grid)
     stem = nav2_stem(path)
-    with build_lock(stem.with_name(stem.name + ".nav2")):
+    with build_lock(stem.with_name(stem.name + ".nav2"), hidden=True):
         return _write_nav2_files(stem, cost, occupancy, grid)
 
 
