@@ -308,9 +308,9 @@ def test_kinematic_bicycle_turns_on_its_minimum_radius_at_full_lock():
 def test_mppi_tracks_paths_in_mujoco(shape):
     """Closed loop with the physics: MPPI → steering → Simulator (its PID speed loop)."""
     from dgt_lib.core.vehicles import get_vehicle
-    from dgt_lib.navigation.outcome import evaluate_trial
     from dgt_lib.world.simulator import Simulator
     from dgt_lib.world.worlds import from_heightmap
+    from tests.test_outcomes import evaluate_trial
 
     jeep = get_vehicle("jeep")
     world = from_heightmap(np.zeros((150, 150)), 0.4, origin=(-10.0, -30.0))

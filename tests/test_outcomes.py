@@ -22,11 +22,59 @@ from dgt_lib.navigation.outcome import (
     REASONS,
     OutcomeRule,
     TrialOutcome,
-    evaluate_trial,
 )
 from dgt_lib.world.simulator import immobile_time
 
 DT = 0.05  # s
+
+
+def evaluate_trial(  # the rule applied offline, as drive applies it online
+    times,
+    positions,
+    speeds,
+    goal,
+    flipped=None,
+    diverged=None,
+    path_found: bool = True,
+    goal_tolerance_m: float = GOAL_TOLERANCE_M,
+    immobile_speed_mps: float = IMMOBILE_SPEED_MPS,
+    immobile_time_s: float = IMMOBILE_TIME_S,
+) -> TrialOutcome:
+    """Judge a recorded trace with :class:`OutcomeRule`, sample by sample.
+
+    ``times`` (T,) [s], ``positions`` (T, 2 or 3) [m], ``speeds`` (T,) [m/s],
+    ``goal`` (x, y[, …]) [m]; optional boolean ``flipped`` / ``diverged`` (T,).
+    No event by the end of the trace means ``timeout`` (a loop stops a trial at its
+    time limit). ``path_found=False`` gives ``no_path`` without looking at the trace.
+    """
+    if not path_found:
+        return TrialOutcome.failure("no_path")
+    t = np.asarray(times, dtype=np.float64)
+    p = np.asarray(positions, dtype=np.float64)
+    v = np.asarray(speeds, dtype=np.float64)
+    if t.ndim != 1 or len(t) == 0 or p.shape[0] != len(t) or v.shape != t.shape:
+        raise ValueError(f"need T ≥ 1 samples of times, positions and speeds, got "
+                         f"{t.shape}, {p.shape}, {v.shape}")
+    flags = {}
+    for name, f in (("flipped", flipped), ("diverged", diverged)):
+        if f is not None:
+            f = np.asarray(f, dtype=bool)
+            if f.shape != t.shape:
+                raise ValueError(f"{name} must have shape {t.shape}, got {f.shape}")
+            flags[name] = f
+    g = np.asarray(goal, dtype=np.float64)[:2]
+    rule = OutcomeRule(goal_tolerance_m, immobile_time_s)
+    immobile = 0.0
+    for i in range(len(t)):
+        dt = t[i] - t[i - 1] if i else 0.0
+        immobile = immobile_time(immobile, v[i], dt, immobile_speed_mps)
+        done = next((name for name, f in flags.items() if f[i]), None)
+        outcome = rule.judge(float(t[i] - t[0]), p[i], g, immobile, done)
+        if outcome is not None:
+            return outcome
+    return TrialOutcome(False, "timeout", float(t[-1] - t[0]),
+                        float(np.hypot(*(p[-1, :2] - g))))
+
 
 
 def drive(speeds, start=(0.0, 0.0)):
