@@ -1,7 +1,8 @@
 """How faithful the BEV's H̄, σ_H and ‖∇H̄‖ are on slopes, on rendered surveys of synthetic
 terrain, per estimator — and τ_s recomputed with each.
 
-Run: ``.venv/bin/python studies/bev_slopes.py [--tau PROFILE]``.
+Run: ``.venv/bin/python studies/bev_slopes.py [--tau] [--profile P] [--publish]``
+(``--publish`` writes the record whose tables docs/bev.md quotes).
 
 Each world (ramps of 10–28° in four orientations, a 9 m wide 24° ramp between cliffs up
 to a plateau, a smooth ridge, a sharp 14° ridge, a bump) is surveyed as every kit world is
@@ -19,21 +20,23 @@ cells from the map's border and from kinks of the terrain (cliffs, the ends of a
 of H̄), |σ_H − ‖∇h‖·Δ/√12| (the std of a plane's heights over a Δ-cell), each as
 p50 / p99 / max, and the range of ‖∇H̄‖ over the steepest cells.
 
-``--tau PROFILE`` recomputes τ_s (``dgt_lib.mapping.occupancy.select_tau_s`` over the
+``--tau`` also recomputes τ_s (``dgt_lib.mapping.occupancy.select_tau_s`` over the
 hill's and ridge's known-traversable routes, as ``stages.costmaps.ensure_tau_s`` does)
-with each estimator, from fresh surveys of that profile's worlds (no cache is read or
+with each estimator, from fresh surveys of ``--profile``'s worlds (no cache is read or
 written).
 """
 
 from __future__ import annotations
 
-import argparse
+import re
 import time
 
 import numpy as np
+from runner import Study
 from scipy import ndimage
 
 from dgt_lib.perception.bev import BEVAccumulator, bev_grid
+from dgt_lib.records.study import table
 from dgt_lib.world.rendering import survey_frames
 from dgt_lib.world.worlds import World, from_heightmap
 
@@ -136,19 +139,45 @@ def survey(world: World) -> BEVAccumulator:
     return acc
 
 
-def fidelity() -> None:
-    print(f"{'world':22s} {'estimator':20s} {'|H̄−h| [cm] p50/p99/max':>24s} "
-          f"{'|‖∇H̄‖−‖∇h‖| p50/p99/max':>25s} {'|σ_H−σ| [cm] p99/max':>20s} "
-          f"{'‖∇H̄‖ on the steepest (true)':>28s}")
+def _span(values, digits: int, scale: float = 1.0) -> str:
+    """``a`` or ``a–b``: the range of ``values`` over a group of worlds."""
+    lo, hi = (f"{scale * v:.{digits}f}" for v in (min(values), max(values)))
+    return lo if lo == hi else f"{lo}–{hi}"
+
+
+def fidelity() -> dict:
+    """The error table: one row per terrain (a ramp's four orientations pooled as ranges),
+    each estimator's p99 / max of |H̄ − h| [cm] and |‖∇H̄‖ − ‖∇h‖|, and ‖∇H̄‖'s range over
+    the steepest cells."""
+    groups: dict[str, list[dict]] = {}
     for world, planar in worlds():
         result = errors(world, survey(world), planar)
+        name = re.sub(r" az \d+°", ", 4 azimuths", world.name)
+        groups.setdefault(name, []).append(result)
         for label, (eh, eg, es, (lo, hi, truth)) in result.items():
-            print(f"{world.name:22s} {label:20s} {eh[0] * 100:7.2f} {eh[1] * 100:7.2f} "
-                  f"{eh[2] * 100:7.2f}  {eg[0]:7.3f} {eg[1]:7.3f} {eg[2]:7.3f}  "
-                  f"{es[1] * 100:9.2f} {es[2] * 100:9.2f}  {lo:8.3f} – {hi:5.3f} ({truth:.3f})")
+            print(f"{world.name:22s} {label:20s} |H̄−h| {eh[1] * 100:.2f}/{eh[2] * 100:.2f} cm"
+                  f"  |‖∇H̄‖−‖∇h‖| {eg[1]:.3f}/{eg[2]:.3f}  |σ_H−σ| {es[1] * 100:.2f}/"
+                  f"{es[2] * 100:.2f} cm  steepest {lo:.3f}–{hi:.3f} ({truth:.3f})", flush=True)
+    rows = []
+    for name, results in groups.items():
+        row = [name]
+        for i, digits, scale in ((0, 2, 100.0), (1, 3, 1.0)):
+            for label in ("points", "plane"):
+                row.append(" / ".join(_span([r[label][i][q] for r in results], digits, scale)
+                                      for q in (1, 2)))
+        steep = [_span([r[label][3][j] for r in results for j in (0, 1)], 3)
+                 for label in ("points", "plane")]
+        truth = _span([r["plane"][3][2] for r in results], 3)
+        rows.append([*row, f"{steep[0]} → {steep[1]} ({truth})"])
+    return table("The BEV against the true surface: p99 / max over the observed sloped cells",
+                 ["terrain", "H̄ error [cm], mean of points", "plane",
+                  "‖∇H̄‖ error, mean of points", "plane",
+                  "‖∇H̄‖ over the steepest cells (true), mean of points → plane"], rows)
 
 
-def tau_s(profile: str) -> None:
+def tau_s(profile: str) -> dict:
+    """τ_s with each estimator from fresh surveys of ``profile``'s hill and ridge, and the
+    steepest ‖∇H̄‖ each reads on their traversable routes."""
     from dgt_lib.core.config import as_profile
     from dgt_lib.mapping.occupancy import select_tau_s, traversed_gradients
     from dgt_lib.world.terrain import get_world
@@ -166,22 +195,27 @@ def tau_s(profile: str) -> None:
             samples[est].append(g)
             print(f"{profile} {name:6s} {est:7s} steepest traversed ‖∇H̄‖ {g.max():.3f} "
                   f"over {g.size} route cells")
+    rows = []
     for est, parts in samples.items():
         g = np.concatenate(parts)
-        print(f"{profile}: τ_s with {est:7s} = {select_tau_s(g, prof.costmap.tau_s_margin):.4f} "
-              f"(steepest traversed {g.max():.4f}, margin {prof.costmap.tau_s_margin})")
+        rows.append([{"points": "mean of points", "plane": "plane"}[est], f"{g.max():.3f}",
+                     f"{prof.costmap.tau_s_margin:g}",
+                     f"{select_tau_s(g, prof.costmap.tau_s_margin):.3f}"])
+    return table(f"τ_s from the `{profile}` hill's and ridge's traversable routes",
+                 ["estimator", "steepest traversed ‖∇H̄‖", "margin", "τ_s"], rows)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tau", metavar="PROFILE", help="recompute τ_s for this profile")
-    args = parser.parse_args()
+    study = Study("bev_slopes", __doc__, per_seed=False)
+    study.parser.add_argument("--tau", action="store_true",
+                              help="also recompute τ_s for --profile with each estimator")
+    args = study.parse()
     t0 = time.perf_counter()
+    tables = {"fidelity": fidelity()}
     if args.tau:
-        tau_s(args.tau)
-    else:
-        fidelity()
+        tables["tau"] = tau_s(args.profile)
     print(f"({time.perf_counter() - t0:.0f} s)")
+    study.finish(tables, seeds=[])
 
 
 if __name__ == "__main__":
