@@ -57,14 +57,16 @@ def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[object]]) 
 
 def study_record(study: str, profile: str, seeds: Sequence[int], tables: dict[str, dict],
                  lists: dict[str, list[str]] | None = None,
-                 argv: Sequence[str] | None = None, variant: str = "") -> dict:
-    """The record of one run of ``studies/<study>.py``: provenance, profile, seeds, the
-    command that made it, its tables (:func:`table`) and lists of lines; ``variant`` names
-    one of a study's several records (``hazard``), kept apart in the file name."""
+                 argv: Sequence[str] | None = None, variant: str = "",
+                 script: str | None = None) -> dict:
+    """The record of one run of ``studies/<study>.py`` (or of ``script``, a path in the
+    checkout): provenance, profile, seeds, the command that made it, its tables
+    (:func:`table`) and lists of lines; ``variant`` names one of a study's several records
+    (``hazard``), kept apart in the file name."""
     args = sys.argv[1:] if argv is None else argv
     return {"schema": SCHEMA, **provenance(), "study": study, "variant": variant,
             "profile": profile, "seeds": [int(s) for s in seeds],
-            "command": shlex.join(["python", f"studies/{study}.py", *args]),
+            "command": shlex.join(["python", script or f"studies/{study}.py", *args]),
             "tables": tables, "lists": lists or {}}
 
 
