@@ -186,19 +186,19 @@ OTHER_FIGURES: dict[str, str] = {
     "jacksboro_plans.png": "`python examples/real_dem.py --figure docs/figures/jacksboro_plans.png`"
                            " (`smoke`): carla_cola's plans up and down a real DEM, the Jacksboro "
                            "fault window (docs/usage.md).",
-    "map_inputs.png": "`python studies/map_inputs.py --profile demo --seeds 0 1 2 --variants rgbd "
+    "map_inputs.png": "`python studies/map_inputs.py --profile demo --seeds 3 --variants rgbd "
                       "shuffled geometry rgb --figure docs/figures/map_inputs.png`: what the "
                       "network looks at (docs/map_inputs.md).",
-    "pose_noise.png": "`python studies/map_inputs.py --profile demo --seeds 0 1 2 --variants rgbd "
+    "pose_noise.png": "`python studies/map_inputs.py --profile demo --seeds 3 --variants rgbd "
                       "pose_low pose_mid pose_high --figure docs/figures/pose_noise.png`: the "
                       "claims under a noisy localisation (docs/map_inputs.md).",
-    "scarcity.png": "`python studies/scarcity.py --profile demo --seeds 0 1 2 --stored --figure "
+    "scarcity.png": "`python studies/scarcity.py --profile demo --seeds 3 --stored --figure "
                     "docs/figures/scarcity.png`: when multi-task learning helps, error against "
                     "one vehicle's training patches (docs/scarcity.md).",
-    "scarcity_paper.png": "`DGT_DATA_DIR=… python studies/scarcity.py --profile paper --seeds 0 "
+    "scarcity_paper.png": "`DGT_DATA_DIR=… python studies/scarcity.py --profile paper --seed 0 "
                           "--stored --figure docs/figures/scarcity_paper.png`: the same on "
                           "`paper`-sized data, one seed (docs/scarcity.md).",
-    "zero_shot_gen8.png": "`python studies/zero_shot.py --profile demo --seeds 0 1 2 --generated 8 "
+    "zero_shot_gen8.png": "`python studies/zero_shot.py --profile demo --seeds 3 --generated 8 "
                           "--stored --figure docs/figures/zero_shot_gen8.png`: a vehicle never "
                           "driven, its zero-shot costmap against the alternatives, with 8 "
                           "generated training vehicles (docs/vehicles.md).",

@@ -1,25 +1,26 @@
-"""Did a rerun give the same artifacts? Compares two data directories of one profile and seed.
+"""Did a rerun give the same artifacts? Compares two data directories of one profile, seed by seed.
 
     DGT_DATA_DIR=/tmp/fresh dgt reproduce --profile paper --seeds 1
     .venv/bin/python studies/compare_runs.py data /tmp/fresh --profile paper --seed 0
 
-For each artifact group of ``<dir>/<profile>/seed-<seed>/`` present in both directories —
-episodes, BEV maps, the dataset, models, slope fit and τ_s, costmaps, the accuracy scores
-and the experiments' counts — prints how many files are bit-identical and names the first
-that differ. Arrays are compared with NaN equal to NaN, checkpoints by their weights (not
-their training history, whose epoch times differ), the experiments by the counts, routes
-and failure reasons of ``results/summary.json``. MuJoCo is deterministic on one machine,
-not across machines: on another machine expect the episodes to differ from the start.
+For each run seed (``--seed S``, default 0; ``--seeds N``: 0 … N-1, a table each) and each
+artifact group of ``<dir>/<profile>/seed-<seed>/`` present in both directories — episodes,
+BEV maps, the dataset, models, slope fit and τ_s, costmaps, the accuracy scores and the
+experiments' counts — prints how many files are bit-identical and names the first that
+differ. Arrays are compared with NaN equal to NaN, checkpoints by their weights (not their
+training history, whose epoch times differ), the experiments by the counts, routes and
+failure reasons of ``results/summary.json``. MuJoCo is deterministic on one machine, not
+across machines: on another machine expect the episodes to differ from the start.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from runner import Study
 
 GROUPS: tuple[tuple[str, str], ...] = (
     ("episodes", "episodes/*.npz"),
@@ -80,23 +81,27 @@ def compare(first: Path, second: Path) -> list[tuple[str, int, int, list[str]]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("first", type=Path, help="a data directory (what DGT_DATA_DIR names)")
-    parser.add_argument("second", type=Path)
-    parser.add_argument("--profile", default="demo")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args()
-    dirs = [d / args.profile / f"seed-{args.seed}" for d in (args.first, args.second)]
-    for d in dirs:
-        if not d.is_dir():
-            raise SystemExit(f"no run here: {d} (run `dgt reproduce --profile {args.profile}`"
-                             " with DGT_DATA_DIR pointing at its data directory)")
-    print(f"{dirs[0]}  vs  {dirs[1]}\n")
-    print("| artifacts | files in both | identical | first that differ |")
-    print("| --- | --- | --- | --- |")
-    for name, n, same, differ in compare(*dirs):
-        shown = ", ".join(differ[:3]) + (f" (+{len(differ) - 3})" if len(differ) > 3 else "")
-        print(f"| {name} | {n} | {same} | {shown or '—'} |")
+    study = Study("compare_runs", __doc__, profile="demo", seeds=1, publishes=False)
+    study.parser.add_argument("first", type=Path,
+                              help="a data directory (what DGT_DATA_DIR names)")
+    study.parser.add_argument("second", type=Path)
+    args = study.parse()
+    for i, seed in enumerate(study.seeds):
+        if i:
+            print()
+        dirs = [d / args.profile / f"seed-{seed}" for d in (args.first, args.second)]
+        for d in dirs:
+            if not d.is_dir():
+                raise SystemExit(f"no run here: {d} (run `dgt reproduce --profile "
+                                 f"{args.profile}` with DGT_DATA_DIR pointing at its data "
+                                 "directory)")
+        print(f"{dirs[0]}  vs  {dirs[1]}\n")
+        print("| artifacts | files in both | identical | first that differ |")
+        print("| --- | --- | --- | --- |")
+        for name, n, same, differ in compare(*dirs):
+            shown = ", ".join(differ[:3]) + (f" (+{len(differ) - 3})" if len(differ) > 3
+                                             else "")
+            print(f"| {name} | {n} | {same} | {shown or '—'} |")
 
 
 if __name__ == "__main__":

@@ -5,17 +5,18 @@ changes, with the plans held fixed.
         --experiment experiment1 --route A \\
         --variant lateral_accel_max=2.0 --variant constraint_weight=20
 
-Every trial of the cached experiments of run seeds ``0 … seeds-1`` (or ``--seed S``) that
-matches the filters (``--route``, ``--label``, ``--method``) is driven again from its
-recorded plan — the plan does not depend on the controller — once per ``--variant``
-(``FIELD=VALUE[,FIELD=VALUE]`` of :class:`dgt_lib.navigation.control.mppi_config.MPPIConfig`;
-several fields in one variant are changed together), with the trial's own seed, time limit
-and occupancy map, in a pool of ``--workers`` processes; ``--controller NAME`` adds a
-variant driven as the trials drive with ``experiments.controller=NAME`` (``terrain``: MPPI
-reads the method's own costmap). It prints, per variant and query label, how many arrived
-and how the others ended, beside the recorded outcomes, and which trials ended otherwise than
-recorded (named as ``replay_trial.py --mppi`` replays them); ``--check`` also drives the
-defaults again (none should end otherwise on the machine that recorded them).
+Every trial of the cached experiments of run seeds ``0 … N-1`` (``--seeds N``; or each
+``--seed S``) that matches the filters (``--route``, ``--label``, ``--method``) is driven
+again from its recorded plan — the plan does not depend on the controller — once per
+``--variant`` (``FIELD=VALUE[,FIELD=VALUE]`` of
+:class:`dgt_lib.navigation.control.mppi_config.MPPIConfig`; several fields in one variant
+are changed together), with the trial's own seed, time limit and occupancy map, in a pool
+of ``--workers`` processes; ``--controller NAME`` adds a variant driven as the trials drive
+with ``experiments.controller=NAME`` (``terrain``: MPPI reads the method's own costmap).
+It prints, per variant and query label, how many arrived and how the others ended, beside
+the recorded outcomes, and which trials ended otherwise than recorded (named as
+``replay_trial.py --mppi`` replays them); ``--check`` also drives the defaults again (none
+should end otherwise on the machine that recorded them).
 An exploration tool: the experiments keep the default settings.
 """
 
@@ -29,6 +30,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
 import numpy as np
+from runner import Study
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
@@ -83,11 +85,8 @@ def summary(rows: list[tuple[str, str, bool, float]]) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--profile", default="demo")
-    which = ap.add_mutually_exclusive_group()
-    which.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
-    which.add_argument("--seed", type=int, default=None, help="run seed S alone")
+    study = Study("controller_variants", __doc__, profile="demo", seeds=3, publishes=False)
+    ap = study.parser
     ap.add_argument("--experiment", default="experiment1")
     ap.add_argument("--route", default=None, help="only plans of this route, e.g. A")
     ap.add_argument("--label", default=None, help="only these queries, e.g. ascent")
@@ -98,10 +97,10 @@ def main() -> None:
                     help="a trials' controller by name (experiments.controller; repeatable)")
     ap.add_argument("--check", action="store_true", help="also drive the defaults again")
     ap.add_argument("--workers", type=int, default=2)
-    args = ap.parse_args()
+    args = study.parse()
 
     trials, names, profs = [], [], []  # names: as replay_trial.py's --seed/--method/--label/--index
-    seeds = range(args.seeds) if args.seed is None else [args.seed]
+    seeds = study.seeds
     for seed in seeds:
         prof = get_profile(args.profile).with_(seed=seed)
         path = data_dir(prof) / "experiments" / f"{args.experiment}.pkl"

@@ -16,10 +16,10 @@ ends as recorded (the script prints both). Prints how each drive ended.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
+from runner import Study
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
@@ -31,14 +31,15 @@ from dgt_lib.world.terrain import get_world
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    study = Study("drive_recorded_plans", __doc__, profile="smoke", per_seed=False,
+                  publishes=False)
+    ap = study.parser
     ap.add_argument("results", help="a cached experiment's .pkl (read only)")
-    ap.add_argument("--profile", default="smoke", help="whose world and maps to drive on")
     ap.add_argument("--index", type=int, action="append", required=True,
                     help="trial index in the results (repeatable)")
     ap.add_argument("--controller", action="append", choices=CONTROLLERS, default=None,
                     help="experiments.controller values to drive with (default: all)")
-    args = ap.parse_args()
+    args = study.parse()
     results = artifacts.load(args.results).results
     for i in args.index:
         rec, task = results[i], results[i].task

@@ -14,12 +14,11 @@ and training-world BEV (the dataset's own train/val/test split), then report
 Nothing of the profile is rebuilt: every cached artifact must be fresh, or the script stops
 (it never writes under ``data/<profile>/``). Results go to ``data/equivariant/``.
 
-    DGT_DATA_DIR=... python studies/eval_equivariant.py --profile demo --seeds 0 1 2
+    DGT_DATA_DIR=... python studies/eval_equivariant.py --profile demo --seeds 3
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import time
@@ -29,6 +28,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
+from runner import Study  # noqa: E402
 
 from dgt_lib.beyond import equivariant as eq  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
@@ -197,9 +197,8 @@ def report(records: list[dict]) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--profile", default="demo")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    study = Study("eval_equivariant", __doc__, profile="demo", seeds=1, publishes=False)
+    parser = study.parser
     parser.add_argument("--fields", type=int, default=8)
     parser.add_argument("--depth", type=int, default=4)
     parser.add_argument("--epochs", type=int, default=10)
@@ -208,22 +207,23 @@ def main() -> None:
     parser.add_argument("--tag", default="", help="suffix of the output files (variants)")
     parser.add_argument("--no-rgb", action="store_true", help="ablation: colour zeroed")
     parser.add_argument("--report", action="store_true",
-                        help="only print the tables of the saved results of --seeds")
-    run_seeds(parser.parse_args(), "equivariant", run_seed, report)
+                        help="only print the tables of the saved results of the run seeds")
+    args = study.parse()
+    run_seeds(args, study.seeds, "equivariant", run_seed, report)
 
 
-def run_seeds(args, subdir: str, run_seed, report) -> None:
+def run_seeds(args, seeds: list[int], subdir: str, run_seed, report) -> None:
     """The seeds loop of an evaluation script: ``--report`` prints ``report`` of the saved
-    records of ``--seeds``; otherwise each seed's ``run_seed(profile, args)`` record (with
-    the load average) is saved under ``data/<subdir>/`` (only reading the profile's cache)
-    and the report of all of them printed at the end."""
+    records of run seeds ``seeds``; otherwise each seed's ``run_seed(profile, args)`` record
+    (with the load average) is saved under ``data/<subdir>/`` (only reading the profile's
+    cache) and the report of all of them printed at the end."""
     out_dir = artifacts.data_root() / subdir
-    paths = [out_dir / f"results{args.tag}_{args.profile}_seed{s}.json" for s in args.seeds]
+    paths = [out_dir / f"results{args.tag}_{args.profile}_seed{s}.json" for s in seeds]
     if not args.report:
         artifacts.ensure = _load_only
         torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
         base = as_profile(args.profile)
-        for seed, path in zip(args.seeds, paths, strict=True):
+        for seed, path in zip(seeds, paths, strict=True):
             record = run_seed(base.with_(seed=seed), args)
             record["uptime"] = open("/proc/loadavg").read().split()[:3]
             path.write_text(json.dumps(record, indent=1))

@@ -11,9 +11,8 @@ BEV maps it needs (the survey of ``eval_hazard``, hill and ridge for τ_s); runs
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
+from runner import Study
 
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.vehicles import get_vehicle
@@ -27,10 +26,10 @@ from dgt_lib.world.terrain import ditch_count, ditch_cuts, get_world
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--profile", default="smoke")
-    ap.add_argument("--queries", type=int, default=20)
-    args = ap.parse_args()
+    study = Study("eval_hazard_occupancy", __doc__, profile="smoke", per_seed=False,
+                  publishes=False)
+    study.parser.add_argument("--queries", type=int, default=20)
+    args = study.parse()
     prof = get_profile(args.profile).with_overrides({"experiments.eval_hazard_world": True})
     world, base = get_world("eval_hazard", prof), get_world("eval", prof)
     maps = trial_maps("eval_hazard", "binary", "jeep", prof)

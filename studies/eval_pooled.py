@@ -15,12 +15,11 @@ poses, labels and train/val/test split); then report
 Nothing of the profile is rebuilt (it stops if an artifact is not cached fresh). Results go
 to ``data/pooled/``.
 
-    DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 0 1 2
+    DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import time
@@ -36,6 +35,7 @@ from eval_equivariant import (  # noqa: E402
     run_seeds,
     test_lines,
 )
+from runner import Study  # noqa: E402
 
 from dgt_lib.beyond import pooled  # noqa: E402
 from dgt_lib.beyond.dense import directional_costmap_dense  # noqa: E402
@@ -110,9 +110,8 @@ def report(records: list[dict]) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--profile", default="demo")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    study = Study("eval_pooled", __doc__, profile="demo", seeds=1, publishes=False)
+    parser = study.parser
     parser.add_argument("--width", type=int, default=32)
     parser.add_argument("--depth", type=int, default=6)
     parser.add_argument("--fc-hidden", type=int, default=64)
@@ -120,8 +119,9 @@ def main() -> None:
                         help="evaluate the networks a previous run saved, without training")
     parser.add_argument("--tag", default="", help="suffix of the output files (variants)")
     parser.add_argument("--report", action="store_true",
-                        help="only print the tables of the saved results of --seeds")
-    run_seeds(parser.parse_args(), "pooled", run_seed, report)
+                        help="only print the tables of the saved results of the run seeds")
+    args = study.parse()
+    run_seeds(args, study.seeds, "pooled", run_seed, report)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ its maximum over the heading layers.
 
 from __future__ import annotations
 
-import argparse
+from runner import Study
 
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.hazards import vehicle_hazards
@@ -19,15 +19,14 @@ from dgt_lib.world.terrain import get_world
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--profile", default="demo")
-    ap.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    study = Study("hazard_costs", __doc__, profile="demo", seeds=3, publishes=False)
+    ap = study.parser
     ap.add_argument("--vehicle", action="append", default=None,
                     help="Experiment 3's vehicles (default: jeep and vw_van)")
     ap.add_argument("--method", action="append", default=None,
                     help="default: dgt and single-task")
-    args = ap.parse_args()
-    for seed in range(args.seeds):
+    args = study.parse()
+    for seed in study.seeds:
         prof = get_profile(args.profile).with_(seed=seed)
         hazard_world, eval_world = get_world("eval_hazard", prof), get_world("eval", prof)
         for vehicle in args.vehicle or ["jeep", "vw_van"]:

@@ -13,9 +13,8 @@ costmap), the premise of the ``eval_hazard`` world (docs/worlds.md).
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
+from runner import Study
 
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.drive import drive_straight
@@ -79,9 +78,10 @@ def ditches(seeds: int) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=8)
-    args = ap.parse_args()
+    study = Study("jeep_features", __doc__, per_seed=False, publishes=False)
+    study.parser.add_argument("--seeds", type=int, default=8,
+                              help="ditches driven, one per seed (default 8)")
+    args = study.parse()
     crests()
     ditches(args.seeds)
 

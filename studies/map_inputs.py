@@ -2,9 +2,9 @@
 run seed, the multi-task model's accuracy against the measured ground truth and its plans
 in Experiments 1 and 2.
 
-    .venv/bin/python studies/map_inputs.py --profile demo --seeds 0 1 2 \\
+    .venv/bin/python studies/map_inputs.py --profile demo --seeds 3 \\
         --variants rgbd geometry rgb shuffled            # input attribution
-    .venv/bin/python studies/map_inputs.py --profile demo --seeds 0 1 2 \\
+    .venv/bin/python studies/map_inputs.py --profile demo --seeds 3 \\
         --variants rgbd pose_low pose_mid pose_high      # pose noise
 
 Variants (:data:`VARIANTS`, each a set of ``--set`` settings, fixed before any was run):
@@ -33,7 +33,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from runner import link, stored_or_run, write_scores
+from runner import Study, link, stored_or_run, write_scores
 
 from dgt_lib.stages.planned import PLANNED, planned_routes, planning_profile
 from dgt_lib.stages.planned import claim_share as _share
@@ -202,9 +202,8 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--profile", default="demo")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    study = Study("map_inputs", __doc__, profile="demo", seeds=3, publishes=False)
+    parser = study.parser
     parser.add_argument("--variants", nargs="+", default=["rgbd", "geometry", "rgb", "shuffled"],
                         choices=list(VARIANTS))
     parser.add_argument("--out", type=Path, default=None,
@@ -214,7 +213,7 @@ def main() -> None:
     parser.add_argument("--stored", action="store_true",
                         help="tables and figure from the scores already stored; compute nothing")
     parser.add_argument("--one", nargs=2, metavar=("VARIANT", "SEED"), help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = study.parse()
     from dgt_lib.core import artifacts
 
     base = artifacts.data_root()
@@ -224,11 +223,11 @@ def main() -> None:
         write_scores(out / "scores" / f"{args.one[0]}_seed{args.one[1]}.json", result)
         return
     if args.stored:
-        paths = [out / "scores" / f"{v}_seed{s}.json" for v in args.variants for s in args.seeds]
+        paths = [out / "scores" / f"{v}_seed{s}.json" for v in args.variants for s in study.seeds]
         scores = [json.loads(p.read_text()) for p in paths if p.exists()]
     else:
         scores = [run_one(v, args.profile, s, base, out) for v in args.variants
-                  for s in args.seeds]
+                  for s in study.seeds]
     print(tables(scores))
     figure(scores, args.figure or out / "map_inputs.png")
 

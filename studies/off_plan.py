@@ -5,13 +5,13 @@ trials' controller — where a terrain-aware controller should matter.
         --experiment experiment1 --experiment experiment2 --offset 2.5 --at 0.4
 
 For every recorded plan of ``--method`` (default DGT-Map) in the cached experiments of run
-seeds ``0 … seeds-1``, the vehicle starts at rest ``--offset`` metres to the left and to the
-right of the plan's pose at ``--at`` of its length, with the plan's heading there, and tracks
-the rest of the plan to the query's goal (a start on an occupied cell is skipped, and so is
-one where the vehicle would stand across terrain steeper than its static rollover angle, e.g.
-a cut bank beside a ramp). Each start is driven with every controller
-(``experiments.controller``; ``terrain`` reads the method's costmap) with the trial's seed,
-batch size and time-limit rule. Printed per controller:
+seeds ``0 … N-1`` (``--seeds N``; or each ``--seed S``), the vehicle starts at rest
+``--offset`` metres to the left and to the right of the plan's pose at ``--at`` of its
+length, with the plan's heading there, and tracks the rest of the plan to the query's goal
+(a start on an occupied cell is skipped, and so is one where the vehicle would stand across
+terrain steeper than its static rollover angle, e.g. a cut bank beside a ramp). Each start
+is driven with every controller (``experiments.controller``; ``terrain`` reads the method's
+costmap) with the trial's seed, batch size and time-limit rule. Printed per controller:
 arrivals, immobilized, flipped, and the mean cost of the driven path on the vehicle's DGT-Map
 costmap (:func:`dgt_lib.evaluation.driven_cost.driven_cost`), and the paired difference of
 the driven cost between controllers on the same starts; then every start that did not arrive
@@ -28,6 +28,7 @@ from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from runner import Study
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
@@ -112,11 +113,11 @@ def _drive(job: tuple) -> tuple[str, float, float, np.ndarray]:
             outcome.duration_s, traj[-1, 1:3])
 
 
-def starts(args: argparse.Namespace) -> list[tuple]:
-    """Every pushed start of the recorded plans: (experiment, profile, world, method, vehicle,
-    rest of the plan, goal, seed, start pose)."""
+def starts(args: argparse.Namespace, seeds: list[int]) -> list[tuple]:
+    """Every pushed start of the recorded plans of run seeds ``seeds``: (experiment, profile,
+    world, method, vehicle, rest of the plan, goal, seed, start pose)."""
     out, unstandable = [], Counter()
-    for seed in range(args.seeds):
+    for seed in seeds:
         prof = get_profile(args.profile).with_(seed=seed)
         for name in args.experiment:
             path = data_dir(prof) / "experiments" / f"{name}.pkl"
@@ -178,9 +179,8 @@ def report(controllers: list[str], out: dict[str, list[tuple]]) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--profile", default="demo")
-    ap.add_argument("--seeds", type=int, default=3, help="run seeds 0 … N-1")
+    study = Study("off_plan", __doc__, profile="demo", seeds=3, publishes=False)
+    ap = study.parser
     ap.add_argument("--experiment", action="append", default=None,
                     help="cached experiments whose plans to push off (default: 1 and 2)")
     ap.add_argument("--method", default="dgt")
@@ -188,17 +188,17 @@ def main() -> None:
     ap.add_argument("--at", type=float, default=0.4, help="where along the plan, 0–1")
     ap.add_argument("--controller", action="append", choices=CONTROLLERS, default=None)
     ap.add_argument("--workers", type=int, default=2)
-    args = ap.parse_args()
+    args = study.parse()
     if not 0.0 <= args.at < 1.0:
         ap.error(f"--at must be in [0, 1), got {args.at}")
     args.experiment = args.experiment or ["experiment1", "experiment2"]
     controllers = args.controller or list(CONTROLLERS)
-    found = starts(args)
+    found = starts(args, study.seeds)
     experiment_of = [job[0] for job in found]
     jobs = [job[1:] for job in found]
     print(f"{len(jobs)} starts {args.offset} m beside {args.method}'s plans at {args.at:.0%} "
           f"of their length ({', '.join(args.experiment)}; {args.profile} seeds "
-          f"0–{args.seeds - 1})")
+          f"{', '.join(map(str, study.seeds))})")
     out = {}
     ctx = multiprocessing.get_context("fork")
     with ProcessPoolExecutor(args.workers, mp_context=ctx, initializer=limit_threads) as pool:

@@ -32,6 +32,7 @@ from contextlib import contextmanager, nullcontext
 from dataclasses import replace
 
 import numpy as np
+from runner import Study
 
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.controller import CONTROLLERS
@@ -94,9 +95,8 @@ def watching_sampled_costs(fast_mps: float) -> Iterator[Callable[[], str]]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--profile", default="demo")
-    ap.add_argument("--seed", type=int, default=0, help="run seed of the cached experiment")
+    study = Study("replay_trial", __doc__, profile="demo", seeds=1, publishes=False)
+    ap = study.parser
     ap.add_argument("--experiment", default="experiment1")
     ap.add_argument("--method", default="dgt")
     ap.add_argument("--label", default=None, help="query label, e.g. ascent (default: any)")
@@ -116,12 +116,15 @@ def main() -> None:
                     help="also print what MPPI's sampled sequences cost (see above)")
     ap.add_argument("--fast-mps", type=float, default=1.5,
                     help="--critics: a sequence is fast from this mean speed [m/s]")
-    args = ap.parse_args()
+    args = study.parse()
+    if len(study.seeds) != 1:
+        ap.error("one trial is replayed: give the run seed of its experiment as --seed S")
+    seed = study.seeds[0]
 
     overrides: dict[str, object] = {"experiments.controller": args.controller}
     if args.hazard:
         overrides["experiments.eval_hazard_world"] = True
-    prof = get_profile(args.profile).with_(seed=args.seed).with_overrides(overrides)
+    prof = get_profile(args.profile).with_(seed=seed).with_overrides(overrides)
     path = experiment_path(args.experiment, prof)
     result = stored_experiment(args.experiment, prof)
     if result is None:
@@ -136,7 +139,7 @@ def main() -> None:
         raise SystemExit(f"--index must be in 0..{len(trials) - 1}")
     rec = trials[args.index]
     task = rec.task
-    print(f"{args.experiment} seed {args.seed}: {task.method} {task.vehicle} "
+    print(f"{args.experiment} seed {seed}: {task.method} {task.vehicle} "
           f"{task.query.label} #{args.index} (route {rec.route or '-'}), recorded: "
           f"{rec.outcome.reason} after {rec.outcome.duration_s:.1f} s at "
           f"({rec.trajectory[-1, 1]:.1f}, {rec.trajectory[-1, 2]:.1f}) m")

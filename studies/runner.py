@@ -30,15 +30,19 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dgt_lib.core.artifacts import DATA_ENV_VAR
-from dgt_lib.core.config import PROFILE_NAMES
+from dgt_lib.core.config import PROFILE_NAMES, get_profile
 from dgt_lib.records.study import publish_study, render_table, study_record
 
 
 class Study:
     """One study script's command line and its record."""
 
-    def __init__(self, name: str, doc: str | None, *, profile: str = "demo", seeds: int = 3,
-                 per_seed: bool = True, several_profiles: bool = False) -> None:
+    def __init__(self, name: str, doc: str | None, *, profile: str = "demo",
+                 seeds: int | None = 3, per_seed: bool = True, several_profiles: bool = False,
+                 publishes: bool = True) -> None:
+        """``seeds``: how many run seeds by default (None: the profile's own count, as
+        ``dgt reproduce``); ``per_seed=False``: no run seeds to choose; ``publishes=False``:
+        the study only prints, and has no ``--publish``."""
         self.name = name
         self.several_profiles = several_profiles
         self.parser = argparse.ArgumentParser(
@@ -51,15 +55,17 @@ class Study:
             self.parser.add_argument("--profile", default=profile, choices=PROFILE_NAMES)
         if per_seed:
             which = self.parser.add_mutually_exclusive_group()
-            which.add_argument("--seeds", type=int, default=seeds,
-                               help=f"run seeds 0 … N-1 (default {seeds})")
+            count = "the profile's count" if seeds is None else seeds
+            which.add_argument("--seeds", type=int, default=seeds, metavar="N",
+                               help=f"run seeds 0 … N-1 (default {count})")
             which.add_argument("--seed", type=int, action="append", default=None,
-                               help="these run seeds instead (repeatable)")
+                               metavar="S", help="these run seeds instead (repeatable)")
         self.parser.add_argument("--data-dir", type=Path, default=None,
                                  help=f"the artifact cache to read (default ${DATA_ENV_VAR} "
                                       "or data/)")
-        self.parser.add_argument("--publish", action="store_true",
-                                 help="also write the study's record to docs/runs/studies/")
+        if publishes:
+            self.parser.add_argument("--publish", action="store_true",
+                                     help="also write the study's record to docs/runs/studies/")
         self.args: argparse.Namespace | None = None
 
     def parse(self, argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -78,7 +84,8 @@ class Study:
         a = self.args
         if getattr(a, "seed", None):
             return list(a.seed)
-        return list(range(getattr(a, "seeds", 1)))
+        count = getattr(a, "seeds", 1)
+        return list(range(get_profile(a.profile).seeds if count is None else count))
 
     def finish(self, tables: dict[str, dict], lists: dict[str, list[str]] | None = None,
                seeds: Sequence[int] | None = None, variant: str = "") -> dict:
@@ -93,7 +100,7 @@ class Study:
             print(render_table(tab))
         for name, lines in (lists or {}).items():
             print(f"{name}:\n" + "\n".join(f"- {line}" for line in lines or ["none"]) + "\n")
-        if self.args.publish:
+        if getattr(self.args, "publish", False):
             path = publish_study(record)
             print(f"published {path}: quote its tables with <!-- generated: "
                   f"study:{path.stem}/<table> --> blocks and run `make docs`")

@@ -4,8 +4,8 @@ fraction f of that vehicle's training runs is kept (whole runs; every other vehi
 its data), the multi-task model and that vehicle's single-task model are trained with the
 profile's recipe, and both are scored against the measured ground truth.
 
-    .venv/bin/python studies/scarcity.py --profile demo --seeds 0 1 2
-    .venv/bin/python studies/scarcity.py --profile demo --seeds 0 1 2 --closed-loop
+    .venv/bin/python studies/scarcity.py --profile demo --seeds 3
+    .venv/bin/python studies/scarcity.py --profile demo --seeds 3 --closed-loop
 
 Per (vehicle, f, run seed) the pair of models is trained in its own data directory
 ``<out>/<vehicle>_f<f>/`` (f = 1 is the profile's own run, ``$DGT_DATA_DIR`` or ``data/``),
@@ -30,7 +30,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from runner import link, stored_or_run, write_scores
+from runner import Study, link, stored_or_run, write_scores
 
 STUDIED = ("vw_van", "carla_cola")
 FRACTIONS = (1.0, 0.3, 0.1, 0.03)
@@ -302,9 +302,8 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--profile", default="demo")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    study = Study("scarcity", __doc__, profile="demo", seeds=3, publishes=False)
+    parser = study.parser
     parser.add_argument("--vehicles", nargs="+", default=list(STUDIED), choices=STUDIED)
     parser.add_argument("--fractions", type=float, nargs="+", default=list(FRACTIONS))
     parser.add_argument("--closed-loop", action="store_true",
@@ -318,7 +317,7 @@ def main() -> None:
                         help="tables and figure from the scores already stored; compute nothing")
     parser.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     parser.add_argument("--loop", nargs=3, help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = study.parse()
     from dgt_lib.core import artifacts
 
     base = artifacts.data_root()
@@ -330,7 +329,7 @@ def main() -> None:
             write_scores(out / "scores" / f"{variant(v, f)}_seed{seed}{suffix}.json",
                          work(v, f, args.profile, seed))
             return
-    runs = [(v, f, s) for v in args.vehicles for f in args.fractions for s in args.seeds]
+    runs = [(v, f, s) for v in args.vehicles for f in args.fractions for s in study.seeds]
     if args.stored:
         paths = [out / "scores" / f"{variant(v, f)}_seed{s}.json" for v, f, s in runs]
         scores = [json.loads(p.read_text()) for p in paths if p.exists()]
@@ -341,7 +340,8 @@ def main() -> None:
         if args.closed_loop:
             for v in args.vehicles:
                 f = most_different(scores, v)
-                loops += [closed_loop(v, f, args.profile, s, base, out) for s in args.seeds]
+                loops += [closed_loop(v, f, args.profile, s, base, out)
+                          for s in study.seeds]
     print(tables(scores, loops))
     figure(scores, args.figure or out / "scarcity.png")
 

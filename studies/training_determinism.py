@@ -25,6 +25,8 @@ import subprocess
 import sys
 import time
 
+from runner import Study
+
 
 class _Stop(Exception):
     """Raised from the batch callback to end training after ``--steps`` steps."""
@@ -79,24 +81,26 @@ def _first_difference(a: list[float], b: list[float]) -> int | None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--profile", default="demo")
-    parser.add_argument("--seed", type=int, default=0, help="run seed (its cached dataset)")
+    study = Study("training_determinism", __doc__, profile="demo", seeds=1, publishes=False)
+    parser = study.parser
     parser.add_argument("--kind", default="multitask", help="multitask or single:<vehicle>")
     parser.add_argument("--processes", type=int, default=4)
     parser.add_argument("--steps", type=int, default=None,
                         help="stop each process after this many steps (default: the epoch)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = study.parse()
+    if len(study.seeds) != 1:
+        parser.error("one run seed (its cached dataset): --seed S")
+    seed = study.seeds[0]
     if args.child:
-        child(args.profile, args.seed, args.kind, args.steps)
+        child(args.profile, seed, args.kind, args.steps)
         return
-    print(f"{args.profile} seed {args.seed}, {args.kind}, first epoch"
+    print(f"{args.profile} seed {seed}, {args.kind}, first epoch"
           + (f" (first {args.steps} steps)" if args.steps else "")
           + f", {args.processes} fresh processes one after another; "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at the start\n")
     command = [sys.executable, __file__, "--child", "--profile", args.profile,
-               "--seed", str(args.seed), "--kind", args.kind]
+               "--seed", str(seed), "--kind", args.kind]
     if args.steps:
         command += ["--steps", str(args.steps)]
     runs = []

@@ -1,13 +1,13 @@
 """Which training recipe gives models whose conclusions hold in every seed? Per recipe:
 
     .venv/bin/python studies/training_recipes.py --profile demo --train-seeds 0 100
-    .venv/bin/python studies/training_recipes.py --profile paper --run-seeds 0 \
+    .venv/bin/python studies/training_recipes.py --profile paper --seed 0 \\
         --recipes cosine-last --epochs 8          # a shorter paper training budget
 
-For every run seed of the profile (its cached dataset, BEV maps, τ_s and ground truth — run
-``dgt reproduce`` first) and every training seed, trains the multi-task model and the four
-single-task models with each recipe (a few ``TrainConfig`` fields changed from the
-profile's), then, without the closed loop:
+For every run seed (``--seeds N``: 0 … N-1, by default the profile's; or each ``--seed S``)
+— its cached dataset, BEV maps, τ_s and ground truth: run ``dgt reproduce`` first — and every
+training seed, trains the multi-task model and the four single-task models with each recipe
+(a few ``TrainConfig`` fields changed from the profile's), then, without the closed loop:
 
 1. collapse: each head's std(L̂) / std(L) on the test split (flagged below 0.1);
 2. Experiment 1 and 2 plans: Hybrid A* on the DGT and single-task costmaps of the hill
@@ -23,12 +23,12 @@ written to the cache; the tables go to stdout (and ``--out`` as JSON).
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from collections import Counter
 
 import numpy as np
+from runner import Study
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, get_profile
@@ -148,25 +148,22 @@ def _summary_line(name: str, seed: int, t: int, r: dict) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--profile", default="demo")
+    study = Study("training_recipes", __doc__, profile="demo", seeds=None, publishes=False)
+    parser = study.parser
     parser.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     parser.add_argument("--train-seeds", nargs="+", type=int, default=[0],
                         help="offsets added to the run seed for weights and batch order")
-    parser.add_argument("--run-seeds", nargs="+", type=int, default=None,
-                        help="run seeds to measure (default: the profile's)")
     parser.add_argument("--queries", type=int, default=12)
     parser.add_argument("--epochs", type=int, default=None,
                         help="epochs of every recipe (default: the profile's)")
     parser.add_argument("--width", type=int, default=None,
                         help="network width of every recipe (default: the profile's)")
     parser.add_argument("--out", default=None, help="JSON file for every measurement")
-    args = parser.parse_args()
+    args = study.parse()
     prof = get_profile(args.profile)
     truths = ensure_ground_truths(None, prof, progress=False)
     results = []
-    runs = [r for r in prof.seed_profiles()
-            if args.run_seeds is None or r.seed in args.run_seeds]
+    runs = [prof.with_(seed=seed) for seed in study.seeds]
     for run in runs:
         for t in args.train_seeds:
             for name in args.recipes:

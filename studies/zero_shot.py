@@ -2,9 +2,9 @@
 vehicle-conditioned network's training in turn, its costmap predicted from its spec alone
 and scored against its measured ground truth, per run seed.
 
-    .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2
-    .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2 --stored
-    .venv/bin/python studies/zero_shot.py --profile demo --seeds 0 1 2 --generated 8
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 3
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 3 --stored
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 3 --generated 8
 
 Per (seed, left-out vehicle) it builds through the cache (the profile's data directory,
 ``$DGT_DATA_DIR`` or ``data/``: the same collection, dataset, multi-task model and ground
@@ -24,11 +24,11 @@ done, so an interrupted run resumes; then it prints the tables over seeds and dr
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 import numpy as np
+from runner import Study
 
 from dgt_lib.core.config import VEHICLES
 from dgt_lib.stages.planned import CLAIMS, claim_share
@@ -187,9 +187,8 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--profile", default="demo")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    study = Study("zero_shot", __doc__, profile="demo", seeds=3, publishes=False)
+    parser = study.parser
     parser.add_argument("--vehicles", nargs="+", default=list(VEHICLES), choices=VEHICLES,
                         help="the vehicles to leave out, each in turn (default: all four)")
     parser.add_argument("--out", type=Path, default=None,
@@ -200,18 +199,18 @@ def main() -> None:
     parser.add_argument("--generated", type=int, default=0, metavar="N",
                         help="generated training vehicles for the conditioned networks "
                              "(conditioned.generated_vehicles; default 0: the named only)")
-    args = parser.parse_args()
+    args = study.parse()
     from dgt_lib.core import artifacts
 
     out = (args.out or artifacts.data_root() / "studies" / "zero_shot").resolve()
     if args.stored:
-        paths = [score_path(out, s, v, args.generated) for s in args.seeds
+        paths = [score_path(out, s, v, args.generated) for s in study.seeds
                  for v in args.vehicles]
         scores = [json.loads(p.read_text()) for p in paths if p.exists()]
         if not scores:
             raise SystemExit(f"no stored scores under {out / 'scores'}")
     else:
-        scores = [run_one(args.profile, s, v, out, args.generated) for s in args.seeds
+        scores = [run_one(args.profile, s, v, out, args.generated) for s in study.seeds
                   for v in args.vehicles]
     print(generated_line(scores))
     print(mae_table(scores))

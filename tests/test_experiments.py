@@ -88,13 +88,22 @@ def test_a_vehicle_started_beside_its_plan_rejoins_it_and_arrives():
     assert abs(traj[-1, 2] - 20.0) < 1.0  # back on the line by the goal
 
 
-def test_off_plan_reports_the_terrain_under_a_start_and_leaves_out_starts_across_a_bank():
+def _study(name: str, monkeypatch):
+    """``studies/<name>.py`` loaded as a module (with ``studies/`` on the path, as when the
+    script runs: it imports ``runner``)."""
+    studies = Path(__file__).resolve().parent.parent / "studies"
+    monkeypatch.syspath_prepend(str(studies))
+    spec = importlib.util.spec_from_file_location(name, studies / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_off_plan_reports_the_terrain_under_a_start_and_leaves_out_starts_across_a_bank(
+        monkeypatch):
     # studies/off_plan.py's failure list: on a plane rising 0.2 m per m to the east, a start
     # facing east is on a +11.3° grade, one facing north has its left (west) side low
-    spec = importlib.util.spec_from_file_location(
-        "off_plan", Path(__file__).resolve().parent.parent / "studies" / "off_plan.py")
-    off_plan = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(off_plan)
+    off_plan = _study("off_plan", monkeypatch)
     x = np.arange(200) * 0.4
     world = from_heightmap(np.tile(0.2 * x, (100, 1)).astype(np.float32), 0.4, name="tilted")
     x0, x1, y0, y1 = world.extent
@@ -137,15 +146,12 @@ def test_watching_a_trials_commands_does_not_change_the_trial():
     assert steer[:20].mean() > 0.05  # the left turn is steered left (positive)
 
 
-def test_watching_mppis_sampled_costs_does_not_change_the_trial():
+def test_watching_mppis_sampled_costs_does_not_change_the_trial(monkeypatch):
     """`studies/replay_trial.py --critics` reports, per MPPI call, how many sampled
     sequences collide: beside a wall some do, the shares are percentages, the cheapest
     sequence's speed is within the controller's range, the trial is driven the same to the
     bit as without watching, and the controller is itself again afterwards."""
-    spec = importlib.util.spec_from_file_location(
-        "replay_trial", Path(__file__).resolve().parent.parent / "studies" / "replay_trial.py")
-    replay = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(replay)
+    replay = _study("replay_trial", monkeypatch)
     world = from_heightmap(np.zeros((100, 200), np.float32), 0.4, name="flat")  # 80 m × 40 m
     occupancy = np.zeros(world.grid.shape, np.uint8)
     rows = slice(*(int((y - world.grid.origin_xy[1]) / 0.4) for y in (22.0, 25.0)))

@@ -173,7 +173,7 @@ def test_the_study_says_how_many_generated_vehicles_it_used(tmp_path):
     (tmp_path / "scores" / "seed0_without_carla_cola_gen8.json").write_text(json.dumps(
         {"vehicle": "carla_cola", "seed": 0, "nearest": "mercedes_van", "rows": rows,
          "generated": 8, "generated_used": 6, "plans": {}}))
-    run = [sys.executable, str(root / "studies" / "zero_shot.py"), "--seeds", "0",
+    run = [sys.executable, str(root / "studies" / "zero_shot.py"), "--seed", "0",
            "--vehicles", "carla_cola", "--out", str(tmp_path), "--stored"]
     env = {**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"}
     done = subprocess.run(run + ["--generated", "8"], capture_output=True, text=True,

@@ -92,3 +92,23 @@ def test_the_study_runner_reads_seeds_and_data_dir_and_publishes(tmp_path, monke
     default.parse([])
     assert default.seeds == [0, 1, 2] and not default.args.publish
     sys.modules.pop("runner", None)
+
+
+def test_a_study_that_only_prints_has_no_publish_and_may_take_the_profile_s_seeds(
+        monkeypatch, capsys):
+    monkeypatch.syspath_prepend(str(ROOT / "studies"))
+    from runner import Study
+
+    from dgt_lib.core.config import get_profile
+
+    quiet = Study("toy", None, profile="smoke", seeds=None, publishes=False)
+    quiet.parse([])
+    assert quiet.seeds == list(range(get_profile("smoke").seeds))
+    quiet.parse(["--profile", "demo"])
+    assert quiet.seeds == list(range(get_profile("demo").seeds))
+    quiet.parse(["--seeds", "2"])
+    assert quiet.seeds == [0, 1]
+    with pytest.raises(SystemExit):
+        quiet.parse(["--publish"])
+    assert "unrecognized arguments: --publish" in capsys.readouterr().err
+    sys.modules.pop("runner", None)

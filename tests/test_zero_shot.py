@@ -71,7 +71,7 @@ def test_the_study_prints_its_tables_and_figure_from_stored_scores(tmp_path):
              "patches": patches, "plans": {"experiment1": routes}}))
     done = subprocess.run(
         [sys.executable, str(root / "studies" / "zero_shot.py"), "--profile", "smoke",
-         "--seeds", "0", "1", "--out", str(tmp_path), "--stored"],
+         "--seeds", "2", "--out", str(tmp_path), "--stored"],
         capture_output=True, text=True, cwd=root, timeout=300,
         env={**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"})
     assert done.returncode == 0, done.stderr
