@@ -73,6 +73,25 @@ def test_publish_copies_every_seed_with_its_stage_times(tmp_path, monkeypatch):
     assert all(len(p.read_bytes()) <= MAX_RECORD_BYTES for p in folder.glob("seed-*.json"))
 
 
+def test_publish_refuses_a_record_written_by_a_run_with_changed_settings(tmp_path,
+                                                                          monkeypatch):
+    """A record that an older kit wrote for a variant run where the seed's own goes is
+    never published as the profile's run."""
+    import json
+
+    from dgt_lib.stages.paths import results_dir
+
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    prof = get_profile("smoke").with_(seeds=1)
+    path = write_seed_record([_experiment3()], prof.seed_profiles()[0])
+    record = json.loads(path.read_text())
+    assert path.parent == results_dir(prof.seed_profiles()[0])
+    path.write_text(json.dumps({**record, "overrides": {"experiments.controller": "robust"}}))
+    with pytest.raises(ValueError, match="changed settings"):
+        publish(prof, dest=tmp_path / "runs")
+    assert not (tmp_path / "runs").exists()
+
+
 def test_a_run_of_two_processors_is_refused():
     other = {**PROC, "model": "Other CPU"}
     with pytest.raises(ValueError, match="several processors"):

@@ -55,6 +55,11 @@ def publish(profile: Profile | str, dest: Path = RUNS) -> Path:
     a new run folder under ``dest``; returns the folder."""
     prof = as_profile(profile)
     records = seed_summaries(prof, require_all=True)
+    changed = [r["seed"] for r in records if r.get("overrides")]
+    if changed:
+        raise ValueError(f"seed(s) {changed} hold a run with changed settings: rerun "
+                         f"`dgt reproduce --profile {prof.name} --seed S --stages experiments`"
+                         " to write the profile's own record first")
     folder = dest / run_name(records)
     folder.mkdir(parents=True, exist_ok=True)
     for record in records:
