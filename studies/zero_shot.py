@@ -10,7 +10,7 @@ Per (seed, left-out vehicle) it builds through the cache (the profile's data dir
 ``$DGT_DATA_DIR`` or ``data/``: the same collection, dataset, multi-task model and ground
 truth as ``dgt reproduce``) the conditioned model trained without the vehicle, and scores
 on every world whose experiments use the vehicle the maps of
-:data:`dgt_lib.stages.zero_shot.ZERO_SHOT_METHODS`: zero-shot, its own multi-task head, the
+:data:`zero_shot_scores.ZERO_SHOT_METHODS`: zero-shot, its own multi-task head, the
 nearest seen vehicle's head (multi-task, and conditioned), Slope-Based from its climb; the
 same predictors on the vehicle's test patches.
 Where the vehicle is Experiment 1's (carla_cola, hill) or 2's (mercedes_van, ridge) every
@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 from runner import Study
+from zero_shot_scores import ZERO_SHOT_METHODS
 
 from dgt_lib.core.config import VEHICLES
 from dgt_lib.stages.planned import CLAIMS, claim_share
-from dgt_lib.stages.zero_shot import ZERO_SHOT_METHODS
 
 
 def suffix(generated: int) -> str:
@@ -49,8 +49,9 @@ def run_one(profile: str, seed: int, vehicle: str, out: Path, generated: int = 0
     path = score_path(out, seed, vehicle, generated)
     if path.exists():
         return json.loads(path.read_text())
+    from zero_shot_scores import zero_shot_scores
+
     from dgt_lib.core.config import get_profile
-    from dgt_lib.stages.zero_shot import zero_shot_scores
 
     print(f"[zero_shot] seed {seed}, {vehicle} left out, {generated} generated vehicles",
           flush=True)
