@@ -139,10 +139,12 @@ def write_window(path: str | Path, dem: SampleDem, row: int, col: int,
     return path
 
 
-UPHILL = ((60.0, 300.0, -np.pi / 2), (180.0, 25.0))
+UPHILL = ((60.0, 300.0, -1.5708), (180.0, 25.0))
 """carla_cola's query up the window: from the valley floor (x, y [m] from the map's
-south-west corner, heading south) to the hillside's upper slope; the downhill query is
-its reverse."""
+south-west corner, heading south, yaw [rad] as the README's ``dgt plan --start`` gives it)
+to the hillside's upper slope."""
+DOWNHILL = ((180.0, 25.0, 1.5708), (60.0, 300.0))
+"""The way back down: from the upper slope, heading north, to the valley floor."""
 
 PLAN_SETTINGS = {"planner.max_time_s": 120.0, "planner.max_expansions": 2_000_000}
 """The plans' changes to the profile (``dgt plan --set planner.max_time_s=120 --set
@@ -154,17 +156,16 @@ map too."""
 
 def plan_both_ways(world_path: Path, profile: str, vehicle: str = "carla_cola",
                    method: str = "dgt", drive: bool = False) -> list:
-    """``dgt plan``'s engine on the window, up (:data:`UPHILL`) and back down, under
+    """``dgt plan``'s engine on the window, up (:data:`UPHILL`) and back down
+    (:data:`DOWNHILL`), under
     :data:`PLAN_SETTINGS` (``drive``: each found plan driven as ``dgt plan --drive``
     drives it): two :class:`~dgt_lib.plan_one.QueryReport`."""
     from dgt_lib.core.config import get_profile
     from dgt_lib.plan_one import plan_query
 
     prof = get_profile(profile).with_overrides(PLAN_SETTINGS)
-    (sx, sy, yaw), (gx, gy) = UPHILL
     return [plan_query(str(world_path), vehicle, start, goal, method=method, profile=prof,
-                       drive=drive)
-            for start, goal in [((sx, sy, yaw), (gx, gy)), ((gx, gy, yaw + np.pi), (sx, sy))]]
+                       drive=drive) for start, goal in (UPHILL, DOWNHILL)]
 
 
 def plans_table(reports: list) -> dict:
