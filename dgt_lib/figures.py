@@ -183,9 +183,9 @@ FIGURES: dict[str, Callable[[Profile], object]] = {
 
 
 OTHER_FIGURES: dict[str, str] = {
-    "jacksboro_plans.png": "`python examples/real_dem.py --figure docs/figures/jacksboro_plans.png`"
-                           " (`smoke`): carla_cola's plans up and down a real DEM, the Jacksboro "
-                           "fault window (docs/usage.md).",
+    "jacksboro_plans.png": "`python examples/real_dem.py --figure docs/figures/jacksboro_plans.png "
+                           "--drive --publish` (`demo`): carla_cola's plans up and down a real "
+                           "DEM, the Jacksboro fault window (docs/usage.md).",
     "map_inputs.png": "`python studies/map_inputs.py --profile demo --seeds 3 --variants rgbd "
                       "shuffled geometry rgb --figure docs/figures/map_inputs.png`: what the "
                       "network looks at (docs/map_inputs.md).",
