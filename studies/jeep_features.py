@@ -8,7 +8,9 @@ costmap), the premise of the ``eval_hazard`` world (docs/worlds.md).
 
 "Crossed" = the vehicle ends more than 3 m past the feature's line; else it was stopped.
 
-    .venv/bin/python studies/jeep_features.py [--seeds N]
+    .venv/bin/python studies/jeep_features.py [--seeds N] [--publish]
+
+``--publish`` writes the record whose tables docs/worlds.md quotes.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from runner import Study
 
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.drive import drive_straight
+from dgt_lib.records.study import table
 from dgt_lib.world.simulator import Simulator
 from dgt_lib.world.terrain import add_ditches, ditch_cuts, ditch_parameters
 from dgt_lib.world.worlds import World, from_heightmap
@@ -44,8 +47,10 @@ def stopped(past_m: float, speed: float) -> bool:
     return past_m < 3.0
 
 
-def crests() -> None:
+def crests() -> dict:
+    """A 1.5 m crest with each flank angle driven across at 2 and 5 m/s."""
     x = (np.arange(150) + 0.5) * 0.4
+    rows = []
     for flank in (24.0, 30.0, 35.0, 40.0):
         h = np.clip(1.5 - np.abs(x - 30.0) * np.tan(np.radians(flank)), 0.0, None)
         world = from_heightmap(np.tile(h, (60, 1)), 0.4, name="crest")
@@ -55,9 +60,14 @@ def crests() -> None:
                f"{r[1]:.2f} m/s)" for s, r in runs.items()]
         print(f"crest, flanks {flank:.0f}° (crest {relief:.2f} × clearance above the axle "
               f"chord): " + ", ".join(out))
+        rows.append([f"{flank:.0f}°", f"{relief:.2f}", *out])
+    return table("A 1.5 m crest driven straight across (end: metres past the crest line, "
+                 "speed)", ["flanks", "crest above the axle chord [× clearance]", "at 2 m/s",
+                            "at 5 m/s"], rows)
 
 
-def ditches(seeds: int) -> None:
+def ditches(seeds: int) -> dict:
+    """The ditches of ``add_ditches``, one a seed, driven at 5 m/s from both sides."""
     flat = from_heightmap(np.zeros((250, 250)), 0.4, name="flat")
     par = ditch_parameters("jeep")
     print(f"ditches: flanks {par['flank_deg'][0]:.1f}–{par['flank_deg'][1]:.1f}°, depth "
@@ -75,15 +85,20 @@ def ditches(seeds: int) -> None:
             counts[off].append(stopped(*crossing(world, centre, a, 5.0)))
     for off, runs in counts.items():
         print(f"  {off:2d}° off perpendicular: stopped {sum(runs)} of {len(runs)}")
+    return table(f"The ditches of add_ditches ({seeds} drawn; flanks {par['flank_deg'][0]:.1f}–"
+                 f"{par['flank_deg'][1]:.1f}°, depth {par['depth_m'][0]:.2f}–"
+                 f"{par['depth_m'][1]:.2f} m) driven at 5 m/s from both sides",
+                 ["direction", "stopped"],
+                 [[f"{off}° off perpendicular", f"{sum(runs)} of {len(runs)}"]
+                  for off, runs in counts.items()])
 
 
 def main() -> None:
-    study = Study("jeep_features", __doc__, per_seed=False, publishes=False)
+    study = Study("jeep_features", __doc__, per_seed=False)
     study.parser.add_argument("--seeds", type=int, default=8,
                               help="ditches driven, one per seed (default 8)")
     args = study.parse()
-    crests()
-    ditches(args.seeds)
+    study.finish({"crests": crests(), "ditches": ditches(args.seeds)}, seeds=[])
 
 
 if __name__ == "__main__":
