@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -225,6 +226,10 @@ def main() -> None:
     if args.stored:
         paths = [out / "scores" / f"{v}_seed{s}.json" for v in args.variants for s in study.seeds]
         scores = [json.loads(p.read_text()) for p in paths if p.exists()]
+        if not scores:
+            print(f"no stored scores under {out / 'scores'} for these seeds: run without "
+                  "--stored first", file=sys.stderr)
+            raise SystemExit(2)
     else:
         scores = [run_one(v, args.profile, s, base, out) for v in args.variants
                   for s in study.seeds]

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -334,6 +335,10 @@ def main() -> None:
         paths = [out / "scores" / f"{variant(v, f)}_seed{s}.json" for v, f, s in runs]
         scores = [json.loads(p.read_text()) for p in paths if p.exists()]
         loops = [json.loads(p.read_text()) for p in sorted(out.glob("scores/*_closed_loop.json"))]
+        if not scores:
+            print(f"no stored scores under {out / 'scores'} for these seeds: run without "
+                  "--stored first", file=sys.stderr)
+            raise SystemExit(2)
     else:
         scores = thinned_scores(runs, args.profile, base, out)
         loops = []
