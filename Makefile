@@ -46,7 +46,7 @@ test: $(STAMP)
 # The README's figures (docs/figures/*.png) from the demo run's seed 0: its cached
 # artifacts are read, missing ones built as `make reproduce` would.
 figures: $(STAMP)
-	MUJOCO_GL=egl $(PY) -m dgt_lib.figures --profile demo
+	MUJOCO_GL=egl $(PY) -m dgt_lib.app.figures --profile demo
 
 # Every generated block of README.md and docs/ from the run records in docs/runs/ (the runs
 # named in docs/runs/cited.json). Publish a run first: python -m dgt_lib.records publish.

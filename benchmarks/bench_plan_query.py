@@ -8,7 +8,7 @@
 The README's first query (``--world hill --vehicle carla_cola --start 30,14,0.8 --goal 30,96
 --method dgt``) is planned once to fill the cache (BEV maps, model, costmaps), then
 ``--repeats`` times in fresh processes, as a user runs it: wall time of each (median
-printed), and of ``import dgt_lib.plan_one`` alone (``-X importtime``'s total), and the
+printed), and of ``import dgt_lib.app.plan_one`` alone (``-X importtime``'s total), and the
 planner's own time as the command printed it; then the same query ``--repeats`` times
 through ``dgt_lib.plan_query`` in this process, as a notebook calls it (imports paid
 once). The commands run outside any checkout (in the temporary directory) with
@@ -40,9 +40,9 @@ def timed(cmd: list[str]) -> tuple[float, str]:
 
 
 def import_seconds() -> float:
-    """``import dgt_lib.plan_one`` in a fresh process, from ``-X importtime`` [s]."""
-    _, log = timed([sys.executable, "-X", "importtime", "-c", "import dgt_lib.plan_one"])
-    row = [line for line in log.splitlines() if line.rstrip().endswith("| dgt_lib.plan_one")]
+    """``import dgt_lib.app.plan_one`` in a fresh process, from ``-X importtime`` [s]."""
+    _, log = timed([sys.executable, "-X", "importtime", "-c", "import dgt_lib.app.plan_one"])
+    row = [line for line in log.splitlines() if line.rstrip().endswith("| dgt_lib.app.plan_one")]
     return int(row[-1].split("|")[1]) / 1e6
 
 
@@ -65,9 +65,9 @@ def main() -> None:
         imports.append(import_seconds())
     print(f"dgt plan, whole command: median {statistics.median(walls):.2f} s "
           f"(runs {', '.join(f'{w:.2f}' for w in walls)})")
-    print(f"  import dgt_lib.plan_one: median {statistics.median(imports):.2f} s; "
+    print(f"  import dgt_lib.app.plan_one: median {statistics.median(imports):.2f} s; "
           f"Hybrid A* search: median {statistics.median(searches):.2f} s")
-    from dgt_lib.plan_one import plan_query
+    from dgt_lib.app.plan_one import plan_query
 
     start, goal = (30.0, 14.0, 0.8), (30.0, 96.0)
     calls = []

@@ -14,11 +14,11 @@ The sub-packages read as the paper's pipeline; each imports only those before it
 ``stages``      every ``ensure_*``: the only code that touches the cache
 ==============  ===========================================================
 
-and on top ``viz`` (figures, one module per notebook), ``recording`` (rerun recordings),
-``report``, ``plan_one`` (``dgt plan``), ``cli`` and ``exercises`` (the notebooks' graded
-exercises). This module sets ``MUJOCO_GL=egl`` (headless rendering) before anything
-imports mujoco, and offers the few names a notebook
-starts with — imported on first use, so ``import dgt_lib`` stays light::
+and on top ``viz`` (figures, one module per notebook, and the rerun recordings),
+``exercises`` (the notebooks' graded exercises) and ``app`` (the command line ``dgt``: its
+report, ``dgt plan``, ``dgt costmap``, the README's figures). This module sets
+``MUJOCO_GL=egl`` (headless rendering) before anything imports mujoco, and offers the few
+names a notebook starts with — imported on first use, so ``import dgt_lib`` stays light::
 
     import dgt_lib as dgt
     profile = dgt.get_profile()                  # $DGT_PROFILE: smoke | demo | paper
@@ -48,7 +48,7 @@ _API = {
     "ensure_ground_truth": "dgt_lib.stages.ground_truth",
     "ensure_costmap_accuracy": "dgt_lib.stages.ground_truth",
     # one query on any terrain
-    "plan_query": "dgt_lib.plan_one",
+    "plan_query": "dgt_lib.app.plan_one",
     # where the work runs (docs/scale-out.md): executors and devices
     "ExecutionConfig": "dgt_lib.core.config", "make_executor": "dgt_lib.core.executors",
     "use_executor": "dgt_lib.core.executors",

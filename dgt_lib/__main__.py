@@ -1,5 +1,5 @@
 import sys
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
 
 sys.exit(main())

@@ -159,9 +159,9 @@ def plan_both_ways(world_path: Path, profile: str, vehicle: str = "carla_cola",
     """``dgt plan``'s engine on the window, up (:data:`UPHILL`) and back down
     (:data:`DOWNHILL`), under
     :data:`PLAN_SETTINGS` (``drive``: each found plan driven as ``dgt plan --drive``
-    drives it): two :class:`~dgt_lib.plan_one.QueryReport`."""
+    drives it): two :class:`~dgt_lib.app.plan_one.QueryReport`."""
+    from dgt_lib.app.plan_one import plan_query
     from dgt_lib.core.config import get_profile
-    from dgt_lib.plan_one import plan_query
 
     prof = get_profile(profile).with_overrides(PLAN_SETTINGS)
     return [plan_query(str(world_path), vehicle, start, goal, method=method, profile=prof,
@@ -199,9 +199,9 @@ def draw(dem: SampleDem, window: tuple[int, int], world_path: Path, costmap_path
     import rasterio
     from matplotlib.colors import LightSource
 
+    from dgt_lib.app.figures import save_png
+    from dgt_lib.app.plan_one import load_world
     from dgt_lib.core.config import get_profile
-    from dgt_lib.figures import save_png
-    from dgt_lib.plan_one import load_world
 
     shade = LightSource(azdeg=315, altdeg=45)
     fig, ax = plt.subplots(1, 2, figsize=(12, 5.2), gridspec_kw={"width_ratios": [1.1, 1]})
@@ -264,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{dem.north - row * dem.step:.5f}° N → {path}")
     if args.figure is None:
         return 0
-    from dgt_lib.costmap_export import export_costmap
+    from dgt_lib.app.costmap_export import export_costmap
 
     costmap = export_costmap(str(path), "carla_cola", path.with_name(f"{path.stem}_carla_cola.tif"),
                              profile=args.profile)[0]

@@ -74,7 +74,7 @@ POOL_RUN = textwrap.dedent("""
     from tests import stage_examples
     registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs"),
                           registry.Stage("first", stage_examples.first, "next")]
-    from dgt_lib.cli import main
+    from dgt_lib.app.cli import main
     sys.exit(main(["reproduce", "--profile", "smoke"]))
 """)
 """`dgt reproduce` of the stages ``pool`` (minute-long jobs in worker processes) then

@@ -9,15 +9,21 @@ import dgt_lib
 PACKAGE = Path(dgt_lib.__file__).parent
 LAYERS = ("core", "world", "perception", "learning", "mapping", "navigation", "beyond",
           "evaluation", "stages", "records")
-"""Sub-packages in pipeline order; modules at the top level (viz, recording, report,
-plan_one, cli, exercises) sit above them all. ``beyond`` holds what goes beyond the paper."""
+"""Sub-packages in pipeline order. ``beyond`` holds what goes beyond the paper; above them
+all sit :data:`ON_TOP`."""
+ON_TOP = ("viz", "exercises", "app")
+"""What uses the pipeline, in order: figures and recordings, the notebooks' exercises, the
+command-line application (which may use both)."""
 
 
 def _layer(module: str) -> int:
     parts = module.split(".")
-    if len(parts) > 1 and parts[1] in LAYERS:
-        return LAYERS.index(parts[1])
-    return len(LAYERS)  # the top level
+    order = LAYERS + ON_TOP
+    if module == "dgt_lib.__version__":  # the package's own version
+        return 0
+    if len(parts) > 1 and parts[1] in order:
+        return order.index(parts[1])
+    return len(order)  # the package itself
 
 
 def _imports(path: Path) -> set[str]:
@@ -60,9 +66,15 @@ def test_no_relative_imports_so_every_import_names_its_layer():
     assert relative == []
 
 
-def test_the_sub_packages_are_the_pipeline_stages():
+def test_the_sub_packages_are_the_pipeline_stages_and_what_uses_them():
     packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
-    assert packages == set(LAYERS) | {"viz"}
+    assert packages == set(LAYERS) | set(ON_TOP)
+
+
+def test_every_module_sits_in_a_sub_package():
+    """A newcomer finds each module under the part of the kit it belongs to: the top level
+    holds only the package's entry points."""
+    assert sorted(p.name for p in PACKAGE.glob("*.py")) == ["__init__.py", "__main__.py"]
 
 
 def test_module_level_imports_have_no_cycle():

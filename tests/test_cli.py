@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from dgt_lib.cli import build_parser, main
+from dgt_lib.app.cli import build_parser, main
 from dgt_lib.stages import registry as pipeline
 from tests import stage_examples
 
@@ -211,7 +211,7 @@ def test_ctrl_c_stops_a_cluster_run_in_seconds_and_stops_its_local_cluster(kind,
         from dgt_lib.stages import registry
         from tests import stage_examples
         registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs")]
-        from dgt_lib.cli import main
+        from dgt_lib.app.cli import main
         sys.exit(main(["reproduce", "--profile", "smoke", "--executor", "{kind}"]))
     """)
     env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
@@ -302,7 +302,7 @@ def test_a_bad_set_is_a_clear_error_before_anything_runs(capsys, tmp_path, monke
 def test_dgt_plan_takes_set_too(capsys, monkeypatch):
     import types
 
-    import dgt_lib.plan_one
+    import dgt_lib.app.plan_one
 
     seen = {}
 
@@ -311,7 +311,7 @@ def test_dgt_plan_takes_set_too(capsys, monkeypatch):
         return types.SimpleNamespace(summary=lambda: "planned",
                                      plan=types.SimpleNamespace(success=True, failure=""))
 
-    monkeypatch.setattr(dgt_lib.plan_one, "plan_query", fake_plan_query)
+    monkeypatch.setattr(dgt_lib.app.plan_one, "plan_query", fake_plan_query)
     assert main(["plan", "--world", "hill", "--vehicle", "jeep", "--start", "1,2,0", "--goal",
                  "3,4", "--profile", "smoke", "--set", "planner.beta=0",
                  "--set", "planner.heuristic=euclidean"]) == 0
@@ -412,13 +412,13 @@ def test_seed_runs_that_one_seed_alone(capsys, tmp_path, two_stages):
 
 
 def test_one_seed_alone_leaves_the_pooled_results_as_they_are(capsys, tmp_path, monkeypatch):
-    import dgt_lib.report
+    import dgt_lib.app.report
 
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
         pipeline.Stage("experiments", stage_examples.first, "stands in")])
     pooled = []
-    monkeypatch.setattr(dgt_lib.report, "write_seeds_report",
+    monkeypatch.setattr(dgt_lib.app.report, "write_seeds_report",
                         lambda profile: pooled.append(profile.seed_profiles()) or tmp_path)
     assert main(["reproduce", "--profile", "smoke", "--seed", "1"]) == 0
     assert pooled == [] and "pooled results were left as they were" in capsys.readouterr().out

@@ -108,7 +108,7 @@ def test_importing_the_plan_command_does_not_import_torch():
     import subprocess
     import sys
 
-    code = ("import sys, dgt_lib.cli, dgt_lib.plan_one; "
+    code = ("import sys, dgt_lib.app.cli, dgt_lib.app.plan_one; "
             "print(sorted(m for m in ('torch', 'dgt_lib.learning.model') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout

@@ -5,9 +5,9 @@ import sys
 import numpy as np
 import pytest
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
+from dgt_lib.app.plan_one import crs_to_local, load_world
 from dgt_lib.core.config import get_profile
-from dgt_lib.plan_one import crs_to_local, load_world
 from dgt_lib.world.dem import (
     import_rasterio,
     largest_valid_rectangle,

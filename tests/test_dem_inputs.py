@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
+from dgt_lib.app.plan_one import load_world
 from dgt_lib.core.config import get_profile
-from dgt_lib.plan_one import load_world
 from dgt_lib.stages.costmaps import world_bev
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world import worlds

@@ -324,7 +324,7 @@ def test_the_command_printed_for_a_missing_experiment_builds_that_very_experimen
         tmp_path, monkeypatch):
     """A study that finds no cached experiment prints the ``dgt reproduce`` command; run as
     printed, it must build the file the study looks for (seed and overrides included)."""
-    from dgt_lib.cli import _profile, build_parser
+    from dgt_lib.app.cli import _profile, build_parser
 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
     prof = get_profile("smoke").with_(seed=3).with_overrides(

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
 from dgt_lib.core import artifacts
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.mapping.export import write_geotiff, write_nav2
@@ -250,7 +250,7 @@ def test_two_writers_of_one_path_never_mix_their_bands(tmp_path):
 ])
 def test_an_unwritable_out_is_one_line_before_any_work(tmp_path, monkeypatch, capsys, out,
                                                        said):
-    from dgt_lib import costmap_export
+    from dgt_lib.app import costmap_export
 
     def no_work(*args, **kwargs):
         raise AssertionError("costmaps built before --out was checked")
@@ -268,7 +268,7 @@ def test_an_unwritable_out_is_one_line_before_any_work(tmp_path, monkeypatch, ca
 
 def test_an_interrupted_costmap_says_the_out_file_is_the_old_or_the_whole_new_one(
         tmp_path, monkeypatch, capsys):
-    from dgt_lib import costmap_export
+    from dgt_lib.app import costmap_export
     from dgt_lib.core.faults import Terminated
 
     def stopped(*args, **kwargs):

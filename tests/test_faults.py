@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
 from dgt_lib.core import artifacts
 from dgt_lib.core.executors import run_jobs
 from dgt_lib.stages import registry
@@ -135,7 +135,7 @@ MADE = textwrap.dedent("""
         return registry.StageOutput([], "made")
 
     registry.STAGES[:] = [registry.Stage("made", made, "one artifact", "what it made")]
-    from dgt_lib.cli import main
+    from dgt_lib.app.cli import main
     sys.exit(main(["reproduce", "--profile", "smoke"]))
 """)
 """`dgt reproduce` of one stage that builds one artifact, noting each build in $BUILDS
@@ -426,7 +426,7 @@ PLAN_WITH_A_GIVEN_TAU_S = textwrap.dedent("""
     import sys
     from dgt_lib.stages import costmaps
     costmaps.ensure_tau_s = lambda profile=None: 0.6  # not from the hill's and ridge's surveys
-    from dgt_lib.cli import main
+    from dgt_lib.app.cli import main
     sys.exit(main(sys.argv[1:]))
 """)
 """`dgt` with τ_s given: a plan on a tiny world then needs its survey alone (seconds, where

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from dgt_lib import figures
+from dgt_lib.app import figures
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.controller import MPPIConfig, with_controller
@@ -97,7 +97,7 @@ def test_dgt_plan_help_names_every_exit_status():
     """``dgt plan``'s exit statuses: one per kind of planner failure, all in its help."""
     import argparse
 
-    from dgt_lib.cli import PLAN_EXIT, build_parser
+    from dgt_lib.app.cli import PLAN_EXIT, build_parser
     from dgt_lib.navigation.planner import FAILURES
 
     assert sorted(PLAN_EXIT) == sorted(FAILURES)
@@ -192,8 +192,8 @@ def test_a_start_on_steep_ground_fails_before_the_dataset_and_model(data_dir, mo
     """Steepness needs the occupancy map (‖∇H̄‖ > τ_s): it is checked on the BEV maps alone,
     before collection and training, with the planner's own rule."""
     import dgt_lib.stages.costmaps as costmaps
+    from dgt_lib.app.plan_one import plan_query
     from dgt_lib.navigation.planner import InvalidQueryError
-    from dgt_lib.plan_one import plan_query
 
     monkeypatch.setattr(costmaps, "ensure_dataset", _no_artifacts)
     with pytest.raises(InvalidQueryError, match="in an obstacle: .* hits occupied cells"):
@@ -216,7 +216,7 @@ def test_negative_coordinates_parse_on_the_command_line(tmp_path, monkeypatch, c
 
 def test_a_goal_within_the_tolerance_plans_and_drives_a_zero_length_path(data_dir):
     """--drive with a goal 0.5 m away failed: "path needs at least two distinct points"."""
-    from dgt_lib.plan_one import plan_query
+    from dgt_lib.app.plan_one import plan_query
 
     report = plan_query(tiny_world(), "jeep", (8.0, 16.0, 0.0), (8.5, 16.0), method="binary",
                         profile="smoke", drive=True, progress=False)
@@ -228,7 +228,7 @@ def test_a_goal_within_the_tolerance_plans_and_drives_a_zero_length_path(data_di
 def test_distinct_queries_write_distinct_files(data_dir):
     """Files were named by rounded x, y only: another heading, a start 0.3 m away or
     another terrain of the same name overwrote the previous query's figure and recording."""
-    from dgt_lib.plan_one import plan_query
+    from dgt_lib.app.plan_one import plan_query
 
     world = tiny_world()
     starts = [(8.0, 16.0, 0.0), (8.0, 16.0, np.pi / 2), (8.3, 16.2, 0.0)]
@@ -254,7 +254,7 @@ def test_the_training_notice_says_which_stages_run_and_promises_no_time(tmp_path
     now says what will run before the costmap, and no duration."""
     import re
 
-    from dgt_lib.plan_one import training_notice
+    from dgt_lib.app.plan_one import training_notice
     from dgt_lib.stages.paths import data_dir
     from dgt_lib.stages.train import model_relpath
 
@@ -319,7 +319,7 @@ def test_a_world_with_named_routes_reports_the_route_taken(data_dir):
     Route B north of it)."""
     from dataclasses import replace
 
-    from dgt_lib.plan_one import plan_query
+    from dgt_lib.app.plan_one import plan_query
 
     south = np.array([[8.0, 8.0], [34.0, 8.0]])
     north = np.array([[8.0, 25.0], [34.0, 25.0]])
@@ -356,8 +356,8 @@ def test_dgt_plan_under_other_settings_writes_other_files(data_dir, tmp_path, ca
 
 
 def test_output_stem_of_the_profile_s_own_settings_is_unchanged():
+    from dgt_lib.app.plan_one import output_stem
     from dgt_lib.core.vehicles import get_vehicle
-    from dgt_lib.plan_one import output_stem
 
     world, jeep = ramp_world(), get_vehicle("jeep")
     smoke = get_profile("smoke")
@@ -377,8 +377,8 @@ def test_dgt_plan_drive_drives_the_profile_s_controller_and_seed(data_dir, monke
     """--drive always drove the paper's MPPI with seed 0 whatever experiments.controller
     said; now it drives what a trial would: the controller's settings, the profile's seed,
     and for the terrain critic the costmap the plan was made on."""
+    from dgt_lib.app.plan_one import plan_query
     from dgt_lib.navigation import drive as drive_module
-    from dgt_lib.plan_one import plan_query
 
     seen = {}
 
@@ -426,8 +426,8 @@ def test_a_long_vehicle_or_world_name_gives_a_file_name_that_fits(data_dir):
     """A 210-character vehicle name lost the computed plan when its figure was saved."""
     from dataclasses import replace
 
+    from dgt_lib.app.plan_one import output_stem
     from dgt_lib.core.vehicles import get_vehicle
-    from dgt_lib.plan_one import output_stem
 
     world = from_heightmap(np.zeros((40, 40), np.float32), RES, name="w" * 300)
     stems = {output_stem(world, replace(get_vehicle("jeep"), name="v" * 209 + end), "dgt",

@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
+from dgt_lib.app.never_driven import plan_vehicle_query
 from dgt_lib.core import artifacts
 from dgt_lib.core.vehicle_file import vehicle_toml
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.learning.synthetic import synthetic_dataset
-from dgt_lib.never_driven import plan_vehicle_query
 from dgt_lib.stages import conditioned
 from dgt_lib.stages.dataset import dataset_fingerprint
 
@@ -30,7 +30,7 @@ def data(tmp_path, monkeypatch):
     monkeypatch.setattr(conditioned, "ensure_dataset", lambda prof, progress=True: dataset)
     monkeypatch.setattr(conditioned, "dataset_digest",
                         lambda prof, progress=True: dataset_fingerprint(dataset))
-    for module in ("dgt_lib.stages.costmaps", "dgt_lib.never_driven"):
+    for module in ("dgt_lib.stages.costmaps", "dgt_lib.app.never_driven"):
         monkeypatch.setattr(f"{module}.ensure_tau_s", lambda prof: 0.6)
     heights = np.zeros((80, 120), np.float32)
     heights[30:50, 55:65] = 3.0

@@ -4,7 +4,7 @@ examples/real_dem.py, `dgt_lib.world.dem` and `dgt costmap`."""
 import numpy as np
 import pytest
 
-from dgt_lib.cli import main
+from dgt_lib.app.cli import main
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.occupancy import FREE

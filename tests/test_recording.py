@@ -4,7 +4,6 @@ import subprocess
 import numpy as np
 import pytest
 
-from dgt_lib import recording as dgt_rr
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.evaluation.experiments import ExperimentResult
@@ -13,7 +12,8 @@ from dgt_lib.evaluation.trials import TrialResult, TrialTask
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.navigation.outcome import TrialOutcome
 from dgt_lib.perception.bev import BEVMap
-from dgt_lib.recording_layout import Layout, ViewSpec
+from dgt_lib.viz import recording as dgt_rr
+from dgt_lib.viz.recording_layout import Layout, ViewSpec
 from dgt_lib.world.worlds import from_heightmap
 
 SMOKE = get_profile("smoke")

@@ -1,12 +1,12 @@
 """The results report: tables and figures of the experiments, from recorded trials."""
 
+from dgt_lib.app.report import write_results
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.experiments import ExperimentResult
 from dgt_lib.evaluation.queries import Query
 from dgt_lib.evaluation.trials import TrialResult, TrialTask
 from dgt_lib.navigation.outcome import TrialOutcome
-from dgt_lib.report import write_results
 
 
 def _experiment3() -> ExperimentResult:
@@ -81,7 +81,7 @@ def _comparisons(closer):
 def test_report_prints_the_accuracy_tables_and_draws_the_ground_truth(tmp_path, monkeypatch):
     import numpy as np
 
-    from dgt_lib import report
+    from dgt_lib.app import report
     from dgt_lib.evaluation.ground_truth import GroundTruth
     from dgt_lib.mapping.world_maps import WorldMaps
     from dgt_lib.perception.bev import BEVMap
@@ -125,8 +125,8 @@ def test_the_seeds_report_pools_the_accuracy_and_checks_claim_4_per_seed(tmp_pat
                                                                           monkeypatch):
     import json
 
+    from dgt_lib.app.report import write_seeds_report
     from dgt_lib.records.record import SUMMARY_NAME
-    from dgt_lib.report import write_seeds_report
     from dgt_lib.stages.paths import results_dir
 
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))

@@ -62,7 +62,7 @@ def _bottom_line(cited: Sequence[Run], _every, _root: Path) -> str:
 
 
 FIGURE_FACTS = "docs/figures/figures.json"
-"""What ``make figures`` drew, from which run (:data:`dgt_lib.figures.FACTS`)."""
+"""What ``make figures`` drew, from which run (:data:`dgt_lib.app.figures.FACTS`)."""
 
 ROUTE_WORDS = {"A": "by Route A", "B": "by Route B", "other": "by neither route",
                "sharp": "straight across the sharp ridge",

@@ -6,7 +6,7 @@ experiment, planner and costmap settings, the seed and the digests of the models
 slope fits), journals every finished trial so an interrupted run resumes, and writes
 ``results/<name>.md``. :func:`trial_maps` is how trial workers read their costmaps.
 The stage's figures, report and recordings are written by the top level
-(:func:`dgt_lib.report.report_stage`).
+(:func:`dgt_lib.app.report.report_stage`).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from pathlib import Path
 @dataclass
 class StageOutput:
     """What a stage wrote (paths), a one-line summary of it, and what it computed for its
-    report step (``value``: the experiments' results, drawn by :mod:`dgt_lib.report`)."""
+    report step (``value``: the experiments' results, drawn by :mod:`dgt_lib.app.report`)."""
 
     paths: list[Path] = field(default_factory=list)
     summary: str = ""

@@ -4,7 +4,7 @@ A stage is a named, cached callable ``run(profile) -> StageOutput``: it goes thr
 artifact cache (``dgt_lib.core.artifacts.ensure``), so a second run reuses what the first
 wrote. Each imports its module when called, so ``dgt --help`` stays fast and a stage's
 heavy imports are paid only when it runs. A stage with ``report`` set has its figures,
-tables and recordings written by the top level (:func:`dgt_lib.report.report_stage`).
+tables and recordings written by the top level (:func:`dgt_lib.app.report.report_stage`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ class Stage:
     kept: str = "what it had finished"
     """What stays in the cache when the stage is stopped by Ctrl-C (said to the user)."""
     report: bool = False
-    """Whether ``dgt reproduce`` hands its output to :func:`dgt_lib.report.report_stage`."""
+    """Whether ``dgt reproduce`` hands its output to :func:`dgt_lib.app.report.report_stage`."""
 
 
 def collect(profile: Profile) -> StageOutput:

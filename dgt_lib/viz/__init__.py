@@ -12,9 +12,9 @@ One module per notebook, each named after what it draws:
   rotate → slide → average → rotate back;
 - :mod:`~dgt_lib.viz.planner` (05 and ``dgt plan``): Hybrid A* primitives, cost
   amplification, planned paths, one planning query;
-- :mod:`~dgt_lib.viz.experiments` (06–08 and :mod:`dgt_lib.report`): queries, planned
+- :mod:`~dgt_lib.viz.experiments` (06–08 and :mod:`dgt_lib.app.report`): queries, planned
   and driven paths, where failed trials ended, trial speeds, success rates;
-- :mod:`~dgt_lib.viz.accuracy` (09 and :mod:`dgt_lib.report`): the measured ground truth
+- :mod:`~dgt_lib.viz.accuracy` (09 and :mod:`dgt_lib.app.report`): the measured ground truth
   beside the learned costmap layers, predicted against measured cost;
 - :mod:`~dgt_lib.viz.common`: colours and helpers several of them share, among them
   :func:`source_markdown` to show an implementation next to its paper equation.

@@ -1,4 +1,4 @@
-"""The layout of a rerun recording (:mod:`dgt_lib.recording`): its entity paths, and the
+"""The layout of a rerun recording (:mod:`dgt_lib.viz.recording`): its entity paths, and the
 blueprint built from what a recording logged, so every entity is in some view."""
 
 from __future__ import annotations

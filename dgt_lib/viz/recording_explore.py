@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dgt_lib.core.config import Profile
-from dgt_lib.recording import Recording
+from dgt_lib.viz.recording import Recording
 from dgt_lib.world.worlds import World
 
 if TYPE_CHECKING:  # an annotation only: importing it pulls in MPPI (~0.7 s)

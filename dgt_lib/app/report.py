@@ -16,13 +16,12 @@ from pathlib import Path
 import matplotlib
 import matplotlib.pyplot as plt
 
-from dgt_lib import recording, recording_layout, viz
+from dgt_lib import viz
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.evaluation.experiments import EXPERIMENT_TITLES, ExperimentResult
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.records import tables
 from dgt_lib.records.record import seed_summaries, write_seed_record
-from dgt_lib.records.tables import Run
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.stages.experiments import experiment_stem
 from dgt_lib.stages.ground_truth import (
@@ -32,6 +31,7 @@ from dgt_lib.stages.ground_truth import (
 )
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import data_dir, profile_root, results_dir
+from dgt_lib.viz import recording, recording_layout
 from dgt_lib.world.terrain import get_world
 
 
@@ -128,14 +128,14 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
 
 def write_recording(result: ExperimentResult, prof: Profile) -> Path:
     """``runs/<stem>.rrd`` of an experiment (``experiment_stem``: a variant's has its own),
-    rewritten when older than its results or than ``dgt_lib/recording.py`` or
+    rewritten when older than its results or than ``dgt_lib/viz/recording.py`` or
     ``recording_layout.py`` (the code that lays it out)."""
     out = data_dir(prof)
     stem = experiment_stem(result.name, prof)
     rrd = out / "runs" / f"{stem}.rrd"
     pkl = out / "experiments" / f"{stem}.pkl"
-    code = (recording.__file__, recording_layout.__file__)
-    sources = [p for p in (pkl, *map(Path, code)) if p.exists()]
+    sources = [p for p in (pkl, Path(recording.__file__), Path(recording_layout.__file__))
+               if p.exists()]
     if not rrd.exists() or rrd.stat().st_mtime < max(p.stat().st_mtime for p in sources):
         vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
         maps = ensure_world_costmaps(result.world, vehicles, prof, progress=False)
@@ -173,7 +173,7 @@ def write_seeds_report(profile: Profile) -> Path:
              "(lowest–highest success rate of the seeds); the paper's k/n beside ours. Each "
              "seed's own report, with figures: "
              + ", ".join(f"[seed {s}](../seed-{s}/results/README.md)" for s in ids) + ".", "",
-             tables.seeds_sections(Run(prof.name, tuple(summaries)), published=False)]
+             tables.seeds_sections(tables.Run(prof.name, tuple(summaries)), published=False)]
     out = profile_root(prof) / "results"
     out.mkdir(parents=True, exist_ok=True)
     path = out / "README.md"

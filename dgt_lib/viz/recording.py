@@ -1,5 +1,5 @@
 """rerun logging: the writer of every ``.rrd`` recording (entity paths and blueprints:
-:mod:`dgt_lib.recording_layout`).
+:mod:`dgt_lib.viz.recording_layout`).
 
 Library stages never import rerun; notebooks and experiment runners hand their
 arrays to a :class:`Recording`, which writes a ``.rrd`` file that opens in the
@@ -51,7 +51,7 @@ from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.mapping.occupancy import FREE, OCCUPIED, UNOBSERVED
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.recording_layout import (
+from dgt_lib.viz.recording_layout import (
     BEV,
     BEV_NAMES,
     BEV_TITLES,

@@ -13,12 +13,12 @@ import argparse
 import sys
 from pathlib import Path
 
+from dgt_lib.app.plan_one import costmap_profile, load_world, training_notice
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.outputs import check_output_path
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.export import nav2_stem, write_geotiff, write_nav2
 from dgt_lib.mapping.methods import METHODS
-from dgt_lib.plan_one import costmap_profile, load_world, training_notice
 from dgt_lib.stages.costmaps import ensure_world_costmaps
 from dgt_lib.world.dem import import_rasterio
 from dgt_lib.world.worlds import World
@@ -33,12 +33,12 @@ def export_costmap(world: str | World, vehicle: str, out: str | Path, *, method:
                    nodata: str = "error", progress: bool = True,
                    band: int | None = None, image: str | Path | None = None) -> list[Path]:
     """Write ``method``'s K-heading costmap of ``vehicle`` on ``world`` (a kit world, a
-    heightmap or DEM file: :func:`~dgt_lib.plan_one.load_world`) to ``out`` in ``fmt``
+    heightmap or DEM file: :func:`~dgt_lib.app.plan_one.load_world`) to ``out`` in ``fmt``
     (:data:`FORMATS`), georeferenced when the world came from a DEM. Returns the files
     written (the GeoTIFF, or the YAML files). ``out`` is checked before any work
     (:func:`output_target`); ``band``: a DEM's band (:func:`~dgt_lib.world.dem.read_dem`);
     ``image``: a DEM's orthophoto. With ``progress``, says on stderr what the costmap
-    read (:func:`~dgt_lib.plan_one.costmap_profile`: a DEM without imagery, geometry only)."""
+    read (:func:`~dgt_lib.app.plan_one.costmap_profile`: a DEM without imagery, geometry only)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
     if fmt not in FORMATS:

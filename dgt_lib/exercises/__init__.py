@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from dgt_lib.exercise_bank import EXERCISES, Case, Exercise
+from dgt_lib.exercises.bank import EXERCISES, Case, Exercise
 
 __all__ = ["EXERCISES", "Case", "CheckResult", "Exercise", "check", "grade", "plug"]
 

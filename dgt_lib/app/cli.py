@@ -26,7 +26,7 @@ import time
 from dataclasses import replace
 
 from dgt_lib import __version__
-from dgt_lib.cli_args import (
+from dgt_lib.app.cli_args import (
     band_arg,
     floats,
     glue_negative_coordinates,
@@ -166,7 +166,7 @@ def _reproduce(args: argparse.Namespace) -> int:
             started, load, t0 = time.time(), machine_load(), time.perf_counter()
             result = stage.run(run)
             if stage.report:  # figures, tables and recordings: the top level's
-                from dgt_lib.report import report_stage
+                from dgt_lib.app.report import report_stage
 
                 with faults.report_writes(f"the {stage.name} report"):
                     result = report_stage(stage.name, run, result)
@@ -186,7 +186,7 @@ def _reproduce(args: argparse.Namespace) -> int:
             print(f"\nSeed {args.seed} alone: the pooled results were left as they were; "
                   f"`dgt reproduce --profile {profile.name}` pools every seed.")
             return 0
-        from dgt_lib.report import write_seeds_report
+        from dgt_lib.app.report import write_seeds_report
 
         print(f"\nResults over {len(runs)} seed(s): {write_seeds_report(profile)}")
     return 0
@@ -273,11 +273,11 @@ def _stdout_to_stderr():
 
 
 def _plan(args: argparse.Namespace) -> int:
-    """``dgt plan``: :func:`dgt_lib.plan_one.plan_query` checks the query before any data is
-    collected or model trained (:func:`dgt_lib.plan_one.check_query`), then says when
+    """``dgt plan``: :func:`dgt_lib.app.plan_one.plan_query` checks the query before any data is
+    collected or model trained (:func:`dgt_lib.app.plan_one.check_query`), then says when
     training comes first. ``--json``: the report as one JSON object, alone on stdout."""
+    from dgt_lib.app.never_driven import plan_vehicle_query
     from dgt_lib.navigation.planner import InvalidQueryError
-    from dgt_lib.never_driven import plan_vehicle_query
 
     profile = _with_execution(_profile(args), args)
     quiet = _stdout_to_stderr() if args.json else contextlib.nullcontext()
@@ -387,7 +387,7 @@ def _add_costmap(sub) -> None:
 
 
 def _costmap(args: argparse.Namespace) -> int:
-    from dgt_lib.costmap_export import run_command
+    from dgt_lib.app.costmap_export import run_command
 
     return run_command(args, _with_execution(_profile(args), args))
 

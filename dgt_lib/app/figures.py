@@ -1,7 +1,7 @@
 """The README's figures, drawn from one profile's cached run by the library's own plots.
 
-    python -m dgt_lib.figures --profile demo            # → docs/figures/*.png (make figures)
-    python -m dgt_lib.figures --profile smoke --out /tmp/figures --seed 0
+    python -m dgt_lib.app.figures --profile demo            # → docs/figures/*.png (make figures)
+    python -m dgt_lib.app.figures --profile smoke --out /tmp/figures --seed 0
 
 Every figure reads the run's artifacts through the ``ensure_*`` functions (a missing one
 is built, as ``dgt reproduce`` would) and is drawn by :mod:`dgt_lib.viz`, the functions the
@@ -43,7 +43,7 @@ from dgt_lib.stages.experiments import ensure_experiment  # noqa: E402
 from dgt_lib.viz.common import COST_CMAP, COST_LABEL  # noqa: E402
 from dgt_lib.world.terrain import get_world  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "figures"
 FACTS = "figures.json"
 """Beside the figures: the run they were drawn from and what the hero figure shows (the
@@ -219,7 +219,7 @@ def make_figures(profile: str | Profile = "demo", out: Path = OUT,
         made["hero_routes"] = hero_routes(prof)
     (out / FACTS).write_text(json.dumps(made, indent=1) + "\n")
     lines = ["# Figures", "",
-             f"Drawn by `python -m dgt_lib.figures --profile {prof.name} --seed {prof.seed}` "
+             f"Drawn by `python -m dgt_lib.app.figures --profile {prof.name} --seed {prof.seed}` "
              f"from the `{prof.name}` profile's run seed {prof.seed}, with the code at commit "
              f"`{made['commit'][:7]}` on {processor_label(made['processor'])} (`make figures` "
              f"draws `demo` seed 0; what they show: `figures.json`). Methods: "
@@ -233,7 +233,7 @@ def make_figures(profile: str | Profile = "demo", out: Path = OUT,
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m dgt_lib.figures", description=__doc__,
+    parser = argparse.ArgumentParser(prog="python -m dgt_lib.app.figures", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", default="demo", help="the run to draw (default demo)")
     parser.add_argument("--seed", type=int, default=0, help="its run seed (default 0)")

@@ -1,9 +1,9 @@
 """A vehicle that was never driven, for ``dgt plan --vehicle FILE.toml``
 (:func:`plan_vehicle_query`): its spec read and checked before any work, and its costmap
 from the vehicle-conditioned network trained on the four named vehicles
-(docs/vehicles.md). It stays apart from :mod:`dgt_lib.plan_one`, which plans the named
+(docs/vehicles.md). It stays apart from :mod:`dgt_lib.app.plan_one`, which plans the named
 vehicles with the paper's methods alone, and hands it a
-:class:`~dgt_lib.plan_one.CostmapSource`.
+:class:`~dgt_lib.app.plan_one.CostmapSource`.
 
 A name of a named vehicle, or a file that holds exactly a named vehicle's spec, plans as
 before with that vehicle's own maps. Any other spec has no head of its own: ``dgt`` maps
@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from dgt_lib import plan_one
+from dgt_lib.app import plan_one
+from dgt_lib.app.plan_one import CostmapSource, QueryReport
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.vehicle_range import VehicleRangeWarning, resolve_vehicle
 from dgt_lib.core.vehicle_spec import VehicleSpec
@@ -35,7 +36,6 @@ from dgt_lib.mapping.baselines import (
 )
 from dgt_lib.mapping.occupancy import occupancy_map
 from dgt_lib.mapping.world_maps import WorldMaps
-from dgt_lib.plan_one import CostmapSource, QueryReport
 from dgt_lib.stages.conditioned import (
     conditioned_relpath,
     ensure_conditioned_costmaps,
@@ -107,7 +107,7 @@ def never_driven_maps(world: World, spec: VehicleSpec, method: str, profile: Pro
 def plan_vehicle_query(world: str | World, vehicle: str | Path | VehicleSpec, start, goal, *,
                        method: str = "dgt", profile: Profile | str | None = None,
                        progress: bool = True, **query: Any) -> QueryReport:
-    """:func:`~dgt_lib.plan_one.plan_query` for a named vehicle, a vehicle file or a spec
+    """:func:`~dgt_lib.app.plan_one.plan_query` for a named vehicle, a vehicle file or a spec
     (``dgt plan --vehicle``): an impossible spec, or a method without a map for a vehicle
     never driven, is a ValueError before any work; each field outside the training
     vehicles' range is a warning (printed with ``progress``, and in the report); a vehicle

@@ -334,7 +334,7 @@ def output_stem(world: World, spec: VehicleSpec, method: str, start, goal, *,
 @dataclass
 class CostmapSource:
     """The costmap of a vehicle that is not one of the named ones (a vehicle never driven:
-    :func:`dgt_lib.never_driven.plan_vehicle_query` makes one), for :func:`plan_query`:
+    :func:`dgt_lib.app.never_driven.plan_vehicle_query` makes one), for :func:`plan_query`:
     ``maps(world)`` → (the world's maps, cost (K, H, W)); ``notice``, printed before it is
     built; ``described``, the report's line on where it came from; ``warnings`` on the
     spec."""
@@ -453,7 +453,7 @@ def _figure(world: World, maps, cost, report: QueryReport, path: Path) -> Path:
 
 def _recording(world, maps, cost, report, traj, speed, path: Path, profile: Profile,
                spec: VehicleSpec) -> Path:
-    from dgt_lib import recording
+    from dgt_lib.viz import recording
 
     with recording.Recording(path, f"plan_{world.name}", profile) as rec:
         rec.log_terrain(world.heights, world.colors, world.grid)

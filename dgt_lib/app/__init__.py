@@ -1,0 +1,14 @@
+"""The command-line application ``dgt`` and what only it uses.
+
+- :mod:`~dgt_lib.app.cli` (with :mod:`~dgt_lib.app.cli_args`): ``dgt reproduce``,
+  ``dgt plan``, ``dgt costmap``, ``dgt settings`` and the rest, parsed and dispatched;
+- :mod:`~dgt_lib.app.report`: a run's results report, figures and rerun recordings, and
+  the seed's run record;
+- :mod:`~dgt_lib.app.plan_one`: one planning query on a named world, a height map or a
+  DEM (``dgt plan``; notebooks call :func:`~dgt_lib.app.plan_one.plan_query` too), and
+  :mod:`~dgt_lib.app.never_driven` for a vehicle the kit never drove;
+- :mod:`~dgt_lib.app.costmap_export`: ``dgt costmap`` (GeoTIFF, Nav2);
+- :mod:`~dgt_lib.app.figures`: the README's figures (``make figures``).
+
+Nothing below this package imports it.
+"""
