@@ -5,19 +5,24 @@ Run: ``.venv/bin/python benchmarks/bench_sim.py [--profile demo] [--seconds 60]`
 Real-time factor = simulated seconds / wall seconds while driving the training
 world at 5 m/s with the PID speed controller at 25 Hz (the data-collection
 controller), 20 s episodes from random poses, ended early like collection runs
-(immobilized > 10 s, flipped, off the map). RGB-D frames/s at the onboard
-camera's resolution (``sim.CAMERA``), RGB and depth each rendered, on the
-training, hill and ridge worlds.
+(immobilized > 10 s, flipped, off the map). Physics share = the part of those wall
+seconds spent inside ``mujoco.mj_step``: the kit's step runs at that fraction of the
+speed of MuJoCo's own stepping of the same model with the same collisions (the rest
+is the kit's control, the underside gate, the checks and the state read-out).
+RGB-D frames/s at the onboard camera's resolution (``sim.CAMERA``), RGB and depth
+each rendered, on the training, hill and ridge worlds.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from dgt_lib.core.config import VEHICLES, get_profile
@@ -26,9 +31,32 @@ from dgt_lib.world.simulator import CONTROL_DT_S, Simulator
 from dgt_lib.world.terrain import get_world
 
 
-def physics_rtf(world, vehicle: str, sim_seconds: float) -> tuple[float, float, float]:
+class PhysicsClock:
+    """Wall seconds spent inside ``mujoco.mj_step`` while :attr:`on` (wraps it while in
+    a ``with`` block)."""
+
+    def __init__(self) -> None:
+        self.seconds, self.driving_s, self.on, self._step = 0.0, 0.0, False, mujoco.mj_step
+
+    def _timed(self, m, d, nstep=1):
+        t = time.perf_counter()
+        self._step(m, d, nstep=nstep)
+        if self.on:
+            self.seconds += time.perf_counter() - t
+
+    def __enter__(self) -> PhysicsClock:
+        mujoco.mj_step = self._timed
+        return self
+
+    def __exit__(self, *exc) -> None:
+        mujoco.mj_step = self._step
+
+
+def physics_rtf(world, vehicle: str, sim_seconds: float,
+                clock: PhysicsClock | None = None) -> tuple[float, float, float]:
     """(real-time factor per wall second, per CPU second, model build seconds) for
-    driving ``sim_seconds`` at 5 m/s."""
+    driving ``sim_seconds`` at 5 m/s; ``clock`` counts the physics' part of the
+    driving (not of the resets)."""
     t0 = time.perf_counter()
     sim = Simulator(world, vehicle)
     build_s = time.perf_counter() - t0
@@ -39,13 +67,19 @@ def physics_rtf(world, vehicle: str, sim_seconds: float) -> tuple[float, float, 
         sim.reset(rng.uniform(x0 + 15, x1 - 15), rng.uniform(y0 + 15, y1 - 15),
                   rng.uniform(0, 2 * np.pi))
         t, c = time.perf_counter(), time.process_time()
+        if clock:
+            clock.on = True
         for _ in range(int(20.0 / CONTROL_DT_S)):  # 20 s episodes, ended early if done
-            st = sim.step(speed_cmd_mps=5.0, steer=0.2 * np.sin(0.2 * sim.time_s))
+            st = sim.step(speed_cmd_mps=5.0, steer=0.2 * math.sin(0.2 * sim.time_s))
             if st.done or st.immobilized_s > 10.0:  # collection respawns (paper: 10 s)
                 break
+        if clock:
+            clock.on = False
         wall += time.perf_counter() - t
         cpu += time.process_time() - c
         simulated += st.time_s
+    if clock:
+        clock.driving_s = wall
     return simulated / wall, simulated / cpu, build_s
 
 
@@ -75,11 +109,15 @@ def main() -> None:
     print(f"profile {profile.name}: training world {world.grid.shape[1]}×{world.grid.shape[0]} "
           f"cells at {world.resolution} m, {len(world.trees)} trees")
     print(f"physics, control at {1 / CONTROL_DT_S:.0f} Hz (PID speed controller):")
-    print("  (per wall second; per CPU second in brackets — the same on an idle machine)")
+    print("  (per wall second; per CPU second in brackets — the same on an idle machine;")
+    print("   physics share: the part of the wall time inside mujoco.mj_step)")
+    physics_rtf(world, VEHICLES[0], 2.0)  # warm-up: the compiled gate loads once
     for name in VEHICLES:
-        rtf, rtf_cpu, build_s = physics_rtf(world, name, args.seconds)
-        print(f"  {name:13s} {rtf:5.0f}× real time ({rtf_cpu:4.0f}×)   "
-              f"model build {build_s:.2f} s")
+        with PhysicsClock() as clock:
+            rtf, rtf_cpu, build_s = physics_rtf(world, name, args.seconds, clock)
+        share = clock.seconds / clock.driving_s
+        print(f"  {name:13s} {rtf:5.0f}× real time ({rtf_cpu:4.0f}×)   physics share "
+              f"{share:.2f}   model build {build_s:.2f} s")
     print(f"RGB-D frames/s at {CAMERA.width}×{CAMERA.height} (RGB + depth), while driving:")
     for name in ("training", "hill", "ridge"):
         w = get_world(name, profile)

@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
-from dgt_lib.evaluation.paper import PAPER_TABLE_I, PAPER_TABLE_II, paper_rows
+from dgt_lib.evaluation.paper import PAPER_TABLE_I, PAPER_TABLE_II
 from dgt_lib.evaluation.statistics import (
-    count_successes,
     markdown_table,
     reason_counts,
     success_rows,
@@ -239,6 +238,9 @@ def test_paper_tables_are_the_published_counts():
         "vw_van": (99, {"dgt": 54, "single-task": 35}),
     }
     # The success rates printed in the paper: 80/50/25/80/50 %, 54.5 % and 35.4 %.
+    def paper_rows(result):  # the paper's own counts as rows with Wilson intervals
+        return success_rows({m: (k, result.n) for m, k in result.k.items()})
+
     assert [r["sr_pct"] for r in paper_rows(hill)] == [80.0, 50.0, 25.0, 80.0, 50.0]
     assert [round(r["sr_pct"], 1) for r in paper_rows(PAPER_TABLE_II["vw_van"])] == [54.5, 35.4]
 
@@ -248,7 +250,6 @@ def test_results_rows_and_markdown_table():
         TrialOutcome.failure("immobilized", 40.0),
         TrialOutcome.failure("flipped", 12.0),
     ]
-    assert count_successes(outcomes) == (3, 5)
     counts = reason_counts(outcomes)
     assert list(counts) == list(REASONS)
     assert counts["success"] == 3 and counts["immobilized"] == 1 and counts["timeout"] == 0

@@ -103,6 +103,22 @@ def test_divergence_ends_the_run_without_raising(bumpy):
     assert sim.step(speed_cmd_mps=5.0).done_reason == "diverged"  # and stays ended
 
 
+def test_a_state_the_last_physics_step_made_non_finite_ends_the_run(bumpy, monkeypatch):
+    """MuJoCo checks the state before a step; a coordinate that the last step of a control
+    period turned infinite is caught by the kit, not reported as a pose."""
+    sim = Simulator(bumpy, "jeep")
+    sim.reset(0.0, 10.0, 0.0)
+    step = mujoco.mj_step
+
+    def blow_up(m, d, nstep=1):
+        step(m, d, nstep=nstep)
+        d.qpos[0] = np.inf
+
+    monkeypatch.setattr(mujoco, "mj_step", blow_up)
+    st = sim.step(speed_cmd_mps=5.0)
+    assert st.done_reason == "diverged" and np.isfinite(st.position).all()
+
+
 def test_flipped_and_off_map_end_the_run():
     flat = from_heightmap(np.zeros((60, 60)), 0.4)
     sim = Simulator(flat, "jeep")

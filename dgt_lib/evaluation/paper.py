@@ -8,8 +8,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from dgt_lib.evaluation.statistics import success_rows
-
 
 @dataclass(frozen=True)
 class PaperResult:
@@ -41,8 +39,3 @@ PAPER: dict[str, dict[str, PaperResult]] = {
     "experiment3": {"jeep": PAPER_TABLE_II["jeep"], "vw_van": PAPER_TABLE_II["vw_van"]},
 }
 """The paper's results per experiment and vehicle."""
-
-
-def paper_rows(result: PaperResult, confidence: float = 0.95) -> list[dict]:
-    """The paper's own counts as :func:`success_rows` rows (with Wilson intervals)."""
-    return success_rows({m: (k, result.n) for m, k in result.k.items()}, confidence)

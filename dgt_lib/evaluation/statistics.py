@@ -68,12 +68,6 @@ def success_rows(
     return rows
 
 
-def count_successes(outcomes: Iterable[TrialOutcome]) -> tuple[int, int]:
-    """(k, n): successes and trials."""
-    outcomes = list(outcomes)
-    return sum(o.success for o in outcomes), len(outcomes)
-
-
 def reason_counts(outcomes: Iterable[TrialOutcome]) -> dict[str, int]:
     """How many trials ended for each reason, in :data:`REASONS` order (zeros kept)."""
     counts = dict.fromkeys(REASONS, 0)

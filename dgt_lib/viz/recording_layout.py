@@ -3,7 +3,6 @@ blueprint built from what a recording logged, so every entity is in some view.""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import rerun.blueprint as rrb
@@ -101,9 +100,3 @@ class Layout:
             root, rrb.BlueprintPanel(state="expanded"), rrb.SelectionPanel(state="expanded"),
             rrb.TimePanel(state="expanded", timeline="elapsed" if self.runs else None),
             collapse_panels=False)
-
-    def uncovered(self, entities: Iterable[str] | None = None) -> list[str]:
-        """The logged entity paths (or ``entities``) that no view shows."""
-        views = [v for side in self.views() for v in side]
-        return sorted(p for p in (self.entities if entities is None else entities)
-                      if not any(v.shows(p.strip("/")) for v in views))

@@ -33,6 +33,7 @@ import numpy as np
 from dgt_lib.core.camera import CameraIntrinsics, RGBDFrame
 from dgt_lib.core.vehicle_spec import AIR_DENSITY_KGPM3, VehicleSpec
 from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.world.contacts import CHASSIS, OTHER, TERRAIN, TREE, WHEEL, touching
 from dgt_lib.world.mujoco_model import (
     BIT_TERRAIN,
     BIT_TREE,
@@ -44,7 +45,7 @@ from dgt_lib.world.mujoco_model import (
     build_model,
 )
 from dgt_lib.world.speed_control import SpeedController
-from dgt_lib.world.underside_gate import min_underside_gap
+from dgt_lib.world.underside_gate import all_finite, min_underside_gap
 from dgt_lib.world.worlds import World
 
 CONTROL_DT_S = 0.04  # control period [s] (25 Hz)
@@ -114,9 +115,8 @@ def opengl_renderer(renderer: mujoco.Renderer) -> bytes:
     return GL.glGetString(GL.GL_RENDERER) or b""
 
 
-_DIVERGENCE_WARNINGS = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
-                                 int(mujoco.mjtWarning.mjWARN_BADQVEL),
-                                 int(mujoco.mjtWarning.mjWARN_BADQACC)])
+_DIVERGENCE_WARNINGS = tuple(int(getattr(mujoco.mjtWarning, f"mjWARN_BAD{q}"))
+                             for q in ("QPOS", "QVEL", "QACC"))
 
 
 def check_finite(where: str, **values: float | None) -> None:
@@ -129,8 +129,6 @@ def check_finite(where: str, **values: float | None) -> None:
         raise ValueError(f"{where} needs finite numbers, got {', '.join(bad)}")
 
 
-# Geom kinds for contact classification (world kinds sort below vehicle kinds).
-_OTHER, _TERRAIN, _TREE, _CHASSIS, _WHEEL = -1, 0, 1, 2, 3
 
 
 def immobile_time(immobile_s: float, speed_mps: float, dt_s: float,
@@ -202,6 +200,7 @@ class Simulator:
         self.vehicle = get_vehicle(vehicle)
         self.model = build_model(world, self.vehicle)
         self.data = mujoco.MjData(self.model)
+        self._warnings = self.data.warning.number  # a live view: MuJoCo's warning counts
         self.camera = camera
         self.speed_controller = SpeedController(self.vehicle)
         m = self.model
@@ -212,12 +211,11 @@ class Simulator:
         self._wheel_geoms = np.array([m.geom(f"wheel_{n}").id for n in WHEEL_NAMES])
         self._tree_geoms = np.array([i for i in range(m.ngeom)
                                      if (m.geom(i).name or "").startswith("tree")], int)
-        kind = np.full(m.ngeom, _OTHER, np.int64)
-        kind[self._terrain] = _TERRAIN
-        kind[self._tree_geoms] = _TREE
-        kind[self._chassis_geoms] = _CHASSIS
-        kind[self._wheel_geoms] = _WHEEL + np.arange(4)
-        self._geom_kind = kind
+        kind = np.full(m.ngeom, OTHER, np.int64)
+        kind[self._terrain], kind[self._tree_geoms], kind[self._chassis_geoms] = (
+            TERRAIN, TREE, CHASSIS)
+        kind[self._wheel_geoms] = WHEEL + np.arange(4)
+        self._geom_kind = kind.tolist()  # read per contact in plain Python (contacts.py)
         # Underside sample points (chassis frame) for the collision gate, ≤ 0.4 m apart.
         v = self.vehicle
         half_w = 0.8 * v.track_m / 2
@@ -236,6 +234,7 @@ class Simulator:
         self._y0 = world.grid.origin_xy[1] + 0.5 * world.resolution
         self._spin_dofs = np.array([m.joint(f"spin_{n}").dofadr[0] for n in WHEEL_NAMES])
         self._brake0 = m.dof_frictionloss[self._spin_dofs].copy()
+        self._brake: float | None = None  # the brake as last applied (None: not yet)
         self._motors = np.array([m.actuator(f"motor_{n}").id for n in WHEEL_NAMES
                                  if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR,
                                                       f"motor_{n}") >= 0])
@@ -280,8 +279,11 @@ class Simulator:
     def _apply(self, throttle: float, brake: float, steer: float) -> None:
         d, m = self.data, self.model
         d.ctrl[self._motors] = min(max(float(throttle), -1.0), 1.0)
-        m.dof_frictionloss[self._spin_dofs] = self._brake0 + min(max(float(brake), 0.0), 1.0) * (
-            self.vehicle.brake_torque_nm)
+        brake = min(max(float(brake), 0.0), 1.0)
+        if brake != self._brake:  # the wheels' friction changes only with the brake
+            m.dof_frictionloss[self._spin_dofs] = self._brake0 + brake * (
+                self.vehicle.brake_torque_nm)
+            self._brake = brake
         d.ctrl[self._steer] = ackermann_angles(steer, self.vehicle)
 
     def step(
@@ -313,22 +315,18 @@ class Simulator:
             throttle, brake = self.speed_controller(speed_cmd_mps, st.speed_mps, st.pitch,
                                                     duration_s)
         self._apply(throttle, brake, steer)
-        v = self.vehicle
-        vel = self.data.qvel[0:3]
-        speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
-        self.data.xfrc_applied[self._chassis, 0:3] = (
-            -0.5 * AIR_DENSITY_KGPM3 * v.drag_area_m2 * speed) * vel
+        vx, vy, vz = self.data.qvel[0:3].tolist()
+        drag = -0.5 * AIR_DENSITY_KGPM3 * self.vehicle.drag_area_m2 * math.sqrt(
+            vx * vx + vy * vy + vz * vz)
+        self.data.xfrc_applied[self._chassis, 0:3] = (drag * vx, drag * vy, drag * vz)
         n = max(1, int(round(duration_s / TIMESTEP_S)))
-        done = 0
-        while done < n:
+        for done in range(0, n, GATE_STEPS):
             chunk = min(GATE_STEPS, n - done)
             self._gate_underside(chunk * TIMESTEP_S)
             mujoco.mj_step(self.model, self.data, nstep=chunk)
-            done += chunk
-        # A sum is NaN/inf when any term is (or when the state has blown up anyway).
-        ok = math.isfinite(float(self.data.qpos.sum()) + float(self.data.qvel.sum()))
+        ok = all_finite(self.data.qpos, self.data.qvel)
         # MuJoCo resets the state itself when it meets NaN/huge values and counts a warning.
-        if not ok or self.data.warning.number[_DIVERGENCE_WARNINGS].any():
+        if not ok or any(self._warnings[w] for w in _DIVERGENCE_WARNINGS):
             self._done = "diverged"
             self._state = _replace_done(st, "diverged", st.time_s + n * TIMESTEP_S)
             return self._state
@@ -346,7 +344,7 @@ class Simulator:
         d = self.data
         near = force
         if not near:
-            vx, vy, vz = d.qvel[0], d.qvel[1], d.qvel[2]
+            vx, vy, vz = d.qvel[0:3].tolist()
             reach = UNDERSIDE_MARGIN_M + horizon_s * (
                 math.sqrt(vx * vx + vy * vy + vz * vz) + 2.0 * abs(vz))
             near = min_underside_gap(self._underside, d.xmat[self._chassis],
@@ -370,31 +368,22 @@ class Simulator:
 
     def _read_state(self, dt: float = 0.0) -> VehicleState:
         d = self.data
-        pos = d.qpos[0:3].copy()
-        R = d.xmat[self._chassis].reshape(3, 3)
-        fwd, up = R[:, 0], R[:, 2]
-        yaw = math.atan2(fwd[1], fwd[0]) % (2 * math.pi)
-        pitch = math.asin(min(max(float(fwd[2]), -1.0), 1.0))
-        roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
-        vel = d.qvel[0:3].copy()
+        pos, vel = d.qpos[0:3].copy(), d.qvel[0:3].copy()
         w_body = d.qvel[3:6].copy()  # free joint: angular velocity in the body frame
+        R = d.xmat[self._chassis].reshape(3, 3)
+        (fx, _, _), (fy, _, _), (fz, r21, r22) = R.tolist()  # forward = R[:, 0], up = R[:, 2]
+        yaw = math.atan2(fy, fx) % (2 * math.pi)
+        pitch = math.asin(min(max(fz, -1.0), 1.0))
+        roll = math.atan2(r21, r22)
         yaw_rate = float((R @ w_body)[2])
-        speed = float(vel @ fwd)
-        wheel = np.zeros(4, bool)
-        chassis_terrain = tree_contact = False
-        if d.ncon:
-            kind = self._geom_kind[d.contact.geom[: d.ncon]]  # (ncon, 2)
-            env = kind.min(axis=1)  # _TERRAIN or _TREE when the pair touches the world
-            car = kind.max(axis=1)  # _CHASSIS or a wheel (_WHEEL + index)
-            tree_contact = bool(np.any(env == _TREE))
-            chassis_terrain = bool(np.any((env == _TERRAIN) & (car == _CHASSIS)))
-            touching = car[(env == _TERRAIN) | (env == _TREE)]
-            wheel[touching[touching >= _WHEEL] - _WHEEL] = True
-        self._immobile_s = immobile_time(self._immobile_s, math.hypot(vel[0], vel[1]), dt)
-        flipped = bool(up[2] < FLIP_UP_Z)
+        speed = float(vel @ R[:, 0])
+        wheel, chassis_terrain, tree_contact = touching(d, self._geom_kind)
+        vx, vy = vel[:2].tolist()
+        self._immobile_s = immobile_time(self._immobile_s, math.hypot(vx, vy), dt)
+        flipped = r22 < FLIP_UP_Z
         if flipped and self._done is None:
             self._done = "flipped"
-        if self._done is None and not bool(self.world.grid.contains(pos[0], pos[1])):
+        if self._done is None and not self._on_map(*pos[:2].tolist()):
             self._done = "off_map"
         return VehicleState(
             time_s=float(d.time), position=pos, yaw=yaw, roll=roll, pitch=pitch,
@@ -402,6 +391,13 @@ class Simulator:
             wheel_contacts=wheel, chassis_contact=chassis_terrain, tree_contact=tree_contact,
             flipped=flipped, immobilized_s=self._immobile_s, done_reason=self._done,
         )
+
+    def _on_map(self, x: float, y: float) -> bool:
+        """Whether (x, y) [m] is on the world's grid (:meth:`GridSpec.contains` for one
+        point, in scalar arithmetic; NaN is off the map)."""
+        g = self.world.grid
+        col, row = (x - g.origin_xy[0]) / g.resolution, (y - g.origin_xy[1]) / g.resolution
+        return 0 <= row < g.height and 0 <= col < g.width
 
     # -- rendering -------------------------------------------------------------------------
 

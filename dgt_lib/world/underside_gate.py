@@ -1,5 +1,5 @@
-"""The underside gate's arithmetic, compiled: how close the vehicle's belly comes to the
-terrain.
+"""The simulator's per-step arithmetic, compiled: how close the vehicle's belly comes to
+the terrain (the underside gate), and whether the state is still finite.
 
 Box–heightfield collision tests cost more than the rest of a physics step, and a
 vehicle's underside is clear of the ground most of the time, so :class:`~dgt_lib.world.
@@ -41,3 +41,11 @@ def min_underside_gap(points: np.ndarray, rot: np.ndarray, pos: np.ndarray, z: n
         if g < gap:
             gap = g
     return gap
+
+
+@njit(cache=True)
+def all_finite(qpos: np.ndarray, qvel: np.ndarray) -> bool:
+    """Whether every coordinate and velocity is a finite number (no NaN, no ±inf): MuJoCo
+    checks them before a step, this checks them after the last one. Compiled: two numpy
+    reductions cost ten times as long on arrays this small."""
+    return np.isfinite(qpos).all() and np.isfinite(qvel).all()
