@@ -82,6 +82,22 @@ def test_a_dem_without_imagery_is_mapped_by_the_geometry_model_and_no_painted_co
 
 
 @pytest.mark.filterwarnings("ignore:.*near-constant")
+def test_a_height_map_file_is_grey_and_mapped_by_the_geometry_model(quick, capsys):
+    """A .npy height map has no imagery either: no rock painted on its steep faces, and
+    the geometry-only model maps it."""
+    heights = np.zeros((75, 100))
+    heights[25:50, 45:60] = 3.0  # a 3 m block: steep faces
+    np.save(quick / "block.npy", heights)
+    world, _ = load_world(str(quick / "block.npy"), PROFILE)
+    assert np.ptp(world.colors) == 0.0
+    assert main(["plan", "--world", str(quick / "block.npy"), "--vehicle", "jeep",
+                 "--profile", "smoke", "--start", "5,5,0", "--goal", "35,25", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["input"] == "geometry only (no imagery)"
+    models = data_dir(PROFILE) / "models"
+    assert (models / "multitask_geometry.pt").exists() and not (models / "multitask.pt").exists()
+
+
+@pytest.mark.filterwarnings("ignore:.*near-constant")
 def test_image_becomes_the_maps_colour_and_the_rgbd_model_reads_it(quick, capsys):
     dem, ortho = write_dem(quick / "dem.tif"), write_ortho(quick / "ortho.tif")
     costmap(dem, quick / "c.tif", "--image", str(ortho))

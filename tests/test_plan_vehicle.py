@@ -54,7 +54,8 @@ def test_a_vehicle_never_driven_plans_on_the_conditioned_networks_costmap(data, 
             "vw_van, mercedes_van, carla_cola")
     assert told in out and "training it first" in out
     assert "DGT-Map plan for my_truck" in out and "found: length" in out
-    assert (data / "data" / "smoke" / "seed-0" / "models" / "conditioned.pt").exists()
+    # a height map has no colour: the geometry-only conditioned network maps it
+    assert (data / "data" / "smoke" / "seed-0" / "models" / "conditioned_geometry.pt").exists()
     assert main(args) == 0  # the second query reuses the network
     again = capsys.readouterr().out
     assert told in again and "training it first" not in again

@@ -124,7 +124,7 @@ def plan_vehicle_query(world: str | World, vehicle: str | Path | VehicleSpec, st
             lambda w: never_driven_maps(w, spec, method, prof, progress=progress),
             never_driven_notice(method, spec, prof),
             never_driven_notice(method, spec, prof, training=False), notes)
-    report = plan_one.plan_query(world, spec, start, goal, method=method, profile=prof,
+    report = plan_one.plan_query(world, spec, start, goal, method=method, profile=profile,
                                  progress=progress, source=source, **query)
     report.warnings = notes
     return report

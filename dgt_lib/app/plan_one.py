@@ -91,11 +91,12 @@ def costmap_profile(world: str | World, method: str, profile: Profile,
                     image: str | Path | None = None) -> tuple[Profile, str]:
     """The profile whose models map ``world``, and the words saying what its costmap read.
 
-    A DEM without ``image`` has no colour to read: its costmap comes from the profile's
-    geometry-only models (``train.inputs=geometry``, trained on the same dataset when
-    first needed, cached beside the RGB-D ones); with ``image``, the RGB-D models read
-    the orthophoto's colours. The slope and binary methods read heights alone."""
-    if isinstance(world, str) and is_dem_path(world) and image is None:
+    A DEM or height-map file without ``image`` has no colour to read: its costmap comes
+    from the profile's geometry-only models (``train.inputs=geometry``, trained on the
+    same dataset when first needed, cached beside the RGB-D ones); with ``image`` (a
+    DEM's orthophoto), the RGB-D models read its colours. The slope and binary methods
+    read heights alone."""
+    if isinstance(world, str) and world not in WORLD_NAMES and image is None:
         if profile.train.inputs != "geometry":
             profile = profile.with_overrides({"train.inputs": "geometry"})
         return profile, "geometry only (no imagery)"
@@ -107,9 +108,7 @@ def costmap_profile(world: str | World, method: str, profile: Profile,
         return profile, f"{seen} with imagery from {Path(image).name}"
     if isinstance(world, str) and world in WORLD_NAMES:
         return profile, f"{seen} (the simulated world's colours)"
-    if isinstance(world, World):
-        return profile, f"{seen} (the world's colours)"
-    return profile, f"{seen} (a height map has no colour: painted from its slope)"
+    return profile, f"{seen} (the world's colours)"
 
 
 def crs_to_local(georef: Georeference | None, start, goal) -> tuple[tuple, tuple]:
@@ -397,7 +396,7 @@ def plan_query(world: str | World, vehicle: str | VehicleSpec, start, goal, *, m
         report.route = classify_route(w, result.path) if w.routes else None
     out_dir = Path(out_dir) if out_dir else data_dir(prof) / "plans"
     stem = output_stem(w, spec, method, start, goal, drive=drive and result.success,
-                       profile=prof)
+                       profile=as_profile(profile))  # the user's settings: input is in key
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         report.figure = _figure(w, maps, cost, report, out_dir / f"{stem}.png")

@@ -14,10 +14,11 @@ largest rectangle of valid cells instead. The edges that reprojection leaves out
 DEM's rotated footprint are always cropped: they were never part of the DEM. Heights are
 taken to be metres.
 
-A DEM has no colour, and none is invented: its world is one grey (:data:`NO_IMAGERY_GREY`)
-and mapped by a geometry-only model, unless an orthophoto is given (:func:`read_image`:
-any 8-bit RGB GeoTIFF covering the DEM, reprojected and resampled to its grid), which
-becomes the ground's colour the survey camera sees.
+A DEM has no colour, and none is invented: its world is one grey
+(:func:`~dgt_lib.world.worlds.no_imagery`) and mapped by a geometry-only model, unless an
+orthophoto is given (:func:`read_image`: any 8-bit RGB GeoTIFF covering the DEM,
+reprojected and resampled to its grid), which becomes the ground's colour the survey
+camera sees.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dgt_lib.world.worlds import HeightmapError, World, from_heightmap
+from dgt_lib.world.worlds import HeightmapError, World, from_heightmap, no_imagery
 
 DEM_SUFFIXES: tuple[str, ...] = (".tif", ".tiff", ".asc")
 """File suffixes read as DEMs (GeoTIFF, ESRI ASCII grid) rather than plain height maps."""
@@ -372,20 +373,14 @@ def _ascii_size(p: Path, header: dict[str, str]) -> tuple[int, int]:
     return ncols, nrows
 
 
-NO_IMAGERY_GREY = 0.5
-"""The albedo of a DEM's world without imagery, the same everywhere: its map's RGB then
-holds nothing the file does not (no rock painted where it is steep)."""
-
-
 def load_dem(path: str | Path, resolution_m: float, *, nodata: str = "error",
              name: str | None = None, band: int | None = None,
              image: str | Path | None = None) -> tuple[World, Georeference]:
     """A :class:`World` from a DEM file (:func:`read_dem` → :func:`from_heightmap`) and the
     :class:`Georeference` that places it on Earth; its colours are ``image``'s
-    (:func:`read_image`), or :data:`NO_IMAGERY_GREY` without one."""
+    (:func:`read_image`), or one grey without one (:func:`~dgt_lib.world.worlds.no_imagery`)."""
     dem = read_dem(path, resolution_m, nodata=nodata, band=band)
-    colors = (read_image(image, dem) if image is not None
-              else np.full((*dem.heights.shape, 3), NO_IMAGERY_GREY, np.float32))
+    colors = read_image(image, dem) if image is not None else no_imagery(dem.heights.shape)
     world = from_heightmap(dem.heights, dem.resolution, colors=colors,
                            name=name or Path(path).stem)
     return world, dem.georef

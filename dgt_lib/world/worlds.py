@@ -247,7 +247,8 @@ def load_heightmap(
     name: str | None = None,
 ) -> World:
     """A :class:`World` from a file: ``.npy`` (heights in metres) or a greyscale PNG
-    (8- or 16-bit; height = pixel / max_pixel_value · ``vertical_scale_m``).
+    (8- or 16-bit; height = pixel / max_pixel_value · ``vertical_scale_m``). A height map
+    has no colour, and none is invented: its world is one grey (:func:`no_imagery`).
 
     Image row 0 is the top of the picture, i.e. the north (largest y) edge, so a
     map looks in a figure (``origin='lower'``) as it looks in an image viewer.
@@ -276,7 +277,18 @@ def load_heightmap(
         arr = img[::-1].astype(np.float64) / full * float(vertical_scale_m)
     else:
         raise HeightmapError(f"unsupported height map format {suffix!r}: use .npy or .png")
-    return from_heightmap(arr, resolution, origin=origin, name=name or p.stem)
+    return from_heightmap(arr, resolution, origin=origin, name=name or p.stem,
+                          colors=no_imagery(arr.shape))
+
+
+NO_IMAGERY_GREY = 0.5
+"""The albedo of a height map's or DEM's world without imagery, the same everywhere: its
+map's RGB then holds nothing the file does not (no rock painted where it is steep)."""
+
+
+def no_imagery(shape: tuple[int, ...]) -> np.ndarray:
+    """The colours (H, W, 3) of a world whose file has no imagery: one grey."""
+    return np.full((*shape[:2], 3), NO_IMAGERY_GREY, np.float32)
 
 
 GRASS = np.array([0.32, 0.50, 0.20], np.float32)
