@@ -45,7 +45,7 @@ from dgt_lib.world.mujoco_model import (
     build_model,
 )
 from dgt_lib.world.speed_control import SpeedController
-from dgt_lib.world.underside_gate import all_finite, min_underside_gap
+from dgt_lib.world.underside_gate import diverged, min_underside_gap
 from dgt_lib.world.worlds import World
 
 CONTROL_DT_S = 0.04  # control period [s] (25 Hz)
@@ -113,10 +113,6 @@ def opengl_renderer(renderer: mujoco.Renderer) -> bytes:
 
     renderer._gl_context.make_current()
     return GL.glGetString(GL.GL_RENDERER) or b""
-
-
-_DIVERGENCE_WARNINGS = tuple(int(getattr(mujoco.mjtWarning, f"mjWARN_BAD{q}"))
-                             for q in ("QPOS", "QVEL", "QACC"))
 
 
 def check_finite(where: str, **values: float | None) -> None:
@@ -324,9 +320,7 @@ class Simulator:
             chunk = min(GATE_STEPS, n - done)
             self._gate_underside(chunk * TIMESTEP_S)
             mujoco.mj_step(self.model, self.data, nstep=chunk)
-        ok = all_finite(self.data.qpos, self.data.qvel)
-        # MuJoCo resets the state itself when it meets NaN/huge values and counts a warning.
-        if not ok or any(self._warnings[w] for w in _DIVERGENCE_WARNINGS):
+        if diverged(self.data.qpos, self.data.qvel, self._warnings):
             self._done = "diverged"
             self._state = _replace_done(st, "diverged", st.time_s + n * TIMESTEP_S)
             return self._state
@@ -378,8 +372,7 @@ class Simulator:
         yaw_rate = float((R @ w_body)[2])
         speed = float(vel @ R[:, 0])
         wheel, chassis_terrain, tree_contact = touching(d, self._geom_kind)
-        vx, vy = vel[:2].tolist()
-        self._immobile_s = immobile_time(self._immobile_s, math.hypot(vx, vy), dt)
+        self._immobile_s = immobile_time(self._immobile_s, math.hypot(*vel[:2].tolist()), dt)
         flipped = r22 < FLIP_UP_Z
         if flipped and self._done is None:
             self._done = "flipped"
