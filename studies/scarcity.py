@@ -6,6 +6,7 @@ profile's recipe, and both are scored against the measured ground truth.
 
     .venv/bin/python studies/scarcity.py --profile demo --seeds 3
     .venv/bin/python studies/scarcity.py --profile demo --seeds 3 --closed-loop
+    .venv/bin/python studies/scarcity.py --profile demo --seeds 3 --stored --publish
 
 Per (vehicle, f, run seed) the pair of models is trained in its own data directory
 ``<out>/<vehicle>_f<f>/`` (f = 1 is the profile's own run, ``$DGT_DATA_DIR`` or ``data/``),
@@ -32,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 from runner import Study, link, stored_or_run, write_scores
+
+from dgt_lib.records.study import table
 
 STUDIED = ("vw_van", "carla_cola")
 FRACTIONS = (1.0, 0.3, 0.1, 0.03)
@@ -149,12 +152,13 @@ def mae(s: dict, method: str) -> float:
 
 
 def interval(values: list[float]) -> tuple[float, float]:
-    """Mean and the half-width of its 95 % t-interval over seeds (0 for one seed)."""
+    """Mean and the half-width of its 95 % t-interval over seeds (NaN for one seed: no
+    interval)."""
     from scipy import stats
 
     x = np.asarray(values, float)
     if len(x) < 2:
-        return float(x.mean()), 0.0
+        return float(x.mean()), float("nan")
     return float(x.mean()), float(stats.t.ppf(0.975, len(x) - 1) * x.std(ddof=1)
                                   / math.sqrt(len(x)))
 
@@ -196,15 +200,12 @@ def _f(x: float, d: int = 3) -> str:
     return "—" if not math.isfinite(x) else f"{x:.{d}f}"
 
 
-def tables(scores: list[dict], loops: list[dict]) -> str:
-    """Markdown: per vehicle and fraction, the data kept and both maps' accuracy over seeds,
-    then per seed the paired MAE difference, then the closed loop."""
+def tables(scores: list[dict], loops: list[dict]) -> dict[str, dict]:
+    """The study's tables (:func:`~dgt_lib.records.study.table`): per vehicle and fraction
+    the data kept and both maps' accuracy over seeds (``accuracy``), per seed the paired MAE
+    difference (``paired``) and, when driven, the closed loop (``closed_loop``)."""
     seeds = sorted({s["seed"] for s in scores})
-    lines = [f"Accuracy against the measured ground truth, mean ± 95 % t-interval over the "
-             f"run seeds {seeds}:", "",
-             "| vehicle | f | runs kept | patches | MAE multi-task | MAE single-task | "
-             "ρ multi-task | ρ single-task | contrast multi / single / true |",
-             "|" + "---|" * 9]
+    accuracy, paired = [], []
     for v in STUDIED:
         for f in FRACTIONS:
             mine = [s for s in scores if s["vehicle"] == v and s["fraction"] == f]
@@ -222,38 +223,37 @@ def tables(scores: list[dict], loops: list[dict]) -> str:
             con = [np.mean([[r["contrast"] for r in s["accuracy"] if r["method"] == m]
                             for s in mine]) for m in ("dgt", "single-task")]
             true = np.mean([r["contrast_true"] for s in mine for r in s["accuracy"]])
-            cells.append(f"{con[0]:.2f} / {con[1]:.2f} / {true:.2f}")
-            lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "MAE multi-task − single-task per seed (95 % paired bootstrap interval; "
-              "negative: multi-task closer):", "",
-              "| vehicle | f | " + " | ".join(f"seed {s}" for s in seeds) + " |",
-              "|" + "---|" * (len(seeds) + 2)]
-    for v in STUDIED:
-        for f in FRACTIONS:
-            cells = []
-            for seed in seeds:
-                s = next((s for s in scores if (s["vehicle"], s["fraction"], s["seed"])
-                          == (v, f, seed)), None)
-                if s is None:
-                    cells.append("—")
-                    continue
-                d = mae(s, "dgt") - mae(s, "single-task")
-                lo, hi = (min(p["mae_difference_ci"][0] for p in s["paired"]),
-                          max(p["mae_difference_ci"][1] for p in s["paired"]))
-                cells.append(f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]")
-            if any(c != "—" for c in cells):
-                lines.append(f"| {v} | {f:g} | " + " | ".join(cells) + " |")
+            accuracy.append([*cells, f"{con[0]:.2f} / {con[1]:.2f} / {true:.2f}"])
+            paired.append([v, f"{f:g}", *(_difference(next(
+                (s for s in mine if s["seed"] == seed), None)) for seed in seeds)])
+    out = {"accuracy": table(
+        "Accuracy against the measured ground truth, mean ± 95 % t-interval over the seeds "
+        "(contrast: mean |C(θ) − C(θ+π)| over the directional pairs)",
+        ["vehicle", "f", "runs kept", "patches", "MAE multi-task", "MAE single-task",
+         "ρ multi-task", "ρ single-task", "contrast multi / single / true"], accuracy),
+        "paired": table(
+        "MAE multi-task − single-task per seed (95 % paired bootstrap interval; negative: "
+        "multi-task closer)", ["vehicle", "f", *(f"seed {s}" for s in seeds)], paired)}
     if loops:
-        lines += ["", "Closed loop at the fraction where the maps differ most (arrived / "
-                  "trials, per seed):", "", "| vehicle | experiment | f | method | per seed |",
-                  "|---|---|---|---|---|"]
+        rows = []
         for v in STUDIED:
             mine = sorted((x for x in loops if x["vehicle"] == v), key=lambda x: x["seed"])
-            for m in (mine[0]["arrived"] if mine else {}):
-                counts = ", ".join("{}/{}".format(*x["arrived"][m]) for x in mine)
-                lines.append(f"| {v} | {mine[0]['experiment']} | {mine[0]['fraction']:g} | "
-                             f"{m} | {counts} |")
-    return "\n".join(lines) + "\n"
+            rows += [[v, mine[0]["experiment"], f"{mine[0]['fraction']:g}", m,
+                      ", ".join("{}/{}".format(*x["arrived"][m]) for x in mine)]
+                     for m in (mine[0]["arrived"] if mine else {})]
+        out["closed_loop"] = table(
+            "Closed loop at the fraction where the maps differ most (arrived / trials, per "
+            "seed)", ["vehicle", "experiment", "f", "method", "per seed"], rows)
+    return out
+
+
+def _difference(s: dict | None) -> str:
+    """One seed's MAE multi-task − single-task and its paired bootstrap interval."""
+    if s is None:
+        return "—"
+    lo = min(p["mae_difference_ci"][0] for p in s["paired"])
+    hi = max(p["mae_difference_ci"][1] for p in s["paired"])
+    return f"{mae(s, 'dgt') - mae(s, 'single-task'):+.3f} [{lo:+.3f}, {hi:+.3f}]"
 
 
 def figure(scores: list[dict], path: Path) -> None:
@@ -303,7 +303,7 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    study = Study("scarcity", __doc__, profile="demo", seeds=3, publishes=False)
+    study = Study("scarcity", __doc__, profile="demo", seeds=3)
     parser = study.parser
     parser.add_argument("--vehicles", nargs="+", default=list(STUDIED), choices=STUDIED)
     parser.add_argument("--fractions", type=float, nargs="+", default=list(FRACTIONS))
@@ -347,7 +347,7 @@ def main() -> None:
                 f = most_different(scores, v)
                 loops += [closed_loop(v, f, args.profile, s, base, out)
                           for s in study.seeds]
-    print(tables(scores, loops))
+    study.finish(tables(scores, loops), seeds=sorted({s["seed"] for s in scores}))
     figure(scores, args.figure or out / "scarcity.png")
 
 
