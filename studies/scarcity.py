@@ -235,16 +235,29 @@ def tables(scores: list[dict], loops: list[dict]) -> dict[str, dict]:
         "MAE multi-task − single-task per seed (95 % paired bootstrap interval; negative: "
         "multi-task closer)", ["vehicle", "f", *(f"seed {s}" for s in seeds)], paired)}
     if loops:
-        rows = []
-        for v in STUDIED:
-            mine = sorted((x for x in loops if x["vehicle"] == v), key=lambda x: x["seed"])
-            rows += [[v, mine[0]["experiment"], f"{mine[0]['fraction']:g}", m,
-                      ", ".join("{}/{}".format(*x["arrived"][m]) for x in mine)]
-                     for m in (mine[0]["arrived"] if mine else {})]
         out["closed_loop"] = table(
-            "Closed loop at the fraction where the maps differ most (arrived / trials, per "
-            "seed)", ["vehicle", "experiment", "f", "method", "per seed"], rows)
+            "Closed loop at the fraction where the maps differ most (arrived / trials per "
+            "seed; pooled, with its Wilson 95 % interval)",
+            ["vehicle", "experiment", "f", "method", "per seed", "pooled"], _loop_rows(loops))
     return out
+
+
+def _loop_rows(loops: list[dict]) -> list[list[str]]:
+    """The closed loop's rows: per vehicle and method, arrivals per seed and pooled."""
+    from dgt_lib.evaluation.statistics import wilson_interval
+    from dgt_lib.mapping.methods import METHOD_LABELS
+
+    rows = []
+    for v in STUDIED:
+        mine = sorted((x for x in loops if x["vehicle"] == v), key=lambda x: x["seed"])
+        for m in mine[0]["arrived"] if mine else {}:
+            k, n = (sum(x["arrived"][m][i] for x in mine) for i in (0, 1))
+            lo, hi = wilson_interval(k, n)
+            rows.append([v, mine[0]["experiment"], f"{mine[0]['fraction']:g}",
+                         METHOD_LABELS.get(m, m),
+                         ", ".join("{}/{}".format(*x["arrived"][m]) for x in mine),
+                         f"{k}/{n} ({100 * lo:.0f}–{100 * hi:.0f} %)"])
+    return rows
 
 
 def _difference(s: dict | None) -> str:
@@ -334,7 +347,9 @@ def main() -> None:
     if args.stored:
         paths = [out / "scores" / f"{variant(v, f)}_seed{s}.json" for v, f, s in runs]
         scores = [json.loads(p.read_text()) for p in paths if p.exists()]
-        loops = [json.loads(p.read_text()) for p in sorted(out.glob("scores/*_closed_loop.json"))]
+        loops = [x for x in (json.loads(p.read_text())
+                             for p in sorted(out.glob("scores/*_closed_loop.json")))
+                 if x["vehicle"] in args.vehicles and x["seed"] in study.seeds]
         if not scores:
             print(f"no stored scores under {out / 'scores'} for these seeds: run without "
                   "--stored first", file=sys.stderr)
