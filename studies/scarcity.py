@@ -362,7 +362,8 @@ def main() -> None:
                 f = most_different(scores, v)
                 loops += [closed_loop(v, f, args.profile, s, base, out)
                           for s in study.seeds]
-    study.finish(tables(scores, loops), seeds=sorted({s["seed"] for s in scores}))
+    study.finish(tables(scores, loops), seeds=sorted({s["seed"] for s in scores}),
+                 variant="" if set(args.vehicles) == set(STUDIED) else "-".join(args.vehicles))
     figure(scores, args.figure or out / "scarcity.png")
 
 
