@@ -1,5 +1,6 @@
 """The parallel-jobs harness: what Ctrl-C does to a pool of worker processes."""
 
+import multiprocessing
 import os
 import signal
 import threading
@@ -8,7 +9,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from dgt_lib.core.executors import run_jobs, stop_workers
+from dgt_lib.core.executors import WorkerPool, default_executor, run_jobs, stop_workers
 
 
 def _sleep_then_return(index: int, seconds: float, pid_dir: str) -> int:
@@ -74,3 +75,40 @@ def test_a_stopped_pool_leaves_no_thread_to_race_the_interpreters_exit(tmp_path)
     assert time.perf_counter() - t0 < 15
     assert [t for t in threading.enumerate() if t not in before and t.is_alive()] == []
     assert all(f.done() for f in futures)
+
+
+def _sigint_state() -> tuple[bool, bool]:
+    """(blocked, ignored) of SIGINT in this process, from /proc."""
+    status = dict(line.split(":\t", 1) for line in
+                  open("/proc/self/status").read().splitlines() if ":\t" in line)
+    bit = 1 << (signal.SIGINT - 1)
+    return bool(int(status["SigBlk"], 16) & bit), bool(int(status["SigIgn"], 16) & bit)
+
+
+_AT_START: tuple[bool, bool] | None = None
+
+
+def _record_at_start() -> None:
+    global _AT_START
+    _AT_START = _sigint_state()
+
+
+def _at_start() -> tuple[bool, bool] | None:
+    return _AT_START
+
+
+def test_a_pool_worker_starts_with_ctrl_c_blocked_so_it_never_lands_in_its_start_up():
+    """A terminal's Ctrl-C that arrives while a worker is forked must not interrupt the
+    worker's start-up code (a traceback on the terminal): SIGINT is blocked from the fork
+    to the initializer, and the parent's own mask is as it was."""
+    with WorkerPool(1, mp_context=multiprocessing.get_context("fork"),
+                    initializer=_record_at_start) as ex:
+        blocked, _ = ex.submit(_at_start).result()
+    assert blocked
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())
+
+
+def test_the_kit_s_pool_workers_ignore_ctrl_c_and_leave_it_unblocked_for_their_children():
+    with default_executor(2, "fork") as ex:
+        assert ex.submit(_sigint_state).result() == (False, True)
+

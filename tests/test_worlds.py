@@ -16,6 +16,7 @@ from dgt_lib.world.worlds import (
     load_heightmap,
     polyline_distance,
 )
+from tests.test_premises import ground
 
 SMOKE = get_profile("smoke")
 
@@ -85,7 +86,7 @@ def test_hill_routes_a_gentle_and_long_b_short_and_steep():
     sa, za, slope_a = _profile(w, w.routes["A"])
     sb, zb, slope_b = _profile(w, w.routes["B"])
     assert sa[-1] > 2 * sb[-1]
-    rise = w.landmark_xyz("summit")[2] - w.landmark_xyz("base")[2]
+    rise = ground(w, "summit") - ground(w, "base")
     assert rise >= 10.0
     weakest = get_vehicle("carla_cola").max_climb_deg
     assert slope_a.max() < weakest - 3
@@ -106,7 +107,7 @@ def test_hill_summit_only_reachable_by_the_routes():
     assert off_route.sum() > 500
     # Off the routes the way up is a cliff no vehicle climbs (the jeep's limit is ~43°).
     assert np.all(w.slope_deg()[r, c][off_route] > 50.0)
-    assert np.all(w.heights[r, c][off_route] < w.landmark_xyz("summit")[2] - 3)
+    assert np.all(w.heights[r, c][off_route] < ground(w, "summit") - 3)
 
 
 def test_ridge_spans_the_whole_width_with_one_smoothed_section():

@@ -76,8 +76,23 @@ def init_worker() -> None:
     killer) ends itself (:func:`exit_with_parent`)."""
     limit_threads()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked by WorkerPool
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     exit_with_parent()
+
+
+class WorkerPool(ProcessPoolExecutor):
+    """The kit's process pool: a worker starts with SIGINT blocked, so that a Ctrl-C in
+    the instant it is forked does not land in its start-up code (a traceback on the
+    terminal) — :func:`init_worker` ignores SIGINT, then unblocks it. In the parent the
+    signal waits the few milliseconds of the start, then arrives as usual."""
+
+    def _spawn_process(self) -> None:  # CPython's hook that starts one worker
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            super()._spawn_process()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 PARENT_POLL_S = 0.5  # how often a pool worker checks that its parent is alive [s]
@@ -120,16 +135,13 @@ def stop_workers(executor: Executor) -> None:
 def worker_environment() -> Iterator[None]:
     """Environment inherited by spawned workers: single-threaded BLAS."""
     saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    for var in THREAD_VARS:
-        os.environ[var] = "1"
+    os.environ.update(dict.fromkeys(THREAD_VARS, "1"))
     try:
         yield
     finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        os.environ.update({k: v for k, v in saved.items() if v is not None})
+        for k in (k for k, v in saved.items() if v is None):
+            os.environ.pop(k, None)
 
 
 def worker_env() -> dict[str, str]:
@@ -357,7 +369,7 @@ def default_executor(workers: int, start_method: str = "spawn") -> Executor:
     holds no GL context, e.g. closed-loop trials, each of which builds its own)."""
     if workers <= 1:
         return SerialExecutor()
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(
+    return WorkerPool(max_workers=workers, mp_context=multiprocessing.get_context(
         start_method), initializer=init_worker)
 
 

@@ -114,14 +114,6 @@ class World:
         d = np.hypot(x[..., None] - t[:, 0], y[..., None] - t[:, 1]) - t[:, 2]
         return d.min(axis=-1)
 
-    def landmark_xyz(self, name: str) -> np.ndarray:
-        """(3,) position of a landmark with the terrain height as z [m]."""
-        if name not in self.landmarks:
-            raise KeyError(f"world {self.name!r} has no landmark {name!r}; "
-                           f"landmarks: {', '.join(self.landmarks)}")
-        x, y = self.landmarks[name]
-        return np.array([x, y, float(self.height_at(x, y))])
-
     def on_route(self, path_xy: np.ndarray, route: str, tolerance_m: float = 6.0) -> bool:
         """Whether every point of a (N, 2) path lies within ``tolerance_m`` of a route."""
         d = polyline_distance(np.asarray(path_xy, float), self.routes[route])[0]
