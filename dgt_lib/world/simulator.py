@@ -125,8 +125,6 @@ def check_finite(where: str, **values: float | None) -> None:
         raise ValueError(f"{where} needs finite numbers, got {', '.join(bad)}")
 
 
-
-
 def immobile_time(immobile_s: float, speed_mps: float, dt_s: float,
                   threshold_mps: float = IMMOBILE_SPEED_MPS) -> float:
     """How long [s] a vehicle has been immobile after one more step of ``dt_s`` [s] at
