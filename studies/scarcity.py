@@ -271,21 +271,18 @@ def _difference(s: dict | None) -> str:
 
 def figure(scores: list[dict], path: Path) -> None:
     """MAE against the vehicle's training patches, multi-task vs single-task, each seed a dot
-    and the mean ± 95 % t-interval a line, one panel per vehicle."""
+    and the mean ± 95 % t-interval a line, one panel per vehicle scored."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
 
-    fig, axes = plt.subplots(1, len(STUDIED), figsize=(10, 3.8), constrained_layout=True)
-    for ax, v in zip(axes, STUDIED, strict=True):
+    vehicles = [v for v in STUDIED if any(s["vehicle"] == v for s in scores)]
+    fig, axes = plt.subplots(1, len(vehicles), figsize=(5 * len(vehicles), 3.8),
+                             constrained_layout=True, squeeze=False)
+    for ax, v in zip(axes[0], vehicles, strict=True):
         ax.set_title(v)
-        if not any(s["vehicle"] == v for s in scores):
-            ax.text(0.5, 0.5, "no scores of this vehicle", ha="center", va="center",
-                    transform=ax.transAxes)
-            ax.set_axis_off()
-            continue
         for m, colour, label in (("dgt", "C0", "multi-task"), ("single-task", "C3",
                                                                 "single-task")):
             xs, means, halves = [], [], []
@@ -309,7 +306,7 @@ def figure(scores: list[dict], path: Path) -> None:
     n_seeds = len({s["seed"] for s in scores})
     spread = (f"mean ± 95 % interval over {n_seeds} seeds" if n_seeds > 1 else
               "one seed: no interval over seeds")
-    fig.suptitle(f"When does multi-task help? Error against vehicle data ({spread})",
+    fig.suptitle(f"When does multi-task help?\nError against vehicle data ({spread})",
                  fontsize=10)
     fig.savefig(path, dpi=110)
     print(f"[scarcity] wrote {path}")

@@ -242,7 +242,8 @@ def test_warm_start_and_prediction_are_consistent():
     assert traj.shape == (FAST.time_steps, 3)
     assert np.all(np.diff(traj[:, 0]) > 0) and np.abs(traj[:, 1]).max() < 0.3
     assert 0.0 < v <= FAST.v_max
-    assert ctrl.remaining_distance(pose) == pytest.approx(50.0, abs=0.6)
+    ref = ctrl._reference()  # the path length left from the pose's projection: the goal's 50 m
+    assert ref.remaining_m(ref.update_progress(pose[0], pose[1])) == pytest.approx(50.0, abs=0.6)
 
 
 def test_occupancy_critic_keeps_the_car_out_of_obstacles():

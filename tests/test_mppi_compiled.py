@@ -82,7 +82,8 @@ def test_compiled_backend_gives_the_reference_commands_to_the_bit_along_a_whole_
     cfg = with_footprint(MPPIConfig())
     ctrl = assert_same_calls(cfg, 330)
     pose = (ctrl.optimal_trajectory[0, 0], ctrl.optimal_trajectory[0, 1])
-    assert ctrl.remaining_distance((*pose, 0.0)) < cfg.goal_radius_m  # the goal critic ran
+    ref = ctrl._reference()
+    assert ref.remaining_m(ref.update_progress(*pose)) < cfg.goal_radius_m  # the goal critic ran
 
 
 @pytest.mark.parametrize("changes", [

@@ -146,10 +146,6 @@ class ConditionedNet(DGTNet):
         """c = (s − μ_s) / σ_s for spec vectors ``raw`` (V, D)."""
         return (raw - self.spec_mean) / self.spec_std
 
-    def denormalise(self, c: torch.Tensor) -> torch.Tensor:
-        """s = μ_s + σ_s c: the spec vectors (V, D) of normalised ones."""
-        return self.spec_mean + self.spec_std * c
-
     def _conditioned(self, z: torch.Tensor, raw: torch.Tensor) -> torch.Tensor:
         """L̂ (B, V) for embeddings z (B, F) and raw spec vectors (V, D)."""
         f = self.fc_hidden

@@ -235,11 +235,6 @@ class MPPIController:
         shifted one step, ``(T, 2)`` (a copy)."""
         return self._nominal.copy()
 
-    def remaining_distance(self, pose) -> float:
-        """Path length [m] from the projection of ``pose`` to the goal."""
-        ref = self._reference()
-        return ref.remaining_m(ref.update_progress(float(pose[0]), float(pose[1])))
-
     def _reference(self) -> ReferencePath:
         if self._ref is None:
             raise RuntimeError("no path: call set_path first")
