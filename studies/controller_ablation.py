@@ -4,6 +4,8 @@ ended, and the mean cost of the driven paths, pooled over run seeds.
     .venv/bin/python studies/controller_ablation.py --profile demo --seeds 3
     .venv/bin/python studies/controller_ablation.py --profile demo --seed 0 --seed 4
     .venv/bin/python studies/controller_ablation.py --profile demo --seeds 3 --hazard --publish
+    .venv/bin/python studies/controller_ablation.py --profile demo --seeds 8 --controller paper \\
+        --experiment experiment1 --publish      # the canonical run's hill, by route
 
 Reads the cached experiments of ``dgt reproduce --seed S --set experiments.controller=NAME``
 (``--hazard``: with ``experiments.eval_hazard_world=true`` too, Experiment 3 on
@@ -107,6 +109,24 @@ def arrivals_by_controller(tables: dict[str, dict], controllers: list[str]) -> d
                  ["experiment", "vehicle", "method", *(f"`{c}`" for c in controllers)], rows)
 
 
+def by_route(runs: dict[str, list[tuple[int, ExperimentResult]]]) -> dict:
+    """Experiment 1's arrivals by the route each plan took, k/n per method and for every
+    method together: what tells the maps' choice of route from the controller's driving."""
+    rows = []
+    for controller, seeded in runs.items():
+        trials = [r for _, res in seeded for r in res.results]
+        for label, route in sorted({(r.task.query.label, r.route or "–") for r in trials}):
+            cells = []
+            for method in (*METHODS, None):
+                rs = [r for r in trials if r.task.query.label == label and (r.route or "–") == route
+                      and method in (None, r.task.method)]
+                cells.append(f"{sum(r.outcome.success for r in rs)}/{len(rs)}" if rs else "–")
+            rows.append([controller, f"{label}s by Route {route}", *cells])
+    return table("arrivals by route, k/n",
+                 ["controller", "plans", *(METHOD_LABELS[m] for m in METHODS), "every method"],
+                 rows)
+
+
 def failures(runs: dict[str, list[tuple[int, ExperimentResult]]], method: str = "dgt"
              ) -> str:
     """Every failed trial of ``method``: seed, query, route, how and where, a line each."""
@@ -138,7 +158,7 @@ def main() -> None:
     args = study.parse()
     controllers = args.controller or list(CONTROLLERS)
     names = args.experiment or (["experiment3"] if args.hazard else list(EXPERIMENTS))
-    tables, lists = {}, {}
+    tables, lists, routes = {}, {}, None
     for name in names:
         seeded = {c: [(s, res) for s in study.seeds
                       if (res := stored(name, s, args.profile, c, args.hazard)) is not None]
@@ -149,9 +169,14 @@ def main() -> None:
         tables[name] = experiment_table(name, seeded, args.profile)
         if name == "experiment1":
             lists["experiment1_failures"] = failures(seeded)
+            routes = by_route(seeded)
     if tables:
         tables["arrivals"] = arrivals_by_controller(tables, controllers)
-    study.finish(tables, lists, variant="hazard" if args.hazard else "")
+    if routes:
+        tables["experiment1_routes"] = routes
+    variant = "-".join(filter(None, ["hazard" if args.hazard else "",
+                                     "+".join(args.controller or [])]))
+    study.finish(tables, lists, variant=variant)
 
 
 if __name__ == "__main__":
