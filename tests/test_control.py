@@ -502,20 +502,6 @@ def test_the_breakaway_model_predicts_a_crawl_as_standing_still():
     assert np.all(plain[0][slow] != 0)  # the plain model has them creep
 
 
-def test_the_first_step_critic_sends_a_stuck_vehicle_more_speed():
-    # a truck that does not move at the commands it gets: scoring the sent step against
-    # the reference speed sends it faster steps, call after call, than the paper's MPPI
-    from dgt_lib.navigation.control.mppi import warm_start_trace
-
-    sent = {}
-    for weight in (0.0, 20.0):
-        cfg = dataclasses.replace(FAST, first_step_weight=weight)
-        ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
-        ctrl.set_path(straight())
-        sent[weight] = warm_start_trace(ctrl, (0.0, 0.0, 0.0), 0.0, 20)["command"]
-    assert (sent[20.0][5:] > sent[0.0][5:]).all()
-
-
 def test_a_too_fast_corner_is_slowed_below_the_roll_limit_keeping_its_curvature():
     from dgt_lib.core.vehicles import get_vehicle
     from dgt_lib.navigation.control.mppi import slow_corners
@@ -539,44 +525,6 @@ def test_a_too_fast_corner_is_slowed_below_the_roll_limit_keeping_its_curvature(
         out = simulate_tracking(ctrl, plant, lead_in_arc(8.0, lead=15.0), 12.0)
         peaks[frac] = np.abs(out["v_cmd"] * out["w_cmd"]).max()
     assert peaks[0.0] > limit >= peaks[0.2] - 1e-4
-
-
-def test_the_corner_speed_cap_is_the_corners_speed_braked_into_and_none_on_straights():
-    from dgt_lib.navigation.control.reference_path import ReferencePath
-
-    radius, lead = 8.0, 15.0
-    path = np.concatenate([lead_in_arc(radius, angle=0.5 * math.pi, lead=lead)[:-1],
-                           np.stack([np.full(60, lead + radius),
-                                     np.linspace(radius, radius + 30.0, 60),
-                                     np.full(60, 0.5 * math.pi)], axis=1)])
-    ref = ReferencePath(path, 0.5, 15.0)
-    assert np.isinf(ref.v_cap).all()  # no cap unless asked
-    ref.limit_corner_speed(2.0, 1.0)
-    s, cap = ref.s, ref.v_cap
-    mid_arc = np.argmin(np.abs(s - (lead + 0.25 * math.pi * radius)))
-    assert cap[mid_arc] == pytest.approx(math.sqrt(2.0 * radius), rel=0.03)  # 4.0 m/s
-    before = np.argmin(np.abs(s - (lead - 5.0)))  # 5 m before the corner: braking room,
-    braking_m = 5.0 + 1.0  # and the corner's full curvature 1 m in (the 2 m chord)
-    assert cap[before] == pytest.approx(math.sqrt(2.0 * radius + 2.0 * 1.0 * braking_m),
-                                        rel=0.03)
-    assert np.isinf(cap[s > lead + 0.5 * math.pi * radius + 2.0]).all()  # nothing ahead
-    assert np.all(np.diff(cap[s < lead]) <= 1e-9)  # falls toward the corner
-
-
-def test_corner_braking_enters_and_holds_a_corner_at_the_plans_corner_speed():
-    # an 8 m arc the paper's controller takes at about 5 m/s (v²/r ≈ 3 m/s²)
-    path, radius, limit = lead_in_arc(8.0, lead=15.0), 8.0, 1.5
-    arc_speed = {}
-    for accel in (0.0, limit):
-        cfg = dataclasses.replace(FAST, corner_accel_mps2=accel)
-        ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE, max_steer_rad=MAX_STEER, seed=0)
-        plant = KinematicBicycle(WHEELBASE, MAX_STEER, pose=(0.0, 0.0, 0.0), seed=1,
-                                 speed_time_constant_s=0.5)
-        out = simulate_tracking(ctrl, plant, path, 12.0)
-        on_arc = (out["pose"][:, 0] > 15.0) | (out["pose"][:, 1] > 1.0)
-        arc_speed[accel] = out["speed"][on_arc][:40].max()  # entering: the first 2 s
-    assert arc_speed[0.0] > 4.0
-    assert arc_speed[limit] < 1.15 * math.sqrt(limit * radius)  # 3.5 m/s, and braked into
 
 
 def test_the_robust_controller_weaves_less_on_a_straight_than_the_papers():

@@ -25,8 +25,8 @@ def test_the_default_controller_is_the_papers_and_stays_out_of_the_cache_key():
     assert "mppi" not in key and "controller" not in key["experiments"]
     assert trial_controller(SMOKE, np.zeros((8, 4, 4), np.float32)) == {"mppi": SMOKE.mppi}
     # every option of ours is off by default: the paper's controller to the bit
-    for name in ("breakaway_speed_mps", "first_step_weight", "roll_limit_fraction",
-                 "terrain_weight", "ancillary_fraction", "corner_accel_mps2"):
+    for name in ("breakaway_speed_mps", "roll_limit_fraction", "terrain_weight",
+                 "ancillary_fraction"):
         assert getattr(MPPIConfig(), name) == 0.0
 
 

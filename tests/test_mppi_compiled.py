@@ -131,13 +131,10 @@ def test_compiled_terrain_critic_matches_when_a_sample_leaves_the_map():
 
 
 def test_compiled_backend_matches_the_reference_with_the_robust_controller():
-    # the breakaway model lives in both rollouts, the corner cap in both speed critics; the
-    # first-step critic and the roll limit act after them: the commands with every such
-    # field on are the same in both backends
+    # the breakaway model lives in both rollouts, the roll limit acts after them: the
+    # commands with every such field on are the same in both backends
     from dgt_lib.core.controller import ROBUST
 
-    # (corner_accel_mps2 = 1 caps the s-curve's corners at 3.2 m/s)
-    every = {**ROBUST, "first_step_weight": 20.0, "corner_accel_mps2": 1.0,
-             "ancillary_fraction": 0.1}
+    every = {**ROBUST, "ancillary_fraction": 0.1}
     assert_same_calls(with_footprint(dataclasses.replace(MPPIConfig(batch_size=200), **every)),
                       30, speed=0.3)

@@ -34,6 +34,7 @@ REMOVED_DEFAULTS: dict[str, object] = {
     "max_label_weight": 10.0,
     "safety_margin_m": 0.0,  # PlannerConfig
     "mppi_batch_size": 1000,  # ExperimentsConfig: now mppi.batch_size
+    "first_step_weight": 0.0, "corner_accel_mps2": 0.0,  # MPPIConfig
 }
 """Settings deleted when keys took this form, with the value every stored run used:
 :func:`legacy_form` leaves them out wherever a key stored in the older form has them."""

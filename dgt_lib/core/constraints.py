@@ -235,8 +235,7 @@ SETTING_RULES: dict[str, Rule] = {
         "accel_std", "w_rate_std", "speed_time_constant_s", "goal_radius_m", "path_weight",
         "path_angle_weight", "speed_weight", "goal_weight", "collision_weight",
         "inflation_weight", "constraint_weight", "terrain_weight", "terrain_beta",
-        "breakaway_speed_mps", "first_step_weight", "roll_limit_fraction",
-        "corner_accel_mps2")},
+        "breakaway_speed_mps", "roll_limit_fraction")},
     "mppi.v_min": at_most(0), "mppi.smoothing_window": at_least(0, integer=True),
     "mppi.path_point_step": COUNT, "mppi.ancillary_fraction": between(0, 1, high_open=True),
     **{name: Rule(check, FROM_THE_VEHICLE_TEXT, outside) for name, check, outside in (

@@ -77,10 +77,7 @@ class MPPIConfig:
     terrain_beta: float = 150.0  # β_c (the planner's default β, PlannerConfig.beta)
     # Against crawling and rolling (ours; 0 = off, the paper's controller: docs/controller.md).
     breakaway_speed_mps: float = 0.0  # the model stands still while |v_cmd| is below this
-    first_step_weight: float = 0.0  # ((v_0 − v_ref) / target_speed)² of the sent step
     roll_limit_fraction: float = 0.0  # slow corners to this × the vehicle's rollover a_lat
-    corner_accel_mps2: float = 0.0  # v_ref ≤ √(a/|κ|) of the plan's corners, braked into
-                                    # at goal_decel (reference_path.corner_speed_cap); 0 = off
     # Biased sampling (ours, control/ancillary.py): this share of the samples is drawn
     # around a pure-pursuit rollout along the plan instead of the warm start. 0 = off.
     ancillary_fraction: float = 0.0
@@ -110,7 +107,7 @@ ROBUST: dict[str, object] = {
     # a tenth of the samples around pure pursuit: no crawl at starts that need full lock at
     # once (control/ancillary.py)
     "ancillary_fraction": 0.1,
-}  # first_step_weight stays 0: it carries speed into corners (docs/controller.md)
+}
 TERRAIN: dict[str, object] = {**ROBUST, "terrain_weight": 0.05}  # docs/controller.md
 
 PRESET_FIELDS: frozenset[str] = frozenset(ROBUST) | frozenset(TERRAIN)

@@ -15,11 +15,11 @@ drawn around the rollout of pure pursuit along the reference path:
 (α_t the bearing, from the rolled-out pose, of the path point ``l_d`` =
 ``ancillary_lookahead_m`` beyond the nearest one: the law
 :class:`~dgt_lib.navigation.control.pure_pursuit.PurePursuit` steers the ground-truth drives
-with; v_ref the speed critic's reference: the target speed, braked for the goal and capped at
-the path's ``v_cap``). The samples keep their own noise; they are moved by
-shifting their noise (:func:`bias_noise`), so both backends — which share the noise — score
-the same sequences. The weighting then decides: a biased sample that costs less than waiting
-wins the weight, one that costs more is ignored.
+with; v_ref the speed critic's reference: the target speed, braked for the goal). The
+samples keep their own noise; they are moved by shifting their noise (:func:`bias_noise`),
+so both backends — which share the noise — score the same sequences. The weighting then
+decides: a biased sample that costs less than waiting wins the weight, one that costs more
+is ignored.
 """
 
 from __future__ import annotations
@@ -55,8 +55,7 @@ def pure_pursuit_rollout(ref: ReferencePath, i_robot: int, pose, last_v: float,
         hi = min(len(pts), i + search)
         i += int(np.argmin((pts[i:hi, 0] - x) ** 2 + (pts[i:hi, 1] - y) ** 2))
         remaining = ref.remaining_m(i)
-        v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining),
-                    float(ref.v_cap[i]))
+        v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining))
         v = min(v + cfg.accel_max * dt, v_ref)
         tx, ty = pts[min(len(pts) - 1, i + ahead), :2]
         dx, dy = tx - x, ty - y

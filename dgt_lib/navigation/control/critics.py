@@ -31,10 +31,9 @@ def path_errors(x, y, yaw, v, window: tuple[np.ndarray, ...], length_m: float,
     """Every ``path_point_step``-th rollout point ``(T', B)`` projected on the tangent of
     its nearest window point: the distance to the path [m] (lateral, plus any overshoot
     before its start or past its end), the yaw error ψ − ψ_path [rad], the speed error
-    (v − v_ref)/v_target with v_ref = min(v_target, √(2·a_goal·d_remaining), v_cap) (v_cap
-    the window's corner cap, ∞ unless ``corner_accel_mps2`` is set), and the points'
-    x, y [m]."""
-    wx, wy, tx, ty, s_win, path_yaw, v_cap = window
+    (v − v_ref)/v_target with v_ref = min(v_target, √(2·a_goal·d_remaining)), and the
+    points' x, y [m]."""
+    wx, wy, tx, ty, s_win, path_yaw = window
     sel = slice(cfg.path_point_step - 1, None, cfg.path_point_step)
     px, py = x[sel], y[sel]  # (T', B)
     # argmin_j |p − w_j|² = argmin_j (|w_j|² − 2 p·w_j): one product, no BLAS
@@ -50,7 +49,6 @@ def path_errors(x, y, yaw, v, window: tuple[np.ndarray, ...], length_m: float,
     cross = np.sqrt(lateral * lateral + beyond * beyond)
     remaining = np.maximum(f32(length_m) - s, 0.0)
     v_ref = np.minimum(f32(cfg.target_speed), np.sqrt(2.0 * cfg.goal_decel * remaining))
-    v_ref = np.minimum(v_ref, v_cap[j])
     speed_err = (v[sel] - v_ref) * f32(1.0 / cfg.target_speed)
     return cross, yaw[sel] - path_yaw[j], speed_err, px, py
 
@@ -67,8 +65,8 @@ def path_angle_critic(angle_err: np.ndarray, cfg: MPPIConfig) -> np.ndarray:
 
 
 def speed_critic(speed_err: np.ndarray, cfg: MPPIConfig) -> np.ndarray:
-    """w_speed · mean_t ((v̂_t − v_ref)/v_target)²: the commanded 5 m/s, slowing for the goal
-    (and, with ``corner_accel_mps2``, for the plan's corners)."""
+    """w_speed · mean_t ((v̂_t − v_ref)/v_target)²: the commanded 5 m/s, slowing for the
+    goal."""
     return cfg.speed_weight * (speed_err * speed_err).mean(axis=0)
 
 
@@ -153,15 +151,6 @@ def constraint_critic(v, w, cfg: MPPIConfig) -> np.ndarray:
     if cfg.v_min < 0:
         cost += np.maximum(-v, 0.0).mean(axis=0) * f32(1.0 / cfg.target_speed)
     return cfg.constraint_weight * cost
-
-
-def first_step_critic(v0: np.ndarray, v_ref: float, cfg: MPPIConfig) -> np.ndarray:
-    """w_first · ((v_0 − v_ref)/v_target)² ``(B,)``: the speed of the step each sequence
-    sends now, ``v0`` [m/s], against the reference speed at the robot. The path critics
-    score the horizon, where a ramp planned every call and never driven looks as good as
-    one driven (docs/controller.md, "Why MPPI crawls"); this scores the committed step."""
-    err = (v0 - f32(v_ref)) * f32(1.0 / cfg.target_speed)
-    return f32(cfg.first_step_weight) * err * err
 
 
 def terrain_table(costmap: np.ndarray, cfg: MPPIConfig) -> np.ndarray:

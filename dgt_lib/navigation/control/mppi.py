@@ -221,8 +221,6 @@ class MPPIController:
         its last point. The warm start is kept (replanning should not jerk the car)."""
         cfg = self.cfg
         self._ref = ReferencePath(path, cfg.path_resolution_m, cfg.v_max * cfg.horizon_s)
-        if cfg.corner_accel_mps2 > 0:
-            self._ref.limit_corner_speed(cfg.corner_accel_mps2, cfg.goal_decel)
 
     @property
     def path(self) -> np.ndarray:
@@ -300,8 +298,6 @@ class MPPIController:
         sampled_costs = (self._sampled_costs_compiled if self.backend == "compiled"
                          else self._sampled_costs)
         v, w, cost = sampled_costs(x0, y0, yaw0, speed, i_robot, grid, terrain)
-        if cfg.first_step_weight > 0:  # ours: the first speed held near the path's
-            cost = cost + self._first_step_cost(v[0], i_robot)
         self.last_costs = cost
         # 4. weight them, w_b = exp(−(S_b − min S)/λ)/η, and average: u*_t = Σ_b w_b u_b,t
         nominal = weighted_sequence(v, w, self.weighting(cost, cfg.temperature), self._nominal)
@@ -333,16 +329,6 @@ class MPPIController:
         if terrain:
             self._set_costmap(costmap)
         return terrain
-
-    def _first_step_cost(self, v_first: np.ndarray, i_robot: int) -> np.ndarray:
-        """Ours: each sample's cost of its first speed ``(B,)`` against the path's speed
-        there — the target speed, capped by the goal's braking and the corners' limits
-        (:func:`~dgt_lib.navigation.control.critics.first_step_critic`)."""
-        cfg, ref = self.cfg, self._ref
-        remaining = ref.remaining_m(i_robot)
-        v_ref = min(cfg.target_speed, math.sqrt(2.0 * cfg.goal_decel * remaining),
-                    float(ref.v_cap[i_robot]))
-        return critics.first_step_critic(v_first, v_ref, cfg)
 
     def _smooth_and_bound(self, nominal: np.ndarray) -> None:
         """Nav2's Savitzky–Golay smoothing of ω over the past commands, then |ω| clipped to

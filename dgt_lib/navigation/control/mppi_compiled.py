@@ -93,7 +93,7 @@ def sample_rollouts(ev, ew, nom_v, nom_w, last_v, dt, accel_std, decel_max, acce
 
 @njit(cache=True)
 def project_on_path(v_act, cos_mid, sin_mid, yaw, dt, first, every, wx, wy, tx, ty, s_win,
-                    path_yaw, v_cap, length, target_speed, two_decel, inv_target, x, y,
+                    path_yaw, length, target_speed, two_decel, inv_target, x, y,
                     cross, angle_err, speed_err):
     """Rollout positions and their projection on the path window, in place.
 
@@ -102,8 +102,7 @@ def project_on_path(v_act, cos_mid, sin_mid, yaw, dt, first, every, wx, wy, tx, 
     outputs): the nearest window point j (first minimum of |w_j|² − 2 p·w_j), the
     distance to the path ``cross`` [m] (lateral, plus any overshoot before its start or
     past its end), ``angle_err`` = ψ − ψ_path(j) [rad] and the speed error
-    ``speed_err`` = (v̂ − v_ref)/v_target with v_ref = min(v_target, √(2·a·d_remaining),
-    v_cap(j)).
+    ``speed_err`` = (v̂ − v_ref)/v_target with v_ref = min(v_target, √(2·a·d_remaining)).
     Window arrays (M,) float32, relative to the robot; scalars float32.
     """
     T, B = v_act.shape
@@ -148,7 +147,7 @@ def project_on_path(v_act, cos_mid, sin_mid, yaw, dt, first, every, wx, wy, tx, 
             cross[row, b] = np.sqrt(lateral * lateral + beyond * beyond)
             angle_err[row, b] = yaw[t, b] - path_yaw[j]
             remaining = max(length - s, zero)
-            v_ref = min(min(target_speed, np.sqrt(two_decel * remaining)), v_cap[j])
+            v_ref = min(target_speed, np.sqrt(two_decel * remaining))
             speed_err[row, b] = (v_act[t, b] - v_ref) * inv_target
         row += 1
 

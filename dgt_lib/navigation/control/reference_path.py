@@ -14,9 +14,7 @@ class ReferencePath:
     """A path ``(N, 3)`` of (x [m], y [m], yaw [rad]) resampled every ``spacing_m``; its
     last point is the goal. ``points`` ``(M, 3)``, arc length ``s`` ``(M,)`` [m],
     ``length_m``, unit ``tangent`` ``(M, 2)``. The progress search looks 2 m back and as
-    far ahead as a rollout of ``horizon_m`` can reach (plus 2 m). ``v_cap`` ``(M,)`` [m/s]
-    caps the speed critic's reference at each point: no cap (∞) unless
-    :meth:`limit_corner_speed` set one."""
+    far ahead as a rollout of ``horizon_m`` can reach (plus 2 m)."""
 
     def __init__(self, path: np.ndarray, spacing_m: float, horizon_m: float):
         pts, s = resample_path(path, spacing_m)
@@ -26,15 +24,10 @@ class ReferencePath:
         tangent = np.gradient(pts[:, :2], axis=0)
         tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
         self.tangent = tangent  # (M, 2) unit direction of travel along the points
-        self.v_cap = np.full(len(pts), np.inf)
         self.progress: int | None = None
         ds = s[1] - s[0]
         self._back = int(math.ceil(2.0 / ds))
         self._ahead = int(math.ceil((horizon_m + 2.0) / ds)) + 1
-
-    def limit_corner_speed(self, lateral_accel_mps2: float, decel_mps2: float) -> None:
-        """Cap the reference speed for the path's corners (:func:`corner_speed_cap`)."""
-        self.v_cap = corner_speed_cap(self.points, self.s, lateral_accel_mps2, decel_mps2)
 
     def update_progress(self, x: float, y: float) -> int:
         """Index of the point nearest (x, y) [m], searched near the last one."""
@@ -57,45 +50,11 @@ class ReferencePath:
 
     def window(self, i: int, x0: float, y0: float) -> tuple[np.ndarray, ...]:
         """The points around progress ``i``, float32 ``(M',)`` each: position relative to
-        (x0, y0) (x, y) [m], unit tangent (x, y), arc length s [m], yaw [rad] and the
-        speed cap ``v_cap`` [m/s]."""
+        (x0, y0) (x, y) [m], unit tangent (x, y), arc length s [m] and yaw [rad]."""
         lo = max(0, i - self._back)
         hi = min(len(self.points), i + self._ahead)
         win = self.points[lo:hi]
         return ((win[:, 0] - x0).astype(np.float32), (win[:, 1] - y0).astype(np.float32),
                 self.tangent[lo:hi, 0].astype(np.float32),
                 self.tangent[lo:hi, 1].astype(np.float32),
-                self.s[lo:hi].astype(np.float32), win[:, 2].astype(np.float32),
-                self.v_cap[lo:hi].astype(np.float32))
-
-
-def path_curvature(points: np.ndarray, s: np.ndarray, chord_m: float = 2.0) -> np.ndarray:
-    """|κ| [1/m] at each point of a resampled path ``(M, 3)`` with arc lengths ``s``: the
-    heading change over a chord of about ``chord_m`` centred on the point (one-sided at
-    the ends), divided by the chord's arc length."""
-    if len(s) < 2:
-        return np.zeros(len(s))
-    half = max(1, int(round(0.5 * chord_m / (s[1] - s[0]))))
-    i = np.arange(len(s))
-    lo, hi = np.maximum(i - half, 0), np.minimum(i + half, len(s) - 1)
-    turn = np.angle(np.exp(1j * (points[hi, 2] - points[lo, 2])))
-    return np.abs(turn) / (s[hi] - s[lo])
-
-
-def corner_speed_cap(points: np.ndarray, s: np.ndarray, lateral_accel_mps2: float,
-                     decel_mps2: float) -> np.ndarray:
-    """The fastest speed [m/s] at each point of a resampled path ``(M, 3)`` (arc lengths
-    ``s`` [m]) that takes every corner ahead at a lateral acceleration of at most
-    ``lateral_accel_mps2`` and brakes into it at ``decel_mps2``::
-
-        v_κ(s) = √(a_lat / |κ(s)|),   v_cap(s) = min_{s' ≥ s} √(v_κ(s')² + 2·a_dec·(s' − s))
-
-    (∞ on straight stretches with no corner ahead). One backward pass."""
-    if lateral_accel_mps2 <= 0 or decel_mps2 <= 0:
-        raise ValueError("lateral_accel_mps2 and decel_mps2 must be > 0")
-    kappa = path_curvature(points, s)
-    with np.errstate(divide="ignore"):
-        cap = np.sqrt(lateral_accel_mps2 / kappa)  # ∞ where κ = 0
-    for i in range(len(s) - 2, -1, -1):
-        cap[i] = min(cap[i], math.sqrt(cap[i + 1] ** 2 + 2.0 * decel_mps2 * (s[i + 1] - s[i])))
-    return cap
+                self.s[lo:hi].astype(np.float32), win[:, 2].astype(np.float32))
