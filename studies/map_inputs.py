@@ -34,10 +34,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from planned import PLANNED, planned_routes, planning_profile
+from planned import claim_share as _share
 from runner import Study, link, stored_or_run, write_scores
-
-from dgt_lib.stages.planned import PLANNED, planned_routes, planning_profile
-from dgt_lib.stages.planned import claim_share as _share
 
 VARIANTS: dict[str, dict[str, object]] = {
     "rgbd": {},

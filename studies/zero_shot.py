@@ -28,11 +28,11 @@ import json
 from pathlib import Path
 
 import numpy as np
+from planned import CLAIMS, claim_share
 from runner import Study
 from zero_shot_scores import ZERO_SHOT_METHODS
 
 from dgt_lib.core.config import VEHICLES
-from dgt_lib.stages.planned import CLAIMS, claim_share
 
 
 def suffix(generated: int) -> str:

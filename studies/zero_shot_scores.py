@@ -21,7 +21,7 @@ vehicle never driven could otherwise get, and its own:
   (:func:`~dgt_lib.mapping.baselines.climb_slope_model`).
 
 Where the vehicle is Experiment 1's or 2's, every map also plans the experiment's queries
-(:func:`~dgt_lib.stages.planned.planned_routes`: planned, not driven). The same predictors
+(``planned.planned_routes``: planned, not driven). The same predictors
 are also scored on the vehicle's test patches against their labels (:func:`patch_scores`):
 many more samples than the ground truth's cells, of the training world's terrain.
 """
@@ -29,6 +29,7 @@ many more samples than the ground truth's cells, of the training world's terrain
 from __future__ import annotations
 
 import numpy as np
+from planned import PLANNED, planned_routes, planning_profile
 
 from dgt_lib.beyond.conditioned import nearest_vehicle
 from dgt_lib.core.config import VEHICLES, Profile, as_profile
@@ -44,7 +45,6 @@ from dgt_lib.stages.conditioned import (
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_world_costmaps
 from dgt_lib.stages.dataset import ensure_dataset
 from dgt_lib.stages.ground_truth import GROUND_TRUTH_WORLDS, ensure_ground_truths, score_costmap
-from dgt_lib.stages.planned import PLANNED, planned_routes, planning_profile
 from dgt_lib.stages.train import ensure_model
 
 ZERO_SHOT_METHODS: tuple[str, ...] = ("zero-shot", "conditioned seen", "own head",
@@ -113,7 +113,7 @@ def zero_shot_scores(vehicle: str, profile: Profile | str | None = None, *,
     scored world and :data:`ZERO_SHOT_METHODS`, the ``nearest`` vehicle and its spec
     ``distance``, the number of ``generated`` training vehicles and of those
     ``generated_used`` without this one (near copies skipped), the :func:`patch_scores`
-    as ``patches``, and with ``plans`` the :data:`~dgt_lib.stages.planned.PLANNED`
+    as ``patches``, and with ``plans`` the ``planned.PLANNED``
     experiments of this vehicle as
     ``{experiment: {method: {label: {route: n}}}}``."""
     prof = as_profile(profile)

@@ -1,8 +1,7 @@
 """Experiments 1 and 2 planned only, not driven: which route each query's Hybrid A* plan
 takes on a costmap (the paper's claims, ascents by Route A and descents by Route B on the
 hill, crossings at the smoothed section of the ridge). What the studies compare maps by
-when closed-loop trials would cost too much (``studies/map_inputs.py``,
-``studies/zero_shot.py``).
+when closed-loop trials would cost too much (``map_inputs.py``, ``zero_shot.py``).
 """
 
 from __future__ import annotations
