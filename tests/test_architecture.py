@@ -8,7 +8,7 @@ import dgt_lib
 
 PACKAGE = Path(dgt_lib.__file__).parent
 LAYERS = ("core", "world", "perception", "learning", "mapping", "navigation", "beyond",
-          "evaluation", "stages", "records")
+          "evaluation", "stages", "records", "logs")
 """Sub-packages in pipeline order. ``beyond`` holds what goes beyond the paper; above them
 all sit :data:`ON_TOP`."""
 ON_TOP = ("viz", "exercises", "app")
@@ -212,7 +212,7 @@ def test_the_paper_path_is_counted_and_does_not_reach_beyond():
 PAPER_PATH_BUDGET = 13_776
 """Code lines the paper path (notebooks 01–09 and what they reach) may hold: the size it
 has, lowered whenever the code shrinks (aim: 8,000)."""
-PACKAGE_BUDGET = 16_691
+PACKAGE_BUDGET = 17_385
 """Code lines ``dgt_lib`` may hold, lowered whenever the code shrinks (aim: 12,000)."""
 
 

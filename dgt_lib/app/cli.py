@@ -33,6 +33,7 @@ from dgt_lib.app.cli_args import (
     resolution_arg,
     vehicle_or_file,
 )
+from dgt_lib.app.log_cli import add_log
 from dgt_lib.core import faults
 from dgt_lib.core.artifacts import data_root
 from dgt_lib.core.config import (
@@ -46,11 +47,15 @@ from dgt_lib.core.config import (
     profile_name,
 )
 from dgt_lib.core.faults import Terminated, interrupted_status, sigterm_as_interrupt
+from dgt_lib.core.outputs import OutputPathError
 from dgt_lib.core.overrides import (
     InvalidOverrideError,
     parse_overrides,
     settings_table,
 )
+from dgt_lib.core.vehicle_rules import InvalidVehicleError
+from dgt_lib.core.vehicles import UnknownVehicleError
+from dgt_lib.logs.bag import BadLogError
 from dgt_lib.mapping.methods import METHODS
 from dgt_lib.stages import registry
 from dgt_lib.stages.paths import profile_root
@@ -250,6 +255,13 @@ def _add_set_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", metavar="NAME=VALUE", help=SET_HELP)
 
 
+def _add_profile_options(parser: argparse.ArgumentParser) -> None:
+    """``--profile`` and ``--set``; the command reads ``args.profile_value``."""
+    parser.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
+                        help=PROFILE_HELP)
+    _add_set_option(parser)
+
+
 @contextlib.contextmanager
 def _stdout_to_stderr():
     """Everything written to stdout inside goes to stderr: Python's prints and, at the file
@@ -311,8 +323,7 @@ def _add_reproduce(sub) -> None:
     rep = sub.add_parser("reproduce", help="run the pipeline stages (cached) for a profile",
                          description="Run the pipeline's stages for every seed of a profile; "
                                      "finished stages are cached, so a rerun resumes.")
-    rep.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
-                     help=PROFILE_HELP)
+    _add_profile_options(rep)
     rep.add_argument("--stages", nargs="+", metavar="STAGE",
                      help="only these stages (see: dgt stages)")
     seeds = rep.add_mutually_exclusive_group()
@@ -322,7 +333,6 @@ def _add_reproduce(sub) -> None:
     seeds.add_argument("--seed", type=int, default=None, metavar="S",
                        help="run every stage for seed S alone (its own directory seed-S; the "
                             "pooled results are left as they are)")
-    _add_set_option(rep)
     rep.add_argument("--executor", choices=EXECUTORS, default=None,
                      help="what runs collection episodes and trials: a process pool on this "
                           "machine (default), a Dask cluster (pip install 'dgt-kit[dask]') or "
@@ -353,8 +363,7 @@ def _add_world_options(parser: argparse.ArgumentParser, vehicle_file: bool = Fal
                             "; a file: a vehicle never driven, on the vehicle-conditioned "
                             "network's costmap (docs/vehicles.md)" if vehicle_file else ""))
     parser.add_argument("--method", default="dgt", choices=METHODS)
-    parser.add_argument("--profile", type=_profile_arg, default=None,
-                        metavar=PROFILE_METAVAR, help=PROFILE_HELP)
+    _add_profile_options(parser)
     parser.add_argument("--resolution", type=resolution_arg, default=0.4,
                         help="heightmap file: metres per pixel (default 0.4); a DEM is "
                              "resampled to the profile's worlds.hfield_resolution_m")
@@ -369,7 +378,6 @@ def _add_world_options(parser: argparse.ArgumentParser, vehicle_file: bool = Fal
                         help="DEM: an 8-bit RGB GeoTIFF covering it, resampled to its grid "
                              "as the map's colour for the RGB-D model; without it a DEM is "
                              "mapped from its geometry alone")
-    _add_set_option(parser)
     _device_arg(parser)
 
 
@@ -437,12 +445,11 @@ def build_parser() -> argparse.ArgumentParser:
     se = sub.add_parser("settings", help="list every setting --set takes, its type and value",
                         description="List every NAME that --set NAME=VALUE accepts, its type "
                                     "and the profile's value (with the --set given applied).")
-    se.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
-                    help=PROFILE_HELP)
-    _add_set_option(se)
+    _add_profile_options(se)
     se.set_defaults(func=_settings)
     _add_plan(sub)
     _add_costmap(sub)
+    add_log(sub, _add_profile_options)
     return parser
 
 
@@ -461,12 +468,15 @@ def main(argv: list[str] | None = None) -> int:
     args.command_line = shlex.join(["dgt", *argv])
     try:
         with sigterm_as_interrupt():  # SIGTERM stops a command as Ctrl-C does
-            if args.command in ("reproduce", "plan", "costmap"):  # renderer, data directory
+            if args.command in ("reproduce", "plan", "costmap", "log"):  # renderer, data
                 check_mujoco_gl()
                 faults.prepare_data_dir(data_root())
+            if args.command == "log" and args.verb != "topics":
+                args.profile_value = _profile(args)
             return args.func(args)
     except (UnknownProfileError, InvalidOverrideError, registry.UnknownStageError,
-            UsageError) as exc:
+            UsageError, BadLogError, UnknownVehicleError, InvalidVehicleError,
+            OutputPathError) as exc:
         print(f"dgt: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (faults.Terminated)

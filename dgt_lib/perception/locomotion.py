@@ -38,14 +38,15 @@ def locomotion(displacement_m, dt_s, u: float = TARGET_SPEED_MPS, sigma: float =
         L = exp( −1/(2σ²) · ((u·Δt − ‖Δx‖) / (u·Δt))² )
 
     displacement_m: ‖Δx‖ [m], any shape; dt_s: Δt [s] (> 0), broadcastable;
-    u: commanded speed [m/s]; sigma: kernel width (dimensionless).
+    u: commanded speed [m/s], a number or broadcastable (a drive log's varies);
+    sigma: kernel width (dimensionless).
     Full speed gives 1, standing still exp(−1/(2σ²)) = exp(−4.5) ≈ 0.011 for σ = 1/3.
     The formula is symmetric in the speed ratio: driving *faster* than u (e.g.
     rolling downhill) also lowers L, exactly as in the paper.
     """
     d = np.asarray(displacement_m, dtype=np.float64)
     dt = np.asarray(dt_s, dtype=np.float64)
-    if not u > 0 or not sigma > 0:
+    if not np.all(np.asarray(u) > 0) or not sigma > 0:
         raise ValueError(f"u and sigma must be > 0, got u={u}, sigma={sigma}")
     if np.any(dt <= 0):
         raise ValueError("dt_s must be > 0")
