@@ -59,6 +59,8 @@ LEARNER_WRONG = {
         "success" if d <= 5.0 else "flipped" if done else "immobilized" if imm >= 10.0
         else "timeout" if t >= limit else "driving"), "exactly 10 s"),
     "mppi_weights": (lambda s, lam: (lambda e: e / e.sum())(np.exp(-s / lam)), "min S"),
+    "mean_command": (lambda t, v, a, b: np.array([  # the commands sent in the window, averaged
+        v[(t >= x) & (t <= y)].mean() for x, y in zip(a, b, strict=True)]), "holds"),
 }
 
 # More mistakes, each caught by the case meant for it.
@@ -113,7 +115,7 @@ def test_every_exercise_names_a_notebook_that_exists():
         assert (NOTEBOOKS / f"{ex.notebook}.ipynb").exists(), name
 
 
-@pytest.mark.parametrize("number", [f"{i:02d}" for i in range(1, 12)])
+@pytest.mark.parametrize("number", [f"{i:02d}" for i in range(1, 13)])
 def test_every_notebook_asks_an_exercise_and_checks_it(number):
     paths = sorted(NOTEBOOKS.glob(f"{number}_*.ipynb"))
     if not paths:

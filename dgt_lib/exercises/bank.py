@@ -357,6 +357,29 @@ def _weight_cases() -> list[Case]:
     ]
 
 
+def _mean_command(cmd_t, cmd_v, a, b):
+    from dgt_lib.perception.locomotion import mean_command
+
+    return mean_command(*(np.asarray(x, np.float64) for x in (cmd_t, cmd_v, a, b)))
+
+
+def _command_cases() -> list[Case]:
+    t3 = np.array([0.0, 1.0, 2.0])
+    return [
+        Case((t3, np.full(3, 2.0), np.array([0.2]), np.array([1.2])),
+             "a command that never changes is its own mean"),
+        Case((t3, np.array([4.0, 0.0, 4.0]), np.array([0.5]), np.array([1.5])),
+             "each command holds until the next: weight it by how long it holds"),
+        Case((np.array([0.0, 0.2, 1.0]), np.array([5.0, 1.0, 5.0]), np.array([0.1]),
+              np.array([1.1])), "weight by time, not by message: 0.1 s at 5, 0.8 s at 1, "
+                                "0.1 s at 5 m/s"),
+        Case((np.array([0.0, 1.0]), np.array([2.0, 3.0]), np.array([1.5]), np.array([2.5])),
+             "after the last command, it still holds"),
+        Case((t3, np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.5, 1.2]),
+              np.array([1.0, 1.5, 2.2])), "one mean per window: a and b are arrays"),
+    ]
+
+
 EXERCISES: dict[str, Exercise] = {
     # the BEV's fit pulls slopes weakly towards its neighbourhood's: plain least squares
     # lands within 5e-4 of it on these points
@@ -374,5 +397,6 @@ EXERCISES: dict[str, Exercise] = {
     "trial_outcome": Exercise("06_experiment1_hill", _trial_outcome, _outcome_cases,
                               normalize=_reason_index),
     "mppi_weights": Exercise("11_mppi_control", _mppi_weights, _weight_cases),
+    "mean_command": Exercise("12_your_robot", _mean_command, _command_cases),
 }
 """Every exercise by name; ``notebook`` says where it is asked."""

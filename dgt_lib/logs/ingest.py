@@ -44,7 +44,7 @@ from dgt_lib.logs.streams import (
 )
 from dgt_lib.perception.bev import BEV_RESOLUTION_M, BEVAccumulator, BEVMap
 from dgt_lib.perception.dataset import PatchDataset, label_window, patch_times, split_by_trajectory
-from dgt_lib.perception.locomotion import WINDOW_S, locomotion
+from dgt_lib.perception.locomotion import WINDOW_S, locomotion, mean_command
 from dgt_lib.perception.patches import extract_patches
 
 MIN_COMMAND_MPS = 0.5
@@ -121,7 +121,6 @@ def log_patches(robot: Trajectory, command: tuple[np.ndarray, np.ndarray], bev: 
                      np.arctan2(poses[:, 1, 0], poses[:, 0, 0])], axis=1)
     valid = angular_rate_dps(robot) <= cfg.max_angular_rate_dps
     cmd_t, cmd_v = command
-    u_of = _mean_command(cmd_t, cmd_v)
     u_now = np.interp(t, cmd_t, cmd_v)  # a zero-order hold read at the pose times
     moving = u_now >= MIN_COMMAND_MPS
     run = np.cumsum(np.concatenate([[1], (np.diff(t) > GAP_S) | np.diff(moving.astype(int))
@@ -135,7 +134,7 @@ def log_patches(robot: Trajectory, command: tuple[np.ndarray, np.ndarray], bev: 
         at = tr[0] + patch_times(tr - tr[0], valid[idx], cfg.patch_interval_s,
                                  cfg.patch_start_s, WINDOW_S)
         start, end = label_window(tr, at, WINDOW_S)
-        u = u_of(start, end)
+        u = mean_command(cmd_t, cmd_v, start, end)
         at, start, end, u = (a[u >= MIN_COMMAND_MPS] for a in (at, start, end, u))
         if len(at) == 0:
             continue
@@ -167,18 +166,6 @@ def angular_rate_dps(robot: Trajectory, baseline_s: float = 0.1) -> np.ndarray:
     hi = np.clip(np.searchsorted(t, t + 0.5 * baseline_s), 0, len(t) - 1)
     cos = (np.einsum("nij,nij->n", rot[hi], rot[lo]) - 1.0) / 2.0
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)) / np.maximum(t[hi] - t[lo], 1e-9))
-
-
-def _mean_command(cmd_t: np.ndarray, cmd_v: np.ndarray):
-    """u(a, b): the mean commanded speed over [a, b] [m/s], each command held until the
-    next (the integral of a step function, read by linear interpolation)."""
-    area = np.concatenate([[0.0], np.cumsum(cmd_v[:-1] * np.diff(cmd_t))])
-
-    def integral(x: np.ndarray) -> np.ndarray:
-        i = np.clip(np.searchsorted(cmd_t, x, side="right") - 1, 0, len(cmd_t) - 1)
-        return area[i] + cmd_v[i] * (x - cmd_t[i])
-
-    return lambda a, b: (integral(b) - integral(a)) / np.maximum(b - a, 1e-9)
 
 
 def _tree(reader: Any) -> TransformTree:

@@ -91,3 +91,17 @@ def locomotion_signal(times_s: np.ndarray, positions: np.ndarray, window_s: floa
     if label is not None:
         return label(np.hypot(dx, dy), span)
     return locomotion(np.hypot(dx, dy), span, u=u, sigma=sigma)
+
+
+def mean_command(cmd_t: np.ndarray, cmd_v: np.ndarray, a: np.ndarray, b: np.ndarray
+                 ) -> np.ndarray:
+    """ū(a, b) = ∫ₐᵇ u dt / (b − a): the mean commanded speed [m/s] over each window
+    [a, b] [s], each command ``cmd_v`` held from its time ``cmd_t`` until the next (the
+    first also before it, the last after it)."""
+    area = np.concatenate([[0.0], np.cumsum(cmd_v[:-1] * np.diff(cmd_t))])
+
+    def integral(x: np.ndarray) -> np.ndarray:  # ∫ u dt from cmd_t[0] to x
+        i = np.clip(np.searchsorted(cmd_t, x, side="right") - 1, 0, len(cmd_t) - 1)
+        return area[i] + cmd_v[i] * (x - cmd_t[i])
+
+    return (integral(b) - integral(a)) / np.maximum(b - a, 1e-9)
