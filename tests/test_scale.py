@@ -188,14 +188,16 @@ def test_a_dask_worker_killed_mid_episode_loses_no_finished_episode(data_dir):
 
 def test_a_killed_pool_worker_stops_the_run_and_the_rerun_resumes(data_dir):
     """The process pool cannot rerun a dead worker's job: the run stops
-    (BrokenProcessPool), and the rerun computes only what was not saved."""
+    (BrokenProcessPool), and the rerun computes only what was not saved. One job in flight,
+    so the worker dies between jobs: killed while it sends a result (an episode is larger
+    than a pipe holds), it would leave the pool waiting for the rest of the message."""
     prof = tiny_profile(episodes=(2, 1, 1, 0))
     seen = []
     with pytest.raises(BrokenProcessPool), make_executor("process", workers=2) as ex:
         def kill_a_worker():
             os.kill(next(iter(ex._processes)), signal.SIGKILL)
 
-        collect_episodes(prof, executor=ex, progress=False,
+        collect_episodes(prof, executor=ex, progress=False, max_in_flight=1,
                          on_episode=_kill_after_first(kill_a_worker, seen))
     saved = {(v, i) for v, i in [("jeep", 0), ("jeep", 1), ("vw_van", 0), ("mercedes_van", 0)]
              if (seed_dir(prof) / episode_relpath(v, i)).exists()}

@@ -7,7 +7,7 @@
     dgt settings [--profile P] [--set NAME=VALUE …]  every NAME --set takes, its type and value
     dgt plan --world W --vehicle V|FILE.toml --start x,y,yaw --goal x,y [--method M] [--drive]
              [--json] [--set NAME=VALUE …]         plan (and drive) one query
-    dgt --version
+    dgt costmap …, dgt log topics|record|ingest …  costmaps out, drive logs in (--help)
 
 ``--set planner.beta=50`` changes one setting of the profile (repeatable; names and types
 as in ``dgt_lib/core/config.py``, checked before anything runs; ``dgt settings`` lists them).
