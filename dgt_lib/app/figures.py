@@ -192,9 +192,6 @@ OTHER_FIGURES: dict[str, str] = {
     "pose_noise.png": "`python studies/map_inputs.py --profile demo --seeds 3 --variants rgbd "
                       "pose_low pose_mid pose_high --figure docs/figures/pose_noise.png`: the "
                       "claims under a noisy localisation (docs/map_inputs.md).",
-    "scarcity_carla_cola.png": "`python studies/scarcity.py --profile demo --seeds 3 --vehicles "
-                               "carla_cola --stored --figure docs/figures/scarcity_carla_cola.png"
-                               "`: the same for carla_cola on two CPU cores (docs/scarcity.md).",
     "scarcity.png": "`python studies/scarcity.py --profile demo --seeds 3 --stored --figure "
                     "docs/figures/scarcity.png`: when multi-task learning helps, error against "
                     "one vehicle's training patches (docs/scarcity.md).",
