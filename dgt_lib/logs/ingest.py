@@ -227,7 +227,9 @@ def ingest(path: str | Path, vehicle: VehicleSpec, topics: LogTopics = DEFAULT_T
 def summary_text(summary: dict[str, Any]) -> str:
     """The summary of :func:`ingest` as a few lines for the terminal."""
     p = summary["patches"]
+    alone = ("\none run, so every patch is in the training split: a log of several runs "
+             "(drives with a stop between them) holds some out") if summary["runs"] < 2 else ""
     return (f"{summary['log']} driven by {summary['vehicle']}: {summary['runs']} runs, "
             f"{p['train']} / {p['val']} / {p['test']} patches (train / val / test), "
             f"mean L {summary['label_mean']}, {summary['map_cells_observed']:,} map cells "
-            f"observed\nstored in {summary['folder']}\n" + json.dumps(summary["topics"]))
+            f"observed{alone}\nstored in {summary['folder']}\n" + json.dumps(summary["topics"]))
