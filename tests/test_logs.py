@@ -31,8 +31,8 @@ RENAMED = LogTopics(rgb="/front/rgb", depth="/front/depth", camera_info="/front/
 def recorded(tmp_path_factory):
     """A 16 s jeep drive on the training world as an MCAP log, and its episode."""
     folder = tmp_path_factory.mktemp("log")
-    path, episode = record_log(get_world("training", SMOKE), get_vehicle("jeep"),
-                               folder / "drive.mcap", seed=3, config=CFG)
+    path, (episode,) = record_log(get_world("training", SMOKE), get_vehicle("jeep"),
+                                  folder / "drive.mcap", seed=3, config=CFG)
     return path, episode
 
 
@@ -87,13 +87,24 @@ def test_ingesting_the_log_gives_the_map_and_labels_the_pipeline_makes_of_the_dr
 
 def test_renamed_topics_jpeg_colour_a_tf_pose_and_sqlite_give_the_same_map(
         tmp_path, monkeypatch):
-    path, episode = record_log(get_world("training", SMOKE), get_vehicle("jeep"),
-                               tmp_path / "drive.db3", seed=3, config=CFG, topics=RENAMED,
-                               compressed=True)
+    path, (episode,) = record_log(get_world("training", SMOKE), get_vehicle("jeep"),
+                                  tmp_path / "drive.db3", seed=3, config=CFG, topics=RENAMED,
+                                  compressed=True)
     bev, ds = _ingested(path, replace(RENAMED, rgb="/front/rgb/compressed"), tmp_path / "d",
                         monkeypatch)
     _same_map(bev, episode, height_m=0.03, colour=0.05)
     assert len(ds.labels) >= 8
+
+
+def test_a_log_of_three_drives_is_three_runs_split_into_train_validation_and_test(
+        tmp_path, monkeypatch):
+    cfg = replace(CFG, episode_duration_s=8.0)
+    path, episodes = record_log(get_world("training", SMOKE), get_vehicle("jeep"),
+                                tmp_path / "three.mcap", seed=5, config=cfg, runs=3)
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    summary = ingest(path, get_vehicle("jeep"), LogTopics(), cfg)
+    assert len(episodes) == 3 and summary["runs"] == 3
+    assert all(n > 0 for n in summary["patches"].values())  # one run each: 70/15/15 by run
 
 
 def _run(args, capsys):

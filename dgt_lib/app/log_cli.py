@@ -37,6 +37,8 @@ def add_log(sub, profile_options) -> None:
     rec.add_argument("--seed", type=int, default=0)
     rec.add_argument("--duration", type=float, default=None, metavar="S",
                      help="seconds of driving (default: the profile's episode duration)")
+    rec.add_argument("--runs", type=int, default=1, metavar="N",
+                     help="drives in the log, the robot standing 3 s between them (default 1)")
     rec.add_argument("--compressed", action="store_true", help="colour as JPEG")
     rec.add_argument("--pose-source", choices=("odom", "tf"), default="odom")
     profile_options(rec)
@@ -72,6 +74,7 @@ def _topics_of(args: argparse.Namespace) -> LogTopics:
 def _record(args: argparse.Namespace) -> int:
     from dgt_lib.core.outputs import check_output_path
     from dgt_lib.core.vehicle_range import resolve_vehicle
+    from dgt_lib.logs.bag import BadLogError
     from dgt_lib.logs.record import record_log
     from dgt_lib.world.terrain import get_world
 
@@ -79,11 +82,13 @@ def _record(args: argparse.Namespace) -> int:
     cfg = prof.collect if args.duration is None else replace(
         prof.collect, episode_duration_s=args.duration)
     out = check_output_path(args.out) if args.out.endswith((".mcap", ".db3")) else args.out
-    path, episode = record_log(get_world(args.world, prof), resolve_vehicle(args.vehicle), out,
-                               seed=args.seed, config=cfg, topics=_topics_of(args),
-                               compressed=args.compressed)
-    print(f"wrote {path}: {episode.duration_s:.1f} s of {episode.vehicle} on {args.world} "
-          f"(ended: {episode.end_reason})")
+    if args.runs < 1:
+        raise BadLogError(f"--runs must be at least 1, got {args.runs}")
+    path, episodes = record_log(get_world(args.world, prof), resolve_vehicle(args.vehicle),
+                                out, seed=args.seed, config=cfg, topics=_topics_of(args),
+                                compressed=args.compressed, runs=args.runs)
+    print(f"wrote {path}: {len(episodes)} run(s) of {episodes[0].vehicle} on {args.world}, "
+          + ", ".join(f"{e.duration_s:.1f} s (ended: {e.end_reason})" for e in episodes))
     return 0
 
 

@@ -30,6 +30,8 @@ from dgt_lib.world.worlds import World
 
 EPOCH_S = 1_700_000_000
 """Wall-clock second the log's stamps start at (a real robot's clock)."""
+STOP_S = 3.0
+"""How long the robot stands, commanded 0, between two runs of one log [s]."""
 
 
 @dataclass(frozen=True)
@@ -156,11 +158,13 @@ class _BagWriter:
 
 def record_log(world: World, vehicle: VehicleSpec, out: str | Path, *, seed: int = 0,
                config: CollectConfig | None = None, topics: LogTopics = DEFAULT_TOPICS,
-               realism: Realism = REALISM, compressed: bool = False) -> tuple[Path, Episode]:
-    """Drive ``vehicle`` on ``world`` as collection does (seed ``seed``, ``config``'s
-    duration) and write the log to ``out``: a ``.mcap`` or ``.db3`` file, or else a bag
+               realism: Realism = REALISM, compressed: bool = False, runs: int = 1
+               ) -> tuple[Path, list[Episode]]:
+    """Drive ``vehicle`` on ``world`` as collection does, ``runs`` times (seeds ``seed``,
+    ``seed`` + 1, …; ``config``'s duration; the robot stands :data:`STOP_S` between runs,
+    commanded 0) and write the log to ``out``: a ``.mcap`` or ``.db3`` file, or else a bag
     directory (MCAP inside). Written whole or not at all. Returns the path and the
-    episode the pipeline makes of the same drive."""
+    episodes the pipeline makes of the same drives."""
     cfg = config or CollectConfig()
     out = Path(out)
     rng = np.random.default_rng([seed, 7])
@@ -174,7 +178,7 @@ def record_log(world: World, vehicle: VehicleSpec, out: str | Path, *, seed: int
         ou = OUSteering(cfg.steer_tau_s, cfg.steer_sigma, np.random.default_rng([seed, 8]))
         trees = np.asarray(world.trees, np.float64).reshape(-1, 4)
         clock = {"odom": 0.0, "cmd": 0.0, "cam": 0.0}
-        last: dict[str, Any] = {}
+        last: dict[str, Any] = {"base": 0.0}
 
         def noisy(pose: np.ndarray) -> np.ndarray:
             from scipy.spatial.transform import Rotation
@@ -186,34 +190,40 @@ def record_log(world: World, vehicle: VehicleSpec, out: str | Path, *, seed: int
             return out_pose
 
         def steer(st: VehicleState) -> float:
-            pose = base_pose(st)
-            if not last:  # the first state: the camera's mount, once
+            pose, now = base_pose(st), last["base"] + st.time_s  # [s] on the log's clock
+            if "mount" not in last:  # the first state: the camera's mount, once
                 position, rotation = onboard_camera_pose(sim)
                 world_cam = np.eye(4)
                 world_cam[:3, :3], world_cam[:3, 3] = rotation @ OPTICAL_FROM_GL, position
                 last["mount"] = np.linalg.inv(pose) @ world_cam
                 bag.write("/tf_static", 0.0, bag.t["tf2_msgs/msg/TFMessage"](transforms=[
                     bag.transform(0.0, topics.base_frame, camera_frame, last["mount"])]))
-            while clock["odom"] <= st.time_s + 1e-9:  # between two states: interpolated
-                frac = 1.0 - (st.time_s - clock["odom"]) / CONTROL_DT_S
+            while clock["odom"] <= now + 1e-9:  # between two states: interpolated
+                frac = 1.0 - (now - clock["odom"]) / CONTROL_DT_S
                 use = pose.copy() if frac >= 0.5 or "pose" not in last else last["pose"].copy()
                 if "pose" in last:
                     use[:3, 3] = last["pose"][:3, 3] + frac * (pose[:3, 3] - last["pose"][:3, 3])
                 bag.odometry(clock["odom"], topics, noisy(use), st.speed_mps, st.angular_rate)
                 clock["odom"] += 1.0 / realism.odometry_hz
             s = _random_steer(st, ou, world, trees, vehicle, cfg)
-            if st.time_s + 1e-9 >= clock["cmd"]:
+            if now + 1e-9 >= clock["cmd"]:
                 rate = cfg.speed_mps * math.tan(s * vehicle.max_steer_rad) / vehicle.wheelbase_m
-                bag.write(topics.cmd, st.time_s, bag.twist(cfg.speed_mps, rate))
+                bag.write(topics.cmd, now, bag.twist(cfg.speed_mps, rate))
                 clock["cmd"] += 1.0 / realism.command_hz
-            if st.time_s + 1e-9 >= clock["cam"]:
+            if now + 1e-9 >= clock["cam"]:
                 clock["cam"] += 1.0 / realism.camera_hz
-                _camera(bag, renderer, st.time_s + rng.normal(0.0, realism.jitter_s),
+                _camera(bag, renderer, now + rng.normal(0.0, realism.jitter_s),
                         pose @ last["mount"], topics, camera_frame, rng, realism)
-            last["pose"] = pose
+            last["pose"], last["now"] = pose, now
             return s
 
-        episode = run_episode(world, vehicle, seed, cfg, steer=steer)
+        episodes = []
+        for k in range(runs):
+            last.pop("pose", None)  # a new run starts elsewhere: nothing to interpolate from
+            episodes.append(run_episode(world, vehicle, seed + k, cfg, steer=steer))
+            _stand(bag, topics, clock, last["now"] + STOP_S, lambda: noisy(last["pose"]),
+                   realism)
+            last["base"] = clock["cam"] = max(clock["odom"], clock["cmd"])
         bag.writer.close()
         stored = tmp / "bag"
         if out.suffix in (".mcap", ".db3"):
@@ -223,7 +233,20 @@ def record_log(world: World, vehicle: VehicleSpec, out: str | Path, *, seed: int
         stored.replace(out)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return out, episode
+    return out, episodes
+
+
+def _stand(bag: _BagWriter, topics: LogTopics, clock: dict[str, float], until: float,
+           pose: Any, realism: Realism) -> None:
+    """The robot standing until ``until`` [s]: odometry at ``pose()`` (a fresh noisy copy
+    each time), speed 0, and velocity commands of 0, at their rates."""
+    while clock["odom"] <= until or clock["cmd"] <= until:
+        if clock["odom"] <= clock["cmd"]:
+            bag.odometry(clock["odom"], topics, pose(), 0.0, np.zeros(3))
+            clock["odom"] += 1.0 / realism.odometry_hz
+        else:
+            bag.write(topics.cmd, clock["cmd"], bag.twist(0.0, 0.0))
+            clock["cmd"] += 1.0 / realism.command_hz
 
 
 def _camera(bag: _BagWriter, renderer: Any, t: float, world_cam: np.ndarray,
