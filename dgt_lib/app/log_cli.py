@@ -37,7 +37,7 @@ def add_log(sub, profile_options) -> None:
     rec.add_argument("--seed", type=int, default=0)
     rec.add_argument("--duration", type=float, default=None, metavar="S",
                      help="seconds of driving (default: the profile's episode duration)")
-    rec.add_argument("--runs", type=int, default=1, metavar="N",
+    rec.add_argument("--runs", type=_at_least_one, default=1, metavar="N",
                      help="drives in the log, the robot standing 3 s between them (default 1)")
     rec.add_argument("--compressed", action="store_true", help="colour as JPEG")
     rec.add_argument("--pose-source", choices=("odom", "tf"), default="odom")
@@ -52,6 +52,13 @@ def add_log(sub, profile_options) -> None:
     ing.add_argument("--pose-source", choices=("odom", "tf"), default="odom")
     profile_options(ing)
     ing.set_defaults(func=_ingest)
+
+
+def _at_least_one(text: str) -> int:
+    """``--runs``: a whole number ≥ 1."""
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}")
+    return int(text)
 
 
 def _topics(args: argparse.Namespace) -> int:
@@ -74,7 +81,6 @@ def _topics_of(args: argparse.Namespace) -> LogTopics:
 def _record(args: argparse.Namespace) -> int:
     from dgt_lib.core.outputs import check_output_path
     from dgt_lib.core.vehicle_range import resolve_vehicle
-    from dgt_lib.logs.bag import BadLogError
     from dgt_lib.logs.record import record_log
     from dgt_lib.world.terrain import get_world
 
@@ -82,8 +88,6 @@ def _record(args: argparse.Namespace) -> int:
     cfg = prof.collect if args.duration is None else replace(
         prof.collect, episode_duration_s=args.duration)
     out = check_output_path(args.out) if args.out.endswith((".mcap", ".db3")) else args.out
-    if args.runs < 1:
-        raise BadLogError(f"--runs must be at least 1, got {args.runs}")
     path, episodes = record_log(get_world(args.world, prof), resolve_vehicle(args.vehicle),
                                 out, seed=args.seed, config=cfg, topics=_topics_of(args),
                                 compressed=args.compressed, runs=args.runs)

@@ -43,7 +43,13 @@ from dgt_lib.logs.streams import (
     robot_trajectory,
 )
 from dgt_lib.perception.bev import BEV_RESOLUTION_M, BEVAccumulator, BEVMap
-from dgt_lib.perception.dataset import PatchDataset, label_window, patch_times, split_by_trajectory
+from dgt_lib.perception.dataset import (
+    PatchDataset,
+    label_window,
+    patch_times,
+    pose_at,
+    split_by_trajectory,
+)
 from dgt_lib.perception.locomotion import WINDOW_S, locomotion, mean_command
 from dgt_lib.perception.patches import extract_patches
 
@@ -114,8 +120,6 @@ def _grid(robot: Trajectory, reach_m: float):
 def log_patches(robot: Trajectory, command: tuple[np.ndarray, np.ndarray], bev: BEVMap,
                 cfg: CollectConfig, seed: int = 0) -> PatchDataset:
     """Patches and labels of every run of the log (module docstring), split by run."""
-    from dgt_lib.perception.dataset import _pose_at
-
     t, poses = robot.time_s, robot.poses
     pose = np.stack([poses[:, 0, 3], poses[:, 1, 3],
                      np.arctan2(poses[:, 1, 0], poses[:, 0, 0])], axis=1)
@@ -141,7 +145,7 @@ def log_patches(robot: Trajectory, command: tuple[np.ndarray, np.ndarray], bev: 
         dx = [np.interp(end, tr, pose[idx, k]) - np.interp(start, tr, pose[idx, k])
               for k in (0, 1)]
         labels = locomotion(np.hypot(*dx), end - start, u=u)
-        cut = _pose_at(tr, pose[idx], at)
+        cut = pose_at(tr, pose[idx], at)
         patches, observed = extract_patches(bev, cut)
         parts.append((patches, observed, labels, cut, np.full(len(at), len(parts), np.int32)))
     if not parts:

@@ -23,7 +23,7 @@ from dgt_lib.core.config import CollectConfig
 from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.logs.bag import typestore
 from dgt_lib.logs.streams import DEFAULT_TOPICS, LogTopics
-from dgt_lib.perception.episodes import Episode, OUSteering, _random_steer, run_episode
+from dgt_lib.perception.episodes import Episode, OUSteering, random_steer, run_episode
 from dgt_lib.world.rendering import onboard_camera_pose, simulator, terrain_renderer
 from dgt_lib.world.simulator import CONTROL_DT_S, VehicleState
 from dgt_lib.world.worlds import World
@@ -205,7 +205,7 @@ def record_log(world: World, vehicle: VehicleSpec, out: str | Path, *, seed: int
                     use[:3, 3] = last["pose"][:3, 3] + frac * (pose[:3, 3] - last["pose"][:3, 3])
                 bag.odometry(clock["odom"], topics, noisy(use), st.speed_mps, st.angular_rate)
                 clock["odom"] += 1.0 / realism.odometry_hz
-            s = _random_steer(st, ou, world, trees, vehicle, cfg)
+            s = random_steer(st, ou, world, trees, vehicle, cfg)
             if now + 1e-9 >= clock["cmd"]:
                 rate = cfg.speed_mps * math.tan(s * vehicle.max_steer_rad) / vehicle.wheelbase_m
                 bag.write(topics.cmd, now, bag.twist(cfg.speed_mps, rate))

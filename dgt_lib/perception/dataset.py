@@ -159,7 +159,7 @@ def patch_times(times_s: np.ndarray, valid: np.ndarray, interval_s: float, start
     return at[bad[last] - bad[first] == 0]
 
 
-def _pose_at(times_s: np.ndarray, pose: np.ndarray, at_s: np.ndarray) -> np.ndarray:
+def pose_at(times_s: np.ndarray, pose: np.ndarray, at_s: np.ndarray) -> np.ndarray:
     """(M, 3) poses (x, y, yaw ∈ [0, 2π)) interpolated at ``at_s`` (yaw unwrapped first)."""
     t = np.asarray(times_s, dtype=np.float64)
     p = np.asarray(pose, dtype=np.float64)
@@ -199,7 +199,7 @@ def episode_patches(episode: Episode, bev: BEVMap, config: CollectConfig | None 
                 "patches": np.zeros((0, 6, 22, 7), np.float32),
                 "observed": np.zeros((0, 22, 7), bool), "labels": np.zeros(0, np.float32)}
     xy_yaw = np.asarray(episode.pose, dtype=np.float64)
-    pose = _pose_at(t, xy_yaw, at)
+    pose = pose_at(t, xy_yaw, at)
     labels = locomotion_signal(t, xy_yaw[:, :2], window_s=w, u=cfg.speed_mps, at_s=at)
     patches, observed = extract_patches(bev, pose)
     return {"times": at, "pose": pose, "patches": patches, "observed": observed,

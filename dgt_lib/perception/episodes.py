@@ -200,7 +200,7 @@ def episode_seed(profile_seed: int, vehicle: str | VehicleSpec, index: int) -> i
     return int(ss.generate_state(1)[0])
 
 
-def _random_steer(st: VehicleState, ou: OUSteering, world: World, trees: np.ndarray,
+def random_steer(st: VehicleState, ou: OUSteering, world: World, trees: np.ndarray,
                   spec: VehicleSpec, cfg: CollectConfig) -> float:
     """The collection's steering: OU noise, turned home near the world's edge and away
     from trees ahead."""
@@ -272,7 +272,7 @@ def run_episode(
         if st.immobilized_s > cfg.immobilized_limit_s:  # paper: a run ends when immobilised
             reason = "immobilized"
             break
-        s = steer(st) if steer is not None else _random_steer(st, ou, world, trees, spec, cfg)
+        s = steer(st) if steer is not None else random_steer(st, ou, world, trees, spec, cfg)
         st = sim.step(speed_cmd_mps=cfg.speed_mps, steer=s)
     rows = rows[:n]
     if reason == "diverged":  # the simulator repeats the last good state: drop it
