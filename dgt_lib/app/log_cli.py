@@ -5,6 +5,8 @@
                    [--compressed] [--pose-source odom|tf]
     dgt log ingest BAG --vehicle ROBOT.toml [--rgb T] [--depth T] [--camera-info T]
                    [--odom T | --pose-source tf] [--cmd T] [--world-frame F] [--base-frame F]
+    dgt log costmap BAG --vehicle ROBOT.toml --out FILE [--format geotiff|nav2]
+                   [--head few-shot|zero-shot] [the topic options of ingest]
 
 A log the kit cannot use ends with one line naming the problem (and the topics the log
 has) and exit status 2; nothing half-written stays in the data directory.
@@ -13,6 +15,7 @@ has) and exit status 2; nothing half-written stays in the data directory.
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import fields, replace
 
 from dgt_lib.logs.streams import LogTopics
@@ -44,14 +47,31 @@ def add_log(sub, profile_options) -> None:
     profile_options(rec)
     rec.set_defaults(func=_record)
     ing = verbs.add_parser("ingest", help="a log to a BEV map and labelled patches")
-    ing.add_argument("bag")
-    ing.add_argument("--vehicle", required=True, help="the robot's vehicle file (TOML)")
-    for f in fields(LogTopics):
-        ing.add_argument(f"--{f.name.replace('_', '-')}", default=f.default,
-                         help=f"default {f.default}")
-    ing.add_argument("--pose-source", choices=("odom", "tf"), default="odom")
-    profile_options(ing)
+    _log_options(ing, profile_options)
     ing.set_defaults(func=_ingest)
+    cm = verbs.add_parser("costmap", help="the robot's directional costmap of the log's map",
+                          description="Ingest the log (cached), map it for the robot with a "
+                                      "head fitted to the log's training runs on the shared "
+                                      "backbone (few-shot) or the vehicle-conditioned "
+                                      "network's answer for its spec (zero-shot), print "
+                                      "both heads' error on the held-out runs, and write "
+                                      "the costmap (GeoTIFF or Nav2, the log's world frame).")
+    _log_options(cm, profile_options)
+    cm.add_argument("--out", required=True, help="FILE.tif, or a Nav2 stem or directory")
+    cm.add_argument("--format", dest="fmt", choices=("geotiff", "nav2"), default="geotiff")
+    cm.add_argument("--head", choices=("few-shot", "zero-shot"), default="few-shot")
+    cm.set_defaults(func=_costmap)
+
+
+def _log_options(parser: argparse.ArgumentParser, profile_options) -> None:
+    """A log to read: the bag, the robot's vehicle file, the topics, the profile."""
+    parser.add_argument("bag")
+    parser.add_argument("--vehicle", required=True, help="the robot's vehicle file (TOML)")
+    for f in fields(LogTopics):
+        parser.add_argument(f"--{f.name.replace('_', '-')}", default=f.default,
+                            help=f"default {f.default}")
+    parser.add_argument("--pose-source", choices=("odom", "tf"), default="odom")
+    profile_options(parser)
 
 
 def _at_least_one(text: str) -> int:
@@ -103,4 +123,34 @@ def _ingest(args: argparse.Namespace) -> int:
     summary = ingest(args.bag, resolve_vehicle(args.vehicle), _topics_of(args),
                      args.profile_value.collect)
     print(summary_text(summary))
+    return 0
+
+
+def _costmap(args: argparse.Namespace) -> int:
+    from dgt_lib.app.costmap_export import output_target
+    from dgt_lib.core.vehicle_range import resolve_vehicle
+    from dgt_lib.logs.heads import robot_costmap
+    from dgt_lib.logs.ingest import ingest, summary_text
+    from dgt_lib.mapping.export import write_geotiff, write_nav2
+    from dgt_lib.world.dem import import_rasterio
+
+    spec, prof = resolve_vehicle(args.vehicle), args.profile_value
+    target = output_target(args.out, args.fmt, f"{spec.name}_{args.head}", inputs=(args.bag,))
+    if args.fmt == "geotiff":
+        import_rasterio()  # missing: one line now, not after the map is built
+    summary = ingest(args.bag, spec, _topics_of(args), prof.collect)
+    print(summary_text(summary))
+    try:
+        maps = robot_costmap(summary, spec, prof, args.head)
+    except ValueError as exc:  # e.g. a log with no training patches
+        print(f"dgt log costmap: error: {exc}", file=sys.stderr)
+        return 2
+    for name, e in maps["errors"].items():
+        print(f"held-out runs, {name:>9}: MAE {e['mae']:.3f} over {e['n']} patches")
+    if not maps["errors"]:
+        print("no held-out run: the heads' errors need a log of several runs")
+    write = write_geotiff if args.fmt == "geotiff" else write_nav2
+    written = write(target, maps["cost"], maps["occupancy"], maps["bev"].grid)
+    for path in written if isinstance(written, list) else [written]:
+        print(path)
     return 0

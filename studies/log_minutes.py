@@ -1,0 +1,162 @@
+"""How many minutes of a new robot's driving does DGT-Map need?
+
+A robot the kit never trained on (``examples/my_truck.toml``, a 4 t box truck) drives the
+training world and leaves drive logs as a user's robot would (``dgt log record``: runs of
+60 s with a stop after each, camera 10 Hz, odometry 50 Hz, command 20 Hz, jitter, dropped
+frames, noisy odometry). Logs of 1, 3 and 10 minutes (the first 1, 3, 10 runs of one
+10-run log) are ingested as ``dgt log ingest`` does, and each head is scored on a held-out
+log of three more runs, recorded with another seed (the mean absolute error of L̂ against
+the held-out labels):
+
+- **prior**: the mean training label for every patch (what a head must beat);
+- **zero-shot**: the vehicle-conditioned network answering for the truck's spec (no log);
+- **few-shot**: a head on the multi-task network's frozen backbone fitted to the log
+  (``dgt_lib.logs.heads.few_shot_head``);
+- **scratch**: a network of the profile's recipe trained on the log alone.
+
+The validation data (early stopping) is the log's last run (for 1 minute: the last quarter
+of its patches). Per run seed S of the profile's canonical run, the multi-task and the
+conditioned models of seed S are used and the logs are recorded with seeds 100·S + 1
+(training) and 100·S + 2 (held out). Scores per seed are stored under
+``<data>/studies/log_minutes/`` (a rerun resumes)::
+
+    DGT_DATA_DIR=/big/disk .venv/bin/python studies/log_minutes.py --profile demo --seeds 3
+    … --seeds 3 --stored --publish     # the tables of the stored scores, and the record
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from runner import Study, write_scores  # noqa: E402
+from scarcity import interval  # noqa: E402
+
+from dgt_lib.core import artifacts  # noqa: E402
+from dgt_lib.core.config import Profile, get_profile  # noqa: E402
+from dgt_lib.core.vehicle_file import load_vehicle  # noqa: E402
+from dgt_lib.perception.dataset import SPLIT_NAMES, PatchDataset  # noqa: E402
+
+ROBOT = Path(__file__).resolve().parents[1] / "examples" / "my_truck.toml"
+MINUTES = (1, 3, 10)
+RUN_S = 60.0
+HELD_OUT_RUNS = 3
+HEADS = ("prior", "zero-shot", "few-shot", "scratch")
+TRAIN, VAL, TEST = (SPLIT_NAMES.index(s) for s in SPLIT_NAMES)
+
+
+def _log(prof: Profile, name: str, seed: int, runs: int) -> PatchDataset:
+    """A recorded and ingested log of ``runs`` drives of the robot on the training world."""
+    from dgt_lib.logs.ingest import ingest
+    from dgt_lib.logs.record import record_log
+    from dgt_lib.world.terrain import get_world
+
+    robot = load_vehicle(ROBOT)
+    cfg = replace(prof.collect, episode_duration_s=RUN_S)
+    path = artifacts.data_root() / "studies" / "log_minutes" / "logs" / f"{name}.mcap"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        record_log(get_world("training", prof), robot, path, seed=seed, config=cfg, runs=runs)
+    folder = Path(ingest(path, robot, cfg=cfg)["folder"])
+    return PatchDataset.from_arrays(artifacts.load(folder / "dataset.npz"))
+
+
+def study_data(log: PatchDataset, held_out: PatchDataset, minutes: int) -> PatchDataset:
+    """The first ``minutes`` runs of ``log`` as training and validation (the last run, or
+    for one run its last quarter of patches) and ``held_out`` as the test split."""
+    runs = np.unique(log.trajectory)[:minutes]
+    mine = log.subset(np.isin(log.trajectory, runs))
+    split = np.full(len(mine), TRAIN, np.int8)
+    if len(runs) > 1:
+        split[mine.trajectory == runs[-1]] = VAL
+    else:
+        split[int(0.75 * len(mine)):] = VAL
+    test = held_out.to_arrays()
+    arrays = {k: np.concatenate([v, test[k]])
+              for k, v in replace(mine, split=split).to_arrays().items()}
+    arrays["split"][len(mine):] = TEST
+    arrays["trajectory"][len(mine):] += int(mine.trajectory.max()) + 1
+    return PatchDataset.from_arrays(arrays)
+
+
+def score_seed(prof: Profile, seed: int) -> dict:
+    """Every head's held-out MAE for each log length, with run seed ``seed``'s models."""
+    from dgt_lib.learning.run import train_model
+    from dgt_lib.logs import heads
+    from dgt_lib.stages.costmaps import load_model
+
+    prof = replace(prof, seed=seed)
+    log = _log(prof, f"{prof.name}_train_seed{seed}", 100 * seed + 1, max(MINUTES))
+    held_out = _log(prof, f"{prof.name}_held_out_seed{seed}", 100 * seed + 2, HELD_OUT_RUNS)
+    robot = load_vehicle(ROBOT)
+    backbone = load_model(prof)
+    zero = heads.zero_shot_head(prof, robot)
+    rows = []
+    for minutes in MINUTES:
+        data = study_data(log, held_out, minutes)
+        few = heads.few_shot_head(backbone, data, robot.name, seed=seed)
+        # the log's patches carry vehicle code 0: a one-head network of the recipe
+        scratch = train_model(data, prof.train, vehicles=("jeep",), seed=seed,
+                              progress=False).model
+        errors = heads.compare_heads(data, {"zero-shot": zero, "few-shot": few,
+                                            "scratch": scratch})
+        rows.append({"minutes": minutes, "patches": int((data.split != TEST).sum()),
+                     "held_out": errors["prior"]["n"],
+                     "mae": {h: errors[h]["mae"] for h in HEADS}})
+        print(f"seed {seed}, {minutes} min: " + ", ".join(
+            f"{h} {rows[-1]['mae'][h]:.3f}" for h in HEADS), flush=True)
+    return {"seed": seed, "rows": rows}
+
+
+def tables(scores: list[dict]) -> dict[str, dict]:
+    """Held-out MAE per log length, mean ± 95 % t-interval over the seeds, and per seed."""
+    from dgt_lib.records.study import table
+
+    seeds = [s["seed"] for s in scores]
+    mean_rows, seed_rows = [], []
+    for i, minutes in enumerate(MINUTES):
+        rows = [s["rows"][i] for s in scores]
+        cells = [str(minutes), "{:.0f}".format(np.mean([r["patches"] for r in rows]))]
+        for h in HEADS:
+            m, half = interval([r["mae"][h] for r in rows])
+            cells.append(f"{m:.3f} ± {half:.3f}" if np.isfinite(half) else f"{m:.3f}")
+        mean_rows.append(cells)
+        for r, s in zip(rows, seeds, strict=True):
+            best = min(HEADS, key=lambda h: r["mae"][h])
+            seed_rows.append([str(minutes), str(s), *(f"{r['mae'][h]:.3f}" for h in HEADS),
+                              best])
+    return {
+        "minutes": table("Held-out MAE of L̂ for a robot never trained on, by minutes of its "
+                         "drive log (mean ± 95 % t-interval over the seeds)",
+                         ["minutes", "patches", *HEADS], mean_rows),
+        "per_seed": table("Held-out MAE per seed, and the closest head",
+                          ["minutes", "seed", *HEADS, "closest"], seed_rows)}
+
+
+def main() -> None:
+    study = Study("log_minutes", __doc__, profile="demo", seeds=3)
+    study.parser.add_argument("--stored", action="store_true",
+                              help="only the tables of the stored scores")
+    args = study.parse()
+    prof = get_profile(args.profile)
+    folder = artifacts.data_root() / "studies" / "log_minutes" / args.profile
+    scores = []
+    for seed in study.seeds:
+        path = folder / f"seed{seed}.json"
+        if not path.exists() and not args.stored:
+            write_scores(path, score_seed(prof, seed))
+        if path.exists():
+            scores.append(json.loads(path.read_text()))
+    if not scores:
+        raise SystemExit(f"no stored scores in {folder}")
+    study.finish(tables(scores), seeds=[s["seed"] for s in scores])
+
+
+if __name__ == "__main__":
+    main()
