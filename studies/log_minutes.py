@@ -21,7 +21,7 @@ conditioned models of seed S are used and the logs are recorded with seeds 100·
 ``<data>/studies/log_minutes/`` (a rerun resumes)::
 
     DGT_DATA_DIR=/big/disk .venv/bin/python studies/log_minutes.py --profile demo --seeds 3
-    … --seeds 3 --stored --publish     # the tables of the stored scores, and the record
+    … --seeds 3 --stored --publish --figure docs/figures/log_minutes.png  # tables, record
 """
 
 from __future__ import annotations
@@ -139,10 +139,39 @@ def tables(scores: list[dict]) -> dict[str, dict]:
                           ["minutes", "seed", *HEADS, "closest"], seed_rows)}
 
 
+def figure(scores: list[dict], path: Path) -> None:
+    """Held-out MAE against minutes of driving, one line per head (mean over the seeds,
+    each seed's value as a dot)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 3.6), constrained_layout=True)
+    for head, style in zip(HEADS, ("k:", "C0-", "C2-", "C3--"), strict=True):
+        per_seed = np.array([[r["mae"][head] for r in s["rows"]] for s in scores])
+        ax.plot(MINUTES, per_seed.mean(axis=0), style, marker="o", label=head)
+        for row in per_seed:
+            ax.plot(MINUTES, row, style[:2], marker=".", ls="none", alpha=0.4)
+    ax.set_xscale("log")
+    ax.set_xticks(MINUTES, [str(m) for m in MINUTES])
+    ax.set_xlabel("minutes of the robot's drive log")
+    ax.set_ylabel("held-out MAE of L̂")
+    ax.set_ylim(bottom=0)
+    ax.set_title(f"my_truck, never trained on ({len(scores)} seeds)", fontsize=10)
+    ax.legend(fontsize=8)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    print(f"figure: {path}")
+
+
 def main() -> None:
     study = Study("log_minutes", __doc__, profile="demo", seeds=3)
     study.parser.add_argument("--stored", action="store_true",
                               help="only the tables of the stored scores")
+    study.parser.add_argument("--figure", type=Path, default=None,
+                              help="figure path (default: in the scores' folder)")
     args = study.parse()
     prof = get_profile(args.profile)
     folder = artifacts.data_root() / "studies" / "log_minutes" / args.profile
@@ -155,6 +184,7 @@ def main() -> None:
             scores.append(json.loads(path.read_text()))
     if not scores:
         raise SystemExit(f"no stored scores in {folder}")
+    figure(scores, args.figure or folder / "log_minutes.png")
     study.finish(tables(scores), seeds=[s["seed"] for s in scores])
 
 

@@ -99,3 +99,25 @@ def test_dgt_log_costmap_compares_both_heads_and_writes_the_robots_costmap(
     assert tif.count == SMOKE.costmap.n_headings + 1  # K heading layers and the occupancy
     layers = cost[:SMOKE.costmap.n_headings]
     assert np.isfinite(layers).any() and np.nanmin(layers) >= 0 and np.nanmax(layers) <= 1
+
+
+def test_dgt_log_plan_plans_with_the_robots_head_round_a_block_on_your_terrain(
+        truck_log, tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    loaded = []
+    monkeypatch.setattr("dgt_lib.stages.costmaps.load_model", lambda prof, progress=True:
+                        loaded.append(prof.train.inputs) or _small_net())
+    monkeypatch.setattr("dgt_lib.stages.costmaps.ensure_tau_s", lambda prof: 0.6)
+    monkeypatch.setattr(heads, "zero_shot_head", lambda prof, spec, progress=True:
+                        ConditionedNet(width=8, fc_hidden=16).for_vehicles([spec]).eval())
+    heights = np.zeros((80, 120), np.float32)
+    heights[20:60, 55:65] = 3.0  # a block between start and goal
+    np.save(tmp_path / "tiny.npy", heights)
+    assert main(["log", "plan", str(truck_log), "--vehicle", str(TRUCK_FILE), "--world",
+                 str(tmp_path / "tiny.npy"), "--start", "8,16,0", "--goal", "40,16",
+                 "--profile", "smoke", "--set", "collect.episode_duration_s=8"]) == 0
+    out = capsys.readouterr().out
+    assert f"few-shot head from the log {truck_log}" in out and "found: length" in out
+    length = float(out.split("found: length ")[1].split(" m")[0])
+    assert length > 34.0  # round the block: the straight line is 32 m
+    assert loaded == ["geometry"]  # a height map has no colour: the geometry network's head

@@ -7,6 +7,8 @@
                    [--odom T | --pose-source tf] [--cmd T] [--world-frame F] [--base-frame F]
     dgt log costmap BAG --vehicle ROBOT.toml --out FILE [--format geotiff|nav2]
                    [--head few-shot|zero-shot] [the topic options of ingest]
+    dgt log plan BAG --vehicle ROBOT.toml --world W --start X,Y,YAW --goal X,Y [--drive]
+                   [--head few-shot|zero-shot] [the topic options of ingest]
 
 A log the kit cannot use ends with one line naming the problem (and the topics the log
 has) and exit status 2; nothing half-written stays in the data directory.
@@ -18,6 +20,7 @@ import argparse
 import sys
 from dataclasses import fields, replace
 
+from dgt_lib.app.cli_args import floats
 from dgt_lib.logs.streams import LogTopics
 
 
@@ -61,6 +64,20 @@ def add_log(sub, profile_options) -> None:
     cm.add_argument("--format", dest="fmt", choices=("geotiff", "nav2"), default="geotiff")
     cm.add_argument("--head", choices=("few-shot", "zero-shot"), default="few-shot")
     cm.set_defaults(func=_costmap)
+    pl = verbs.add_parser("plan", help="plan with the robot's head on a world or your terrain",
+                          description="Ingest the log (cached), give the robot a head as "
+                                      "`dgt log costmap` does, map --world with it and plan "
+                                      "one query with Hybrid A* (optionally drive it). Exit "
+                                      "status 0: a path; 1: none; 2: a bad log or query.")
+    _log_options(pl, profile_options)
+    pl.add_argument("--world", required=True, help="a kit world's name or a heightmap file")
+    pl.add_argument("--start", required=True, type=lambda t: floats(t, 3, "--start"),
+                    metavar="X,Y,YAW")
+    pl.add_argument("--goal", required=True, type=lambda t: floats(t, 2, "--goal"),
+                    metavar="X,Y")
+    pl.add_argument("--head", choices=("few-shot", "zero-shot"), default="few-shot")
+    pl.add_argument("--drive", action="store_true", help="drive the path in MuJoCo")
+    pl.set_defaults(func=_plan)
 
 
 def _log_options(parser: argparse.ArgumentParser, profile_options) -> None:
@@ -128,29 +145,65 @@ def _ingest(args: argparse.Namespace) -> int:
 
 def _costmap(args: argparse.Namespace) -> int:
     from dgt_lib.app.costmap_export import output_target
-    from dgt_lib.core.vehicle_range import resolve_vehicle
-    from dgt_lib.logs.heads import robot_costmap
-    from dgt_lib.logs.ingest import ingest, summary_text
     from dgt_lib.mapping.export import write_geotiff, write_nav2
     from dgt_lib.world.dem import import_rasterio
 
-    spec, prof = resolve_vehicle(args.vehicle), args.profile_value
+    spec = _spec(args)
     target = output_target(args.out, args.fmt, f"{spec.name}_{args.head}", inputs=(args.bag,))
     if args.fmt == "geotiff":
         import_rasterio()  # missing: one line now, not after the map is built
-    summary = ingest(args.bag, spec, _topics_of(args), prof.collect)
-    print(summary_text(summary))
     try:
-        maps = robot_costmap(summary, spec, prof, args.head)
+        summary, head = _head(args, spec, args.profile_value)
+        from dgt_lib.logs.heads import robot_costmap
+
+        bev, cost, occupancy = robot_costmap(summary, head, args.profile_value)
     except ValueError as exc:  # e.g. a log with no training patches
         print(f"dgt log costmap: error: {exc}", file=sys.stderr)
         return 2
-    for name, e in maps["errors"].items():
-        print(f"held-out runs, {name:>9}: MAE {e['mae']:.3f} over {e['n']} patches")
-    if not maps["errors"]:
-        print("no held-out run: the heads' errors need a log of several runs")
     write = write_geotiff if args.fmt == "geotiff" else write_nav2
-    written = write(target, maps["cost"], maps["occupancy"], maps["bev"].grid)
+    written = write(target, cost, occupancy, bev.grid)
     for path in written if isinstance(written, list) else [written]:
         print(path)
     return 0
+
+
+def _spec(args: argparse.Namespace):
+    from dgt_lib.core.vehicle_range import resolve_vehicle
+
+    return resolve_vehicle(args.vehicle)
+
+
+def _head(args: argparse.Namespace, spec, prof):
+    """The log ingested, the robot's head on ``prof``'s networks, both heads' held-out
+    errors printed."""
+    from dgt_lib.logs.heads import log_heads
+    from dgt_lib.logs.ingest import ingest, summary_text
+
+    summary = ingest(args.bag, spec, _topics_of(args), args.profile_value.collect)
+    print(summary_text(summary))
+    head, errors = log_heads(summary, spec, prof, args.head)
+    for name, e in errors.items():
+        print(f"held-out runs, {name:>9}: MAE {e['mae']:.3f} over {e['n']} patches")
+    if not errors:
+        print("no held-out run: the heads' errors need a log of several runs")
+    return summary, head
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from dgt_lib.app.plan_one import CostmapSource, costmap_profile, plan_query
+    from dgt_lib.logs.heads import world_maps
+    from dgt_lib.navigation.planner import InvalidQueryError
+
+    spec = _spec(args)
+    try:  # a terrain file without imagery: the heads of the geometry-only networks
+        prof, _ = costmap_profile(args.world, "dgt", args.profile_value, None)
+        _, head = _head(args, spec, prof)
+        source = CostmapSource(lambda w: world_maps(w, head, prof),
+                               None, f"{args.head} head from the log {args.bag}")
+        report = plan_query(args.world, spec, args.start, args.goal, profile=prof,
+                            drive=args.drive, source=source)
+    except (InvalidQueryError, FileNotFoundError, ValueError) as exc:
+        print(f"dgt log plan: error: {exc}", file=sys.stderr)
+        return 2
+    print(report.summary())
+    return 0 if report.plan.success else 1

@@ -10,8 +10,9 @@ Two ways to a head for it, compared on the log's held-out runs (:func:`compare_h
   the named vehicles' heads predict exactly as before (:class:`BackboneHead`).
 
 Either head maps the log's own BEV into the paper's K-heading costmap
-(:func:`log_costmap`), with the occupancy map's τ_s by the paper's rule on what the
-robot drove over (:func:`log_tau_s`).
+(:func:`robot_costmap`, ``dgt log costmap``), with the occupancy map's τ_s by the paper's
+rule on what the robot drove over (:func:`log_tau_s`), or any world's (:func:`world_maps`,
+``dgt log plan``).
 """
 
 from __future__ import annotations
@@ -24,14 +25,17 @@ import torch
 from scipy.ndimage import binary_dilation
 from torch import nn
 
+from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile
 from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.learning.model import DGTNet
 from dgt_lib.learning.training import predict
 from dgt_lib.mapping.costmap import directional_costmap
 from dgt_lib.mapping.occupancy import occupancy_map, select_tau_s
+from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.perception.bev import GRADIENT, BEVMap
 from dgt_lib.perception.dataset import SPLIT_NAMES, PatchDataset
+from dgt_lib.world.worlds import World
 
 HEADS: tuple[str, ...] = ("few-shot", "zero-shot")
 """The heads a log's robot can have (module docstring)."""
@@ -183,27 +187,43 @@ def log_costmap(bev: BEVMap, head: nn.Module, profile: Profile, tau_s: float, *,
     return cost[0], occupancy_map(bev, tau_s)
 
 
-def robot_costmap(summary: dict, spec: VehicleSpec, profile: Profile, head: str = "few-shot",
-                  *, progress: bool = True) -> dict:
-    """The ingested log of ``summary`` (:func:`~dgt_lib.logs.ingest.ingest`) mapped for its
-    robot by ``head`` (:data:`HEADS`): {"bev", "cost" (K, H, W), "occupancy", "tau_s",
-    "errors"}, errors being :func:`compare_heads`' of both heads and the prior on the
-    held-out runs (both heads are built for it); a log without a held-out run builds
-    ``head`` alone and has no errors."""
-    from dgt_lib.core import artifacts
+def log_heads(summary: dict, spec: VehicleSpec, profile: Profile, head: str = "few-shot",
+              *, progress: bool = True) -> tuple[nn.Module, dict[str, dict[str, float]]]:
+    """The head ``head`` (:data:`HEADS`) for the robot of the ingested log of ``summary``
+    (:func:`~dgt_lib.logs.ingest.ingest`), and :func:`compare_heads`' errors of both heads
+    and the prior on the log's held-out runs (both heads are built for them); a log
+    without a held-out run builds ``head`` alone and has no errors."""
     from dgt_lib.stages.costmaps import load_model
 
     if head not in HEADS:
         raise ValueError(f"unknown head {head!r}; valid heads: {', '.join(HEADS)}")
-    folder = Path(summary["folder"])
-    bev = BEVMap.from_arrays(artifacts.load(folder / "bev.npz"))
-    dataset = PatchDataset.from_arrays(artifacts.load(folder / "dataset.npz"))
+    dataset = PatchDataset.from_arrays(artifacts.load(Path(summary["folder"]) / "dataset.npz"))
     held_out = bool((dataset.split == SPLIT_NAMES.index("test")).any())
     build = {"few-shot": lambda: few_shot_head(load_model(profile, progress=progress),
                                                dataset, spec.name, seed=profile.seed),
              "zero-shot": lambda: zero_shot_head(profile, spec, progress=progress)}
-    heads = {name: make() for name, make in build.items() if held_out or name == head}
+    made = {name: make() for name, make in build.items() if held_out or name == head}
+    return made[head], compare_heads(dataset, made) if held_out else {}
+
+
+def robot_costmap(summary: dict, head: nn.Module, profile: Profile, *, progress: bool = True
+                  ) -> tuple[BEVMap, np.ndarray, np.ndarray]:
+    """The log's own map (BEV), its costmap (K, H, W) by ``head`` and its occupancy, τ_s
+    from the log (:func:`log_tau_s`)."""
+    folder = Path(summary["folder"])
+    bev = BEVMap.from_arrays(artifacts.load(folder / "bev.npz"))
+    dataset = PatchDataset.from_arrays(artifacts.load(folder / "dataset.npz"))
     tau_s = log_tau_s(bev, dataset, profile.costmap.tau_s_margin)
-    cost, occupancy = log_costmap(bev, heads[head], profile, tau_s, progress=progress)
-    return {"bev": bev, "cost": cost, "occupancy": occupancy, "tau_s": tau_s,
-            "errors": compare_heads(dataset, heads) if held_out else {}}
+    return (bev, *log_costmap(bev, head, profile, tau_s, progress=progress))
+
+
+def world_maps(world: World, head: nn.Module, profile: Profile, *, progress: bool = True
+               ) -> tuple[WorldMaps, np.ndarray]:
+    """A world's maps (its BEV, occupancy at the profile's τ_s) and its costmap (K, H, W) by
+    ``head``: the robot's map of a kit world or of your terrain, for ``dgt log plan``."""
+    from dgt_lib.stages.costmaps import ensure_tau_s, world_bev
+
+    bev, _ = world_bev(world, profile, progress=progress)
+    tau_s = ensure_tau_s(profile)
+    cost, occupancy = log_costmap(bev, head, profile, tau_s, progress=progress)
+    return WorldMaps(world.name, bev, occupancy, tau_s, {}), cost
