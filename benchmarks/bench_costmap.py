@@ -1,5 +1,5 @@
 """Directional costmap speed and accuracy: literal stride-1 procedure vs lattice vs dense,
-and the one-pass C8-equivariant network.
+and the densely evaluable PooledNet.
 
 Targets: the lattice path — the K = 8 costmaps of all four
 vehicles for a 400 × 400-cell map in ≤ 30 s on this 2-core machine, ≥ 10× faster than the
@@ -8,7 +8,7 @@ width 64 (≥ 100× literal) at mean |ΔC| ≤ 0.01. Each row reports mean and m
 from the literal procedure over all cells of the measured headings.
 
     .venv/bin/python benchmarks/bench_costmap.py [--size 400] [--literal-headings 8]
-        [--model data/demo/models/multitask.pt] [--equivariant data/equivariant/c8net.pt]
+        [--model data/demo/models/multitask.pt] [--pooled data/pooled/pooled_demo_seed0.pt]
 
 Without ``--model`` it trains a small model for a few seconds on synthetic
 patches (``train.synthetic_dataset``) so that predictions depend on the terrain
@@ -17,14 +17,8 @@ literal procedure costs the same for every heading, so ``--literal-headings N``
 (< 8) measures N headings and scales the time to 8 (the difference is measured
 on those N headings) — the table says so.
 
-The "equivariant" row (:mod:`dgt_lib.beyond.equivariant`) is another network: one pass
-of a C8Net over the unrotated map gives all 8 headings; its time does not depend on its
-weights (``--equivariant`` loads a trained one, else it is untrained), and its difference
-from the literal map of DGTNet means nothing — its accuracy is measured against the ground
-truth by ``studies/eval_equivariant.py``.
-
 The "PooledNet" rows (:mod:`dgt_lib.beyond.pooled`, ``--pooled``: trained networks saved
-by ``studies/eval_pooled.py``, else an untrained one per ``--pooled-widths``) are a third
+by ``studies/eval_pooled.py``, else an untrained one per ``--pooled-widths``) are another
 network, built to be evaluated densely: its own literal procedure (every window cut out
 with its context and run on its own, ``--literal-headings`` as above) against its dense
 evaluation, and the speed-up also against DGTNet's literal procedure of the same run.
@@ -43,7 +37,6 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from dgt_lib.beyond.dense import directional_costmap_dense
-from dgt_lib.beyond.equivariant import C8Net, EquivariantResult, equivariant_costmap
 from dgt_lib.beyond.pooled import PooledNet, bfloat16_copy
 from dgt_lib.core.config import TrainConfig
 from dgt_lib.core.geometry import GridSpec, heading_bins
@@ -92,8 +85,6 @@ def main() -> None:
     parser.add_argument("--widths", type=int, nargs="+", default=[64, 32])
     parser.add_argument("--strides", default="6x3,4x2")
     parser.add_argument("--model", default=None, help="a checkpoint instead of a synthetic model")
-    parser.add_argument("--equivariant", default=None,
-                        help="a trained C8Net (studies/eval_equivariant.py); default: untrained")
     parser.add_argument("--pooled", nargs="+", default=[],
                         help="trained PooledNet state dicts (studies/eval_pooled.py)")
     parser.add_argument("--pooled-widths", type=int, nargs="*", default=[],
@@ -133,18 +124,13 @@ def main() -> None:
                 for st in strides]
         runs.append(("dense", lambda m=model: directional_costmap_dense(bev, m, 8,
                                                                         progress=False)))
-        c8 = (EquivariantResult.from_dict(torch.load(args.equivariant, weights_only=False)).model
-              if args.equivariant else C8Net().eval())
-        runs.append(("equivariant (C8Net, one pass)", lambda c8=c8: equivariant_costmap(bev, c8)))
         for proc, run in runs:
             t0, c0 = time.perf_counter(), time.process_time()
             cost = run()
             secs, cpu = time.perf_counter() - t0, time.process_time() - c0
             diff = np.abs(cost[:, :n_lit] - ref)
-            mad, maxd = float(diff.mean()), float(diff.max())
-            if proc.startswith("equivariant"):  # another network: no meaningful difference
-                mad = maxd = float("nan")
-            rows.append((label, proc, secs, cpu, literal_cpu / cpu, mad, maxd, ""))
+            rows.append((label, proc, secs, cpu, literal_cpu / cpu, float(diff.mean()),
+                         float(diff.max()), ""))
     dgt_literal_cpu = rows[0][3]
     widths = args.pooled_widths or ([] if args.pooled else [32])
     pooled = ([(path, PooledNet.from_state_dict(torch.load(path, weights_only=True)))
@@ -178,9 +164,7 @@ def main() -> None:
           "| max abs diff |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for label, proc, secs, cpu, speedup, mad, maxd, note in rows:
-        if not np.isfinite(mad):
-            diffs = "— (another network) | —"
-        elif 0 < maxd < 1e-3:  # float rounding only: show its size
+        if 0 < maxd < 1e-3:  # float rounding only: show its size
             diffs = f"{mad:.1e} | {maxd:.1e}"
         else:
             diffs = f"{mad:.4f} | {maxd:.3f}"

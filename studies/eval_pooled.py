@@ -7,9 +7,9 @@ dataset with each patch re-cut with its context margin from the training world's
 poses, labels and train/val/test split); then report
 
 - test MSE / Spearman ρ per vehicle beside the seed's cached multi-task DGTNet;
-- the accuracy against the measured ground truth on hill / ridge / eval (as
-  ``eval_equivariant.py``: MAE, Spearman ρ, directional contrast) beside the cached DGT-Map
-  costmaps, the PooledNet's costmaps made by dense evaluation;
+- the accuracy against the measured ground truth on hill / ridge / eval (MAE, Spearman ρ,
+  directional contrast) beside the cached DGT-Map costmaps, the PooledNet's costmaps made
+  by dense evaluation;
 - the dense costmap's time per world (all 8 headings, 4 vehicles).
 
 Nothing of the profile is rebuilt (it stops if an artifact is not cached fresh). Results go
@@ -29,25 +29,38 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from eval_equivariant import (  # noqa: E402
-    accuracy_lines,
-    ground_truth_accuracy,
-    run_seeds,
-    test_lines,
-)
 from runner import Study  # noqa: E402
 
 from dgt_lib.beyond import pooled  # noqa: E402
 from dgt_lib.beyond.dense import directional_costmap_dense  # noqa: E402
 from dgt_lib.core import artifacts  # noqa: E402
-from dgt_lib.core.config import VEHICLES  # noqa: E402
+from dgt_lib.core.config import VEHICLES, as_profile  # noqa: E402
+from dgt_lib.evaluation import accuracy  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate  # noqa: E402
 from dgt_lib.perception.dataset import TEST, TRAIN  # noqa: E402
 from dgt_lib.stages.collect import ensure_bev  # noqa: E402
+from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_world_costmaps  # noqa: E402
 from dgt_lib.stages.dataset import ensure_dataset  # noqa: E402
+from dgt_lib.stages.ground_truth import (  # noqa: E402
+    GROUND_TRUTH_WORLDS,
+    ensure_ground_truths,
+    ground_truth_config,
+    ground_truth_pairs,
+    ground_truth_relpath,
+)
 from dgt_lib.stages.paths import data_dir  # noqa: E402
 from dgt_lib.stages.train import model_relpath  # noqa: E402
+
+_ensure = artifacts.ensure
+
+
+def _load_only(relpath, config, build, *, profile, **kwargs):
+    """``artifacts.ensure`` that refuses to build: this script only reads the cache."""
+    why = artifacts.staleness(relpath, config, profile=profile)
+    if why is not None:
+        raise RuntimeError(f"{profile}/{relpath} is not cached fresh ({why}): build it first")
+    return _ensure(relpath, config, build, profile=profile, **kwargs)
 
 
 def run_seed(prof, args) -> dict:
@@ -93,6 +106,71 @@ def run_seed(prof, args) -> dict:
     return record
 
 
+def ground_truth_accuracy(prof, costmaps) -> list[dict]:
+    """Rows of :func:`~dgt_lib.evaluation.accuracy.costmap_accuracy` against the cached
+    ground truths of hill / ridge / eval for the cached DGT-Map costmaps and the methods of
+    ``costmaps(world, maps)`` → ({method: cost (len(VEHICLES), 8, H, W)}, extra fields of
+    the world's rows). Stops when a ground truth is not cached (never drives)."""
+    for w, v in ground_truth_pairs():
+        if not artifacts.is_fresh(ground_truth_relpath(w, v), ground_truth_config(w, v, prof),
+                                  profile=prof.name):
+            raise RuntimeError(f"the ground truth of {v} on {w} is not cached fresh")
+    truths = ensure_ground_truths(None, prof, progress=False)
+    rows = []
+    for world in GROUND_TRUTH_WORLDS:
+        vehicles = EXPERIMENT_VEHICLES[world]
+        maps = ensure_world_costmaps(world, vehicles, prof, methods=("dgt",), progress=False)
+        methods, extra = costmaps(world, maps)
+        for v in vehicles:
+            gt = truths[(world, v)]
+            valid = gt.measured & accuracy.free_cells(maps.occupancy, maps.grid, gt.cells)[:, None]
+            layers = {"dgt": maps.costmap("dgt", v),
+                      **{m: cost[VEHICLES.index(v)] for m, cost in methods.items()}}
+            for method, layer in layers.items():
+                c = accuracy.cost_at(layer, maps.grid, gt.cells, gt.cost.shape[1])
+                rows.append({"world": world, "vehicle": v, "method": method,
+                             "shape": list(maps.grid.shape), **extra,
+                             **accuracy.costmap_accuracy(gt.cost, c, valid)})
+    return rows
+
+
+def _mean(values) -> float:
+    values = [v for v in values if v is not None and np.isfinite(v)]
+    return float(np.mean(values)) if values else float("nan")
+
+
+def test_lines(records: list[dict], key: str, name: str) -> list[str]:
+    """A markdown table of test MSE per seed and mean Spearman ρ per vehicle, the network
+    ``records[i]["test"][key]`` beside DGTNet (``["dgt"]``)."""
+    lines = [f"| vehicle | test MSE {name} (seeds) | test MSE DGTNet (seeds) | ρ {name} | "
+             "ρ DGTNet |", "|---|---|---|---|---|"]
+    for v in VEHICLES:
+        c = [r["test"][key][v] for r in records if v in r["test"][key]]
+        d = [r["test"]["dgt"][v] for r in records if v in r["test"]["dgt"]]
+        mse_c = ", ".join(f"{m['mse']:.4f}" for m in c)
+        mse_d = ", ".join(f"{m['mse']:.4f}" for m in d)
+        lines.append(f"| {v} | {mse_c} | {mse_d} | {_mean(m['spearman'] for m in c):.2f} | "
+                     f"{_mean(m['spearman'] for m in d):.2f} |")
+    return lines
+
+
+def accuracy_lines(records: list[dict]) -> list[str]:
+    """A markdown table of the seeds' ground-truth accuracy rows, means over the seeds."""
+    lines = ["| world, vehicle | method | MAE (mean over seeds) | ρ | contrast: truth / "
+             "method | same sign |", "|---|---|---|---|---|---|"]
+    keys = list(dict.fromkeys((a["world"], a["vehicle"], a["method"])
+                              for a in records[0]["accuracy"]))
+    for w, v, m in keys:
+        rows = [a for r in records for a in r["accuracy"]
+                if (a["world"], a["vehicle"], a["method"]) == (w, v, m)]
+        lines.append(f"| {w}, {v} | {m} | {_mean(a['mae'] for a in rows):.3f} | "
+                     f"{_mean(a['spearman'] for a in rows):.2f} | "
+                     f"{_mean(a['contrast_true'] for a in rows):.2f} / "
+                     f"{_mean(a['contrast'] for a in rows):.2f} | "
+                     f"{100 * _mean(a['sign_agreement'] for a in rows):.0f} % |")
+    return lines
+
+
 def report(records: list[dict]) -> str:
     """Markdown tables over the seeds' records: test MSE, ground-truth accuracy, times."""
     lines = [f"Seeds {[r['seed'] for r in records]}; {records[0]['architecture']}; "
@@ -122,6 +200,25 @@ def main() -> None:
                         help="only print the tables of the saved results of the run seeds")
     args = study.parse()
     run_seeds(args, study.seeds, "pooled", run_seed, report)
+
+
+def run_seeds(args, seeds: list[int], subdir: str, run_seed, report) -> None:
+    """The seeds loop of an evaluation script: ``--report`` prints ``report`` of the saved
+    records of run seeds ``seeds``; otherwise each seed's ``run_seed(profile, args)`` record
+    (with the load average) is saved under ``data/<subdir>/`` (only reading the profile's
+    cache) and the report of all of them printed at the end."""
+    out_dir = artifacts.data_root() / subdir
+    paths = [out_dir / f"results{args.tag}_{args.profile}_seed{s}.json" for s in seeds]
+    if not args.report:
+        artifacts.ensure = _load_only
+        torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
+        base = as_profile(args.profile)
+        for seed, path in zip(seeds, paths, strict=True):
+            record = run_seed(base.with_(seed=seed), args)
+            record["uptime"] = open("/proc/loadavg").read().split()[:3]
+            path.write_text(json.dumps(record, indent=1))
+            print(f"wrote {path}", flush=True)
+    print(report([json.loads(path.read_text()) for path in paths]))
 
 
 if __name__ == "__main__":

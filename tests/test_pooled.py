@@ -4,6 +4,7 @@ own, its inputs are altitude-free, and trained like DGTNet it learns that uphill
 import numpy as np
 import pytest
 import torch
+from scipy import ndimage
 
 from dgt_lib.beyond import pooled
 from dgt_lib.beyond.dense import directional_costmap_dense
@@ -14,7 +15,16 @@ from dgt_lib.learning.training import TrainingSet
 from dgt_lib.perception.dataset import TRAIN, PatchDataset
 from dgt_lib.perception.patches import PATCH_COLS, PATCH_ROWS, extract_patches, rotate_map
 from tests.test_costmap import synthetic_bev
-from tests.test_equivariant import hilly_bev
+from tests.test_patches import make_bev
+
+
+def hilly_bev(shape=(41, 41), seed=0):
+    """A smooth random hill map with a hole in its observed mask."""
+    rng = np.random.default_rng(seed)
+    height = (ndimage.gaussian_filter(rng.normal(size=shape), 3.0) * 15.0).astype(np.float32)
+    observed = np.ones(shape, bool)
+    observed[3:8, 30:36] = False
+    return make_bev(GridSpec((1.0, -2.0), 0.4, shape), height, observed, rng)
 
 
 def small_net(seed=0, **kwargs) -> pooled.PooledNet:

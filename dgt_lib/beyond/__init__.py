@@ -8,8 +8,6 @@ interfaces (e.g. :func:`dgt_lib.mapping.costmap.field_costmap`, the training loo
 
 ==================  ===================================================================
 ``pooled``          PooledNet: a window network that dense evaluation computes exactly
-``equivariant``     C8Net: all K = 8 headings in one pass (a C8-equivariant network)
-``group_conv``      the C8 group convolutions C8Net is built from
 ``dense``           dense evaluation of DGTNet (a measured negative result)
 ``incremental``     costmaps updated only where new BEV cells changed them
 ``explore``         driving an unknown world: frames → BEV → incremental costmap → replan
