@@ -49,8 +49,9 @@ DRIVEN_RADIUS_M = 1.0
 """Cells this close to a driven pose count as driven over [m]."""
 TRAVERSED_PERCENTILE = 99.0
 """The percentile of the driven cells' gradients that τ_s rests on (:func:`log_tau_s`)."""
-HEAD_LR = 0.05
-"""Adam's learning rate for the head's weights on standardised embeddings."""
+HEAD_LR_SCALE = 1.0
+"""Adam's learning rate for the head is this over the embedding's width: Adam's first steps
+move every weight by about the rate, so the logit moves by ~ rate × width × |ẑ|, < 1 here."""
 
 
 class BackboneHead(nn.Module):
@@ -103,7 +104,7 @@ def few_shot_head(net: DGTNet, dataset: PatchDataset, name: str, *, seed: int = 
     with torch.no_grad():
         model.head.weight.zero_()
         model.head.bias.fill_(math.log(prior / (1 - prior)))
-    opt = torch.optim.Adam(model.head.parameters(), lr=HEAD_LR)
+    opt = torch.optim.Adam(model.head.parameters(), lr=HEAD_LR_SCALE / net.fc_hidden)
     zt, yt, zv, yv = z[train], y[train], z[val], y[val]
     best, best_state, since = math.inf, None, 0
     for _ in range(HEAD_STEPS):
