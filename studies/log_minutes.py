@@ -3,10 +3,11 @@
 A robot the kit never trained on (``examples/my_truck.toml``, a 4 t box truck) drives the
 training world and leaves drive logs as a user's robot would (``dgt log record``: runs of
 60 s with a stop after each, camera 10 Hz, odometry 50 Hz, command 20 Hz, jitter, dropped
-frames, noisy odometry). Logs of 1, 3 and 10 minutes (the first 1, 3, 10 runs of one
-10-run log) are ingested as ``dgt log ingest`` does, and each head is scored on a held-out
-log of three more runs, recorded with another seed (the mean absolute error of L̂ against
-the held-out labels):
+frames, noisy odometry). Logs of 1, 3, 10 and 30 runs (the first runs of one 30-run log) are
+ingested as ``dgt log ingest`` does, and each head is scored on a held-out log of three more
+runs, recorded with another seed (the mean absolute error of L̂ against the held-out
+labels). A run ends early where the truck stalls for good, so a log's length is given as
+its *labelled minutes*: its patches times ``collect.patch_interval_s``.
 
 - **prior**: the mean training label for every patch (what a head must beat);
 - **zero-shot**: the vehicle-conditioned network answering for the truck's spec (no log);
@@ -14,7 +15,7 @@ the held-out labels):
   (``dgt_lib.logs.heads.few_shot_head``);
 - **scratch**: a network of the profile's recipe trained on the log alone.
 
-The validation data (early stopping) is the log's last run (for 1 minute: the last quarter
+The validation data (early stopping) is the log's last run (for one run: the last quarter
 of its patches). Per run seed S of the profile's canonical run, the multi-task and the
 conditioned models of seed S are used and the logs are recorded with seeds 100·S + 1
 (training) and 100·S + 2 (held out). Scores per seed are stored under
@@ -44,7 +45,7 @@ from dgt_lib.core.vehicle_file import load_vehicle  # noqa: E402
 from dgt_lib.perception.dataset import SPLIT_NAMES, PatchDataset  # noqa: E402
 
 ROBOT = Path(__file__).resolve().parents[1] / "examples" / "my_truck.toml"
-MINUTES = (1, 3, 10)
+RUNS = (1, 3, 10, 30)
 RUN_S = 60.0
 HELD_OUT_RUNS = 3
 HEADS = ("prior", "zero-shot", "few-shot", "scratch")
@@ -67,10 +68,10 @@ def _log(prof: Profile, name: str, seed: int, runs: int) -> PatchDataset:
     return PatchDataset.from_arrays(artifacts.load(folder / "dataset.npz"))
 
 
-def study_data(log: PatchDataset, held_out: PatchDataset, minutes: int) -> PatchDataset:
-    """The first ``minutes`` runs of ``log`` as training and validation (the last run, or
+def study_data(log: PatchDataset, held_out: PatchDataset, n_runs: int) -> PatchDataset:
+    """The first ``n_runs`` runs of ``log`` as training and validation (the last run, or
     for one run its last quarter of patches) and ``held_out`` as the test split."""
-    runs = np.unique(log.trajectory)[:minutes]
+    runs = np.unique(log.trajectory)[:n_runs]
     mine = log.subset(np.isin(log.trajectory, runs))
     split = np.full(len(mine), TRAIN, np.int8)
     if len(runs) > 1:
@@ -86,30 +87,33 @@ def study_data(log: PatchDataset, held_out: PatchDataset, minutes: int) -> Patch
 
 
 def score_seed(prof: Profile, seed: int) -> dict:
-    """Every head's held-out MAE for each log length, with run seed ``seed``'s models."""
+    """Every head's held-out MAE for each log length (:data:`RUNS`), with run seed
+    ``seed``'s models."""
     from dgt_lib.learning.run import train_model
     from dgt_lib.logs import heads
     from dgt_lib.stages.costmaps import load_model
 
     prof = replace(prof, seed=seed)
-    log = _log(prof, f"{prof.name}_train_seed{seed}", 100 * seed + 1, max(MINUTES))
+    log = _log(prof, f"{prof.name}_train{max(RUNS)}_seed{seed}", 100 * seed + 1, max(RUNS))
     held_out = _log(prof, f"{prof.name}_held_out_seed{seed}", 100 * seed + 2, HELD_OUT_RUNS)
     robot = load_vehicle(ROBOT)
     backbone = load_model(prof)
     zero = heads.zero_shot_head(prof, robot)
     rows = []
-    for minutes in MINUTES:
-        data = study_data(log, held_out, minutes)
+    for n_runs in RUNS:
+        data = study_data(log, held_out, n_runs)
         few = heads.few_shot_head(backbone, data, robot.name, seed=seed)
         # the log's patches carry vehicle code 0: a one-head network of the recipe
         scratch = train_model(data, prof.train, vehicles=("jeep",), seed=seed,
                               progress=False).model
         errors = heads.compare_heads(data, {"zero-shot": zero, "few-shot": few,
                                             "scratch": scratch})
-        rows.append({"minutes": minutes, "patches": int((data.split != TEST).sum()),
+        patches = int((data.split != TEST).sum())
+        rows.append({"runs": n_runs, "patches": patches,
+                     "minutes": patches * prof.collect.patch_interval_s / 60.0,
                      "held_out": errors["prior"]["n"],
                      "mae": {h: errors[h]["mae"] for h in HEADS}})
-        print(f"seed {seed}, {minutes} min: " + ", ".join(
+        print(f"seed {seed}, {n_runs} runs ({patches} patches): " + ", ".join(
             f"{h} {rows[-1]['mae'][h]:.3f}" for h in HEADS), flush=True)
     return {"seed": seed, "rows": rows}
 
@@ -120,28 +124,29 @@ def tables(scores: list[dict]) -> dict[str, dict]:
 
     seeds = [s["seed"] for s in scores]
     mean_rows, seed_rows = [], []
-    for i, minutes in enumerate(MINUTES):
+    for i, n_runs in enumerate(RUNS):
         rows = [s["rows"][i] for s in scores]
-        cells = [str(minutes), "{:.0f}".format(np.mean([r["patches"] for r in rows]))]
+        cells = [str(n_runs), "{:.1f}".format(np.mean([r["minutes"] for r in rows])),
+                 "{:.0f}".format(np.mean([r["patches"] for r in rows]))]
         for h in HEADS:
             m, half = interval([r["mae"][h] for r in rows])
             cells.append(f"{m:.3f} ± {half:.3f}" if np.isfinite(half) else f"{m:.3f}")
         mean_rows.append(cells)
         for r, s in zip(rows, seeds, strict=True):
             best = min(HEADS, key=lambda h: r["mae"][h])
-            seed_rows.append([str(minutes), str(s), *(f"{r['mae'][h]:.3f}" for h in HEADS),
-                              best])
+            seed_rows.append([str(n_runs), str(s), f"{r['minutes']:.1f}",
+                              *(f"{r['mae'][h]:.3f}" for h in HEADS), best])
     return {
-        "minutes": table("Held-out MAE of L̂ for a robot never trained on, by minutes of its "
-                         "drive log (mean ± 95 % t-interval over the seeds)",
-                         ["minutes", "patches", *HEADS], mean_rows),
+        "minutes": table("Held-out MAE of L̂ for a robot never trained on, by the length of "
+                         "its drive log (mean ± 95 % t-interval over the seeds)",
+                         ["runs", "labelled minutes", "patches", *HEADS], mean_rows),
         "per_seed": table("Held-out MAE per seed, and the closest head",
-                          ["minutes", "seed", *HEADS, "closest"], seed_rows)}
+                          ["runs", "seed", "labelled minutes", *HEADS, "closest"], seed_rows)}
 
 
 def figure(scores: list[dict], path: Path) -> None:
-    """Held-out MAE against minutes of driving, one line per head (mean over the seeds,
-    each seed's value as a dot)."""
+    """Held-out MAE against the log's labelled minutes, one line per head (means over the
+    seeds; each seed's value as a dot)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -150,12 +155,11 @@ def figure(scores: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 3.6), constrained_layout=True)
     for head, style in zip(HEADS, ("k:", "C0-", "C2-", "C3--"), strict=True):
         per_seed = np.array([[r["mae"][head] for r in s["rows"]] for s in scores])
-        ax.plot(MINUTES, per_seed.mean(axis=0), style, marker="o", label=head)
-        for row in per_seed:
-            ax.plot(MINUTES, row, style[:2], marker=".", ls="none", alpha=0.4)
+        minutes = np.array([[r["minutes"] for r in s["rows"]] for s in scores])
+        ax.plot(minutes.mean(axis=0), per_seed.mean(axis=0), style, marker="o", label=head)
+        ax.plot(minutes.ravel(), per_seed.ravel(), style[:2], marker=".", ls="none", alpha=0.4)
     ax.set_xscale("log")
-    ax.set_xticks(MINUTES, [str(m) for m in MINUTES])
-    ax.set_xlabel("minutes of the robot's drive log")
+    ax.set_xlabel("labelled minutes of the robot's drive log (1, 3, 10, 30 runs)")
     ax.set_ylabel("held-out MAE of L̂")
     ax.set_ylim(bottom=0)
     ax.set_title(f"my_truck, never trained on ({len(scores)} seeds)", fontsize=10)
