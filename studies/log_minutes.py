@@ -102,7 +102,7 @@ def score_seed(prof: Profile, seed: int) -> dict:
     rows = []
     for n_runs in RUNS:
         data = study_data(log, held_out, n_runs)
-        few = heads.few_shot_head(backbone, data, robot.name, seed=seed)
+        few = heads.few_shot_head(backbone, data, robot.name)
         # the log's patches carry vehicle code 0: a one-head network of the recipe
         scratch = train_model(data, prof.train, vehicles=("jeep",), seed=seed,
                               progress=False).model

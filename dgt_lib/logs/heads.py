@@ -49,9 +49,9 @@ DRIVEN_RADIUS_M = 1.0
 """Cells this close to a driven pose count as driven over [m]."""
 TRAVERSED_PERCENTILE = 99.0
 """The percentile of the driven cells' gradients that τ_s rests on (:func:`log_tau_s`)."""
-HEAD_LR_SCALE = 1.0
-"""Adam's learning rate for the head is this over the embedding's width: Adam's first steps
-move every weight by about the rate, so the logit moves by ~ rate × width × |ẑ|, < 1 here."""
+HEAD_LR_SCALES = (1.0, 4.0, 16.0)
+"""Adam's rates for the head, each over the embedding's width (Adam's first steps move every
+weight by about the rate, so the logit by ~ rate × width × |ẑ|); the validation loss picks."""
 
 
 class BackboneHead(nn.Module):
@@ -84,13 +84,13 @@ def embeddings(net: DGTNet, patches: np.ndarray, batch_size: int = 1024) -> torc
     return torch.cat(parts) if parts else torch.zeros(0, net.fc_hidden)
 
 
-def few_shot_head(net: DGTNet, dataset: PatchDataset, name: str, *, seed: int = 0
-                  ) -> BackboneHead:
+def few_shot_head(net: DGTNet, dataset: PatchDataset, name: str) -> BackboneHead:
     """A head for the log's robot on ``net``'s frozen backbone, fitted to the training
     split of ``dataset`` (the log's patches): it starts at the prior (L̂ = mean training
     label for every patch, w = 0) and takes full-batch Adam steps on the mean squared
     error until the validation split's stops improving (the training split's when the
-    log holds no validation run). Deterministic for a seed."""
+    log holds no validation run), at each rate of :data:`HEAD_LR_SCALES` over the
+    embedding's width; the fit with the lowest validation loss is kept. Deterministic."""
     train = dataset.split == SPLIT_NAMES.index("train")
     if not train.any():
         raise ValueError("the log has no training patches to fit a head to")
@@ -98,14 +98,22 @@ def few_shot_head(net: DGTNet, dataset: PatchDataset, name: str, *, seed: int = 
     val = val if val.any() else train
     z = embeddings(net, dataset.patches)
     y = torch.as_tensor(dataset.labels, dtype=torch.float32)
-    torch.manual_seed(seed)
     model = BackboneHead(net, name, z[train])
-    prior = float(np.clip(dataset.labels[train].mean(), 0.01, 0.99))
+    fits = [_fit(model, z[train], y[train], z[val], y[val], scale / net.fc_hidden)
+            for scale in HEAD_LR_SCALES]
+    model.head.load_state_dict(min(fits, key=lambda fit: fit[0])[1])
+    return model.eval()
+
+
+def _fit(model: BackboneHead, zt: torch.Tensor, yt: torch.Tensor, zv: torch.Tensor,
+         yv: torch.Tensor, lr: float) -> tuple[float, dict[str, torch.Tensor]]:
+    """One fit of the head from the prior at Adam rate ``lr``: (best validation loss, the
+    head's weights there)."""
+    prior = float(np.clip(yt.mean(), 0.01, 0.99))
     with torch.no_grad():
         model.head.weight.zero_()
         model.head.bias.fill_(math.log(prior / (1 - prior)))
-    opt = torch.optim.Adam(model.head.parameters(), lr=HEAD_LR_SCALE / net.fc_hidden)
-    zt, yt, zv, yv = z[train], y[train], z[val], y[val]
+    opt = torch.optim.Adam(model.head.parameters(), lr=lr)
     best, best_state, since = math.inf, None, 0
     for _ in range(HEAD_STEPS):
         with torch.no_grad():
@@ -116,11 +124,9 @@ def few_shot_head(net: DGTNet, dataset: PatchDataset, name: str, *, seed: int = 
         elif (since := since + 1) >= HEAD_PATIENCE:
             break
         opt.zero_grad()
-        loss = torch.mean((torch.sigmoid(model.logit(zt)) - yt) ** 2)
-        loss.backward()
+        torch.mean((torch.sigmoid(model.logit(zt)) - yt) ** 2).backward()
         opt.step()
-    model.head.load_state_dict(best_state)
-    return model.eval()
+    return best, best_state
 
 
 def zero_shot_head(profile: Profile, spec: VehicleSpec, *, progress: bool = True) -> nn.Module:
@@ -201,7 +207,7 @@ def log_heads(summary: dict, spec: VehicleSpec, profile: Profile, head: str = "f
     dataset = PatchDataset.from_arrays(artifacts.load(Path(summary["folder"]) / "dataset.npz"))
     held_out = bool((dataset.split == SPLIT_NAMES.index("test")).any())
     build = {"few-shot": lambda: few_shot_head(load_model(profile, progress=progress),
-                                               dataset, spec.name, seed=profile.seed),
+                                               dataset, spec.name),
              "zero-shot": lambda: zero_shot_head(profile, spec, progress=progress)}
     made = {name: make() for name, make in build.items() if held_out or name == head}
     return made[head], compare_heads(dataset, made) if held_out else {}
