@@ -18,10 +18,11 @@ its *labelled minutes*: its patches times ``collect.patch_interval_s``.
 The validation data (early stopping) is the log's last run (for one run: the last quarter
 of its patches). Per run seed S of the profile's canonical run, the multi-task and the
 conditioned models of seed S are used and the logs are recorded with seeds 100·S + 1
-(training) and 100·S + 2 (held out). Scores per seed are stored under
-``<data>/studies/log_minutes/`` (a rerun resumes)::
+(training) and 100·S + 2 (held out). With ``--hill`` the longest log's few-shot head and the
+zero-shot head also plan Experiment 1's queries on the hill: up by Route A, down by B?
+Scores per seed are stored under ``<data>/studies/log_minutes/`` (a rerun resumes)::
 
-    DGT_DATA_DIR=/big/disk .venv/bin/python studies/log_minutes.py --profile demo --seeds 3
+    DGT_DATA_DIR=/big/disk .venv/bin/python studies/log_minutes.py --profile demo --seeds 3 --hill
     … --seeds 3 --stored --publish --figure docs/figures/log_minutes.png  # tables, record
 """
 
@@ -118,6 +119,54 @@ def score_seed(prof: Profile, seed: int) -> dict:
     return {"seed": seed, "rows": rows}
 
 
+def hill_routes(prof: Profile, seed: int) -> dict:
+    """Experiment 1's queries (the profile's ``n_hill``, alternating up and down) planned for
+    the truck on the hill with the few-shot head of the longest log and the zero-shot head:
+    how many ascents take Route A and how many descents Route B (planned, not driven)."""
+    from dgt_lib.evaluation.queries import classify_route, hill_queries
+    from dgt_lib.logs import heads
+    from dgt_lib.navigation.planner import HybridAStar
+    from dgt_lib.stages.costmaps import load_model
+    from dgt_lib.world.terrain import get_world
+
+    prof = replace(prof, seed=seed)
+    robot = load_vehicle(ROBOT)
+    log = _log(prof, f"{prof.name}_train{max(RUNS)}_seed{seed}", 100 * seed + 1, max(RUNS))
+    held_out = _log(prof, f"{prof.name}_held_out_seed{seed}", 100 * seed + 2, HELD_OUT_RUNS)
+    data = study_data(log, held_out, max(RUNS))
+    hill = get_world("hill", prof)
+    queries = hill_queries(hill, prof.experiments.n_hill, prof.experiments, seed)
+    out = {"seed": seed}
+    for name, head in (("few-shot", heads.few_shot_head(load_model(prof), data, robot.name)),
+                       ("zero-shot", heads.zero_shot_head(prof, robot))):
+        maps, cost = heads.world_maps(hill, head, prof, progress=False)
+        planner = HybridAStar.for_vehicle(cost, maps.occupancy, maps.grid, robot, prof.planner)
+        routes = []
+        for q in queries:
+            plan = planner.plan(q.start, q.goal)
+            routes.append([q.label, classify_route(hill, plan.path) if plan.success else None])
+        out[name] = routes
+        print(f"seed {seed}, {name}: {routes}", flush=True)
+    return out
+
+
+def hill_table(hills: list[dict]) -> dict:
+    """Per head and seed: ascents by Route A, descents by Route B."""
+    from dgt_lib.records.study import table
+
+    rows = []
+    for name in ("few-shot", "zero-shot"):
+        cells = []
+        for label, route in (("ascent", "A"), ("descent", "B")):
+            counts = [(sum(r == route for lab, r in h[name] if lab == label),
+                       sum(lab == label for lab, _ in h[name])) for h in hills]
+            cells.append(", ".join(f"{k}/{n}" for k, n in counts))
+        rows.append([name, *cells])
+    return table(f"Experiment 1's queries planned on the hill for the truck (longest log's "
+                 f"few-shot head; seeds {', '.join(str(h['seed']) for h in hills)}; planned, "
+                 "not driven)", ["head", "ascents by Route A", "descents by Route B"], rows)
+
+
 def tables(scores: list[dict]) -> dict[str, dict]:
     """Held-out MAE per log length, mean ± 95 % t-interval over the seeds, and per seed."""
     from dgt_lib.records.study import table
@@ -174,6 +223,8 @@ def main() -> None:
     study = Study("log_minutes", __doc__, profile="demo", seeds=3)
     study.parser.add_argument("--stored", action="store_true",
                               help="only the tables of the stored scores")
+    study.parser.add_argument("--hill", action="store_true",
+                              help="also plan Experiment 1's queries on the hill per seed")
     study.parser.add_argument("--figure", type=Path, default=None,
                               help="figure path (default: in the scores' folder)")
     args = study.parse()
@@ -188,8 +239,16 @@ def main() -> None:
             scores.append(json.loads(path.read_text()))
     if not scores:
         raise SystemExit(f"no stored scores in {folder}")
+    hills = []
+    for seed in study.seeds if args.hill else ():
+        path = folder / f"seed{seed}_hill.json"
+        if not path.exists() and not args.stored:
+            write_scores(path, hill_routes(prof, seed))
+        if path.exists():
+            hills.append(json.loads(path.read_text()))
     figure(scores, args.figure or folder / "log_minutes.png")
-    study.finish(tables(scores), seeds=[s["seed"] for s in scores])
+    study.finish(tables(scores) | ({"hill": hill_table(hills)} if hills else {}),
+                 seeds=[s["seed"] for s in scores])
 
 
 if __name__ == "__main__":
