@@ -43,15 +43,15 @@ HEAD_STEPS = 400
 """Full-batch Adam steps at most when fitting a few-shot head."""
 HEAD_PATIENCE = 40
 """Steps without a better validation loss before the fit stops."""
+HEAD_LR_SCALES = (1.0, 4.0, 16.0)
+"""Adam's rates for the head, each over the embedding's width (Adam's first steps move every
+weight by about the rate, so the logit by ~ rate × width × |ẑ|); the validation loss picks."""
 TRAVERSED_L = 0.5
 """A patch labelled at least this was driven through (half the commanded progress or more)."""
 DRIVEN_RADIUS_M = 1.0
 """Cells this close to a driven pose count as driven over [m]."""
 TRAVERSED_PERCENTILE = 99.0
 """The percentile of the driven cells' gradients that τ_s rests on (:func:`log_tau_s`)."""
-HEAD_LR_SCALES = (1.0, 4.0, 16.0)
-"""Adam's rates for the head, each over the embedding's width (Adam's first steps move every
-weight by about the rate, so the logit by ~ rate × width × |ẑ|); the validation loss picks."""
 
 
 class BackboneHead(nn.Module):
