@@ -160,6 +160,7 @@ SLOW = {
     "08_experiment3_multitask": ("00ae3a50",),
     "09_costmap_accuracy": ("c10", "c12", "c17"),  # ground truth, costmaps, scores
     "10_incremental_mapping": ("incr-03",),  # a jeep explores with a camera
+    "12_your_robot": ("log-7b", "log-7d", "log-7f"),  # records; conditioned net; costmap
 }
 """Cells that can run past 30 s on a `demo` cache (cold or warm) besides each notebook's
 first cell that builds on a cold cache."""
