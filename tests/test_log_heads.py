@@ -99,6 +99,12 @@ def test_dgt_log_costmap_compares_both_heads_and_writes_the_robots_costmap(
     assert tif.count == SMOKE.costmap.n_headings + 1  # K heading layers and the occupancy
     layers = cost[:SMOKE.costmap.n_headings]
     assert np.isfinite(layers).any() and np.nanmin(layers) >= 0 and np.nanmax(layers) <= 1
+    assert main(["log", "costmap", str(truck_log), "--vehicle", str(TRUCK_FILE), "--out",
+                 str(tmp_path / "nav2") + "/", "--format", "nav2", "--head", "zero-shot",
+                 "--profile", "smoke", "--set", "collect.episode_duration_s=8"]) == 0
+    written = sorted(p.name for p in (tmp_path / "nav2").glob("*.yaml"))
+    assert len(written) == SMOKE.costmap.n_headings + 1  # a map per heading, the occupancy
+    assert all(name.startswith("my_truck_zero-shot") for name in written)
 
 
 def test_dgt_log_plan_plans_with_the_robots_head_round_a_block_on_your_terrain(
