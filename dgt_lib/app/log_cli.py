@@ -190,13 +190,14 @@ def _head(args: argparse.Namespace, spec, prof):
 
 
 def _plan(args: argparse.Namespace) -> int:
-    from dgt_lib.app.plan_one import CostmapSource, costmap_profile, plan_query
+    from dgt_lib.app.plan_one import CostmapSource, costmap_profile, load_world, plan_query
     from dgt_lib.logs.heads import world_maps
     from dgt_lib.navigation.planner import InvalidQueryError
 
     spec = _spec(args)
     try:  # a terrain file without imagery: the heads of the geometry-only networks
         prof, _ = costmap_profile(args.world, "dgt", args.profile_value, None)
+        load_world(args.world, prof)  # a bad world: an error before any work
         _, head = _head(args, spec, prof)
         source = CostmapSource(lambda w: world_maps(w, head, prof),
                                None, f"{args.head} head from the log {args.bag}")
