@@ -127,3 +127,13 @@ def test_dgt_log_plan_plans_with_the_robots_head_round_a_block_on_your_terrain(
     length = float(out.split("found: length ")[1].split(" m")[0])
     assert length > 34.0  # round the block: the straight line is 32 m
     assert loaded == ["geometry"]  # a height map has no colour: the geometry network's head
+
+
+def test_dgt_log_plan_on_a_world_it_cannot_load_stops_before_reading_the_log(
+        truck_log, tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path / "data"))
+    assert main(["log", "plan", str(truck_log), "--vehicle", str(TRUCK_FILE), "--world",
+                 "nowhere", "--start", "1,2,0", "--goal", "3,4", "--profile", "smoke"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dgt log plan: error: 'nowhere' is neither a world")
+    assert not (tmp_path / "data" / "logs").exists()  # nothing ingested
