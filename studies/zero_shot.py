@@ -3,8 +3,9 @@ vehicle-conditioned network's training in turn, its costmap predicted from its s
 and scored against its measured ground truth, per run seed.
 
     .venv/bin/python studies/zero_shot.py --profile demo --seeds 3
-    .venv/bin/python studies/zero_shot.py --profile demo --seeds 3 --stored
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 3 --stored --publish
     .venv/bin/python studies/zero_shot.py --profile demo --seeds 3 --generated 8
+    .venv/bin/python studies/zero_shot.py --profile demo --seeds 3 --generated 8 --stored --publish
 
 Per (seed, left-out vehicle) it builds through the cache (the profile's data directory,
 ``$DGT_DATA_DIR`` or ``data/``: the same collection, dataset, multi-task model and ground
@@ -20,6 +21,16 @@ done, so an interrupted run resumes; then it prints the tables over seeds and dr
 ``<out>/zero_shot.png``. ``--stored``: tables and figure from the stored scores only.
 ``--generated N``: the conditioned networks also learn from N generated vehicles
 (``conditioned.generated_vehicles``, docs/vehicles.md); scores and figure get ``_gen<N>``.
+
+The tables (:func:`tables`): ``mae`` (MAE per world and left-out vehicle, each map),
+``ratio`` (zero-shot ÷ own head per seed, its last row how many vehicles are within 25 %),
+``patches`` (MAE on the vehicle's test patches) and ``plans`` (Experiments 1–2 planned on
+each map); with ``--generated N`` (N > 0) also the list ``generated``, one line: how many
+generated vehicles each left-out vehicle's network used. ``--publish`` writes them to
+``docs/runs/studies/zero_shot[-<variant>]_<profile>_<processor>_<date>.json``: the variant
+is ``gen<N>`` with generated vehicles, joined by ``without-<vehicles>`` (the left-out
+vehicles scored, ``-``-joined) when not all four are, so a partial run never overwrites the
+full record (``zero_shot-gen8-without-carla_cola_…``).
 """
 
 from __future__ import annotations
@@ -33,6 +44,7 @@ from runner import Study
 from zero_shot_scores import ZERO_SHOT_METHODS
 
 from dgt_lib.core.config import VEHICLES
+from dgt_lib.records.study import table
 
 
 def suffix(generated: int) -> str:
@@ -72,16 +84,13 @@ def generated_line(scores: list[dict]) -> str:
             for v in VEHICLES if any(s["vehicle"] == v for s in scores)}
     return (f"Generated training vehicles: {', '.join(map(str, n))} (used by the network "
             "without each vehicle, over seeds: "
-            + "; ".join(f"{v} {', '.join(map(str, u))}" for v, u in used.items()) + ")\n")
+            + "; ".join(f"{v} {', '.join(map(str, u))}" for v, u in used.items()) + ")")
 
 
-def mae_table(scores: list[dict]) -> str:
-    """Markdown: MAE per (world, left-out vehicle) and method, mean ± std over seeds."""
+def mae_table(scores: list[dict]) -> dict:
+    """MAE per (world, left-out vehicle) and method, mean ± std over seeds."""
     seeds = sorted({s["seed"] for s in scores})
-    lines = [f"MAE against the measured ground truth (mean ± std over seeds {seeds}; "
-             "the vehicle never driven by the zero-shot network):", "",
-             "| world | vehicle | seeds | " + " | ".join(ZERO_SHOT_METHODS) + " |",
-             "|---" * (len(ZERO_SHOT_METHODS) + 3) + "|"]
+    rows = []
     for vehicle in VEHICLES:
         mine = [s for s in scores if s["vehicle"] == vehicle]
         if not mine:
@@ -93,23 +102,23 @@ def mae_table(scores: list[dict]) -> str:
                 x = [r["mae"] for s in mine for r in s["rows"]
                      if (r["world"], r["method"]) == (world, m)]
                 cells.append(f"{np.mean(x):.3f} ± {np.std(x):.3f}")
-            lines.append(f"| {world} | {vehicle} (nearest: {nearest}) | "
-                         f"{', '.join(str(s['seed']) for s in mine)} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+            rows.append([world, f"{vehicle} (nearest: {nearest})",
+                         ", ".join(str(s["seed"]) for s in mine), *cells])
+    return table(f"MAE against the measured ground truth (mean ± std over seeds {seeds}; "
+                 "the vehicle never driven by the zero-shot network)",
+                 ["world", "vehicle", "seeds", *ZERO_SHOT_METHODS], rows)
 
 
 WITHIN = 1.25
 """The aim for a zero-shot map: MAE at most 25 % above the own head's (ratio ≤ 1.25)."""
 
 
-def ratio_table(scores: list[dict]) -> str:
-    """Markdown: zero-shot MAE ÷ own-head MAE per (world, vehicle) and seed, and per seed how
-    many vehicles are within :data:`WITHIN` on every world they are scored on."""
+def ratio_table(scores: list[dict]) -> dict:
+    """Zero-shot MAE ÷ own-head MAE per (world, vehicle) and seed, and in a last row per seed
+    how many vehicles are within :data:`WITHIN` on every world they are scored on."""
     seeds = sorted({s["seed"] for s in scores})
     pct = f"{100 * (WITHIN - 1):.0f} %"
-    lines = [f"Zero-shot MAE ÷ own head's MAE (≤ {WITHIN}: within {pct}), per seed:", "",
-             "| world | vehicle | " + " | ".join(f"seed {k}" for k in seeds) + " |",
-             "|---" * (len(seeds) + 2) + "|"]
+    rows = []
     within = {k: [] for k in seeds}
     for vehicle in VEHICLES:
         mine = {s["seed"]: s for s in scores if s["vehicle"] == vehicle}
@@ -122,18 +131,17 @@ def ratio_table(scores: list[dict]) -> str:
             ratios[k] = {w: z / own[w] for w, z in ratios[k].items()}
             within[k].append(all(x <= WITHIN for x in ratios[k].values()))
         for world in dict.fromkeys(w for k in ratios for w in ratios[k]):
-            cells = [f"{ratios[k][world]:.2f}" if k in ratios else "–" for k in seeds]
-            lines.append(f"| {world} | {vehicle} | " + " | ".join(cells) + " |")
-    lines.append(f"| **vehicles within {pct}** | | " + " | ".join(
-        f"{sum(within[k])} of {len(within[k])}" for k in seeds) + " |")
-    return "\n".join(lines) + "\n"
+            rows.append([world, vehicle, *(f"{ratios[k][world]:.2f}" if k in ratios else "–"
+                                           for k in seeds)])
+    rows.append([f"**vehicles within {pct}**", "",
+                 *(f"{sum(within[k])} of {len(within[k])}" for k in seeds)])
+    return table(f"Zero-shot MAE ÷ own head's MAE (≤ {WITHIN}: within {pct}), per seed",
+                 ["world", "vehicle", *(f"seed {k}" for k in seeds)], rows)
 
 
-def patch_table(scores: list[dict]) -> str:
-    """Markdown: MAE on each left-out vehicle's test patches, mean ± std over seeds."""
-    lines = ["MAE on the vehicle's test patches against their labels L (mean ± std over seeds):",
-             "", "| vehicle | patches | " + " | ".join(ZERO_SHOT_METHODS) + " |",
-             "|---" * (len(ZERO_SHOT_METHODS) + 2) + "|"]
+def patch_table(scores: list[dict]) -> dict:
+    """MAE on each left-out vehicle's test patches, mean ± std over seeds."""
+    rows = []
     for vehicle in VEHICLES:
         mine = [s for s in scores if s["vehicle"] == vehicle and "patches" in s]
         if mine:
@@ -141,23 +149,41 @@ def patch_table(scores: list[dict]) -> str:
                      f"{np.std([s['patches'][m]['mae'] for s in mine]):.3f}"
                      for m in ZERO_SHOT_METHODS]
             n = ", ".join(str(s["patches"]["zero-shot"]["n"]) for s in mine)
-            lines.append(f"| {vehicle} | {n} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+            rows.append([vehicle, n, *cells])
+    return table("MAE on the vehicle's test patches against their labels L (mean ± std over "
+                 "seeds)", ["vehicle", "patches", *ZERO_SHOT_METHODS], rows)
 
 
-def plan_table(scores: list[dict]) -> str:
-    """Markdown: the plan claims per map, one count per seed."""
-    lines = ["Plans of Experiments 1–2 on each map (planned, not driven; one count per seed):",
-             "", "| map | hill ascents by Route A | hill descents by Route B | "
-             "ridge crossings at the smoothed section |", "|---|---|---|---|"]
+def plan_table(scores: list[dict]) -> dict:
+    """The plan claims per map, one count per seed."""
+    rows = []
     for m in ZERO_SHOT_METHODS:
         cols = []
         for exp, label, route in CLAIMS:
             mine = sorted((s for s in scores if exp in s["plans"]), key=lambda s: s["seed"])
             cols.append(", ".join("{}/{}".format(*claim_share(s["plans"][exp][m], label, route))
                                   for s in mine) or "–")
-        lines.append(f"| {m} | " + " | ".join(cols) + " |")
-    return "\n".join(lines) + "\n"
+        rows.append([m, *cols])
+    return table("Plans of Experiments 1–2 on each map (planned, not driven; one count per "
+                 "seed)", ["map", "hill ascents by Route A", "hill descents by Route B",
+                           "ridge crossings at the smoothed section"], rows)
+
+
+def tables(scores: list[dict]) -> dict[str, dict]:
+    """The study's tables (:func:`~dgt_lib.records.study.table`): ``mae``, ``ratio``,
+    ``patches`` and ``plans``."""
+    return {"mae": mae_table(scores), "ratio": ratio_table(scores),
+            "patches": patch_table(scores), "plans": plan_table(scores)}
+
+
+def record_variant(scores: list[dict], generated: int) -> str:
+    """The record's variant: ``gen<N>`` with N generated vehicles, and ``without-<v>-…``
+    (the left-out vehicles scored, in :data:`VEHICLES` order) unless all four are."""
+    scored = [v for v in VEHICLES if any(s["vehicle"] == v for s in scores)]
+    parts = [f"gen{generated}"] if generated else []
+    if len(scored) < len(VEHICLES):
+        parts.append("without-" + "-".join(scored))
+    return "-".join(parts)
 
 
 def figure(scores: list[dict], path: Path) -> None:
@@ -188,7 +214,7 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    study = Study("zero_shot", __doc__, profile="demo", seeds=3, publishes=False)
+    study = Study("zero_shot", __doc__, profile="demo", seeds=3)
     parser = study.parser
     parser.add_argument("--vehicles", nargs="+", default=list(VEHICLES), choices=VEHICLES,
                         help="the vehicles to leave out, each in turn (default: all four)")
@@ -213,11 +239,10 @@ def main() -> None:
     else:
         scores = [run_one(args.profile, s, v, out, args.generated) for s in study.seeds
                   for v in args.vehicles]
-    print(generated_line(scores))
-    print(mae_table(scores))
-    print(ratio_table(scores))
-    print(patch_table(scores))
-    print(plan_table(scores))
+    study.finish(tables(scores),
+                 lists={"generated": [generated_line(scores)]} if args.generated else None,
+                 seeds=sorted({s["seed"] for s in scores}),
+                 variant=record_variant(scores, args.generated))
     figure(scores, args.figure or out / f"zero_shot{suffix(args.generated)}.png")
 
 

@@ -87,3 +87,20 @@ def test_the_study_prints_its_tables_and_figure_from_stored_scores(tmp_path):
     assert "| zero-shot | 1/10, 2/10 | 10/10, 10/10 | – |" in out
     assert "| carla_cola | 40, 40 | 0.200 ± 0.000 |" in out
     assert (tmp_path / "zero_shot.png").exists()
+
+
+def test_the_study_s_record_names_its_tables_and_keeps_partial_runs_apart():
+    """The record holds the tables ``mae``, ``ratio``, ``patches`` and ``plans``; one
+    with generated vehicles or with only some left-out vehicles is a variant of its own."""
+    study = importlib.import_module("zero_shot")
+    methods = zero_shot.ZERO_SHOT_METHODS
+    scores = [{"vehicle": v, "seed": 0, "nearest": "jeep", "plans": {},
+               "rows": [{"world": "eval", "vehicle": v, "method": m, "mae": 0.1}
+                        for m in methods]} for v in VEHICLES]
+    tables = study.tables(scores)
+    assert list(tables) == ["mae", "ratio", "patches", "plans"]
+    assert tables["ratio"]["rows"][-1] == ["**vehicles within 25 %**", "", "4 of 4"]
+    assert study.record_variant(scores, 0) == ""
+    assert study.record_variant(scores, 8) == "gen8"
+    assert study.record_variant(scores[::-1][:2], 0) == "without-mercedes_van-carla_cola"
+    assert study.record_variant(scores[:1], 8) == "gen8-without-jeep"
