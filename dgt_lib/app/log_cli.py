@@ -19,19 +19,23 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import fields, replace
+from typing import Any
 
 from dgt_lib.app.cli_args import floats
+from dgt_lib.core.config import Profile
+from dgt_lib.core.vehicle_range import resolve_vehicle
+from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.logs.streams import LogTopics
 
 
 def add_log(sub, profile_options) -> None:
-    """The ``log`` command and its three sub-commands; ``profile_options(parser)`` adds the
+    """The ``log`` command and its sub-commands; ``profile_options(parser)`` adds the
     kit's ``--profile``/``--set`` options (the collection settings a log is read with)."""
-    log = sub.add_parser("log", help="drive logs (ROS bags) in: topics, record, ingest",
-                         description="A robot's drive log (a ROS 1 or ROS 2 bag: MCAP, "
-                                     "sqlite3) in: its topics, the BEV map and labelled "
-                                     "patches of its drive; or the simulator's drive written "
-                                     "as one. A log that cannot be used: one line, exit 2.")
+    log = sub.add_parser("log", help="a robot's drive log (ROS bag) in: map, labels, costmap",
+                         description="A robot's drive log (a ROS 1 or 2 bag: MCAP, sqlite3) "
+                                     "in: its topics, BEV map and labelled patches, the "
+                                     "robot's head, costmap and plans; or the simulator's "
+                                     "drive written as one. A bad log: one line, exit 2.")
     verbs = log.add_subparsers(dest="verb", required=True)
     top = verbs.add_parser("topics", help="list a log's topics, types and rates")
     top.add_argument("bag")
@@ -117,7 +121,6 @@ def _topics_of(args: argparse.Namespace) -> LogTopics:
 
 def _record(args: argparse.Namespace) -> int:
     from dgt_lib.core.outputs import check_output_path
-    from dgt_lib.core.vehicle_range import resolve_vehicle
     from dgt_lib.logs.record import record_log
     from dgt_lib.world.terrain import get_world
 
@@ -134,7 +137,6 @@ def _record(args: argparse.Namespace) -> int:
 
 
 def _ingest(args: argparse.Namespace) -> int:
-    from dgt_lib.core.vehicle_range import resolve_vehicle
     from dgt_lib.logs.ingest import ingest, summary_text
 
     summary = ingest(args.bag, resolve_vehicle(args.vehicle), _topics_of(args),
@@ -145,17 +147,16 @@ def _ingest(args: argparse.Namespace) -> int:
 
 def _costmap(args: argparse.Namespace) -> int:
     from dgt_lib.app.costmap_export import output_target
+    from dgt_lib.logs.heads import robot_costmap
     from dgt_lib.mapping.export import write_geotiff, write_nav2
     from dgt_lib.world.dem import import_rasterio
 
-    spec = _spec(args)
+    spec = resolve_vehicle(args.vehicle)
     target = output_target(args.out, args.fmt, f"{spec.name}_{args.head}", inputs=(args.bag,))
     if args.fmt == "geotiff":
         import_rasterio()  # missing: one line now, not after the map is built
     try:
         summary, head = _head(args, spec, args.profile_value)
-        from dgt_lib.logs.heads import robot_costmap
-
         bev, cost, occupancy = robot_costmap(summary, head, args.profile_value)
     except ValueError as exc:  # e.g. a log with no training patches
         print(f"dgt log costmap: error: {exc}", file=sys.stderr)
@@ -167,13 +168,7 @@ def _costmap(args: argparse.Namespace) -> int:
     return 0
 
 
-def _spec(args: argparse.Namespace):
-    from dgt_lib.core.vehicle_range import resolve_vehicle
-
-    return resolve_vehicle(args.vehicle)
-
-
-def _head(args: argparse.Namespace, spec, prof):
+def _head(args: argparse.Namespace, spec: VehicleSpec, prof: Profile) -> tuple[dict, Any]:
     """The log ingested, the robot's head on ``prof``'s networks, both heads' held-out
     errors printed."""
     from dgt_lib.logs.heads import log_heads
@@ -194,7 +189,7 @@ def _plan(args: argparse.Namespace) -> int:
     from dgt_lib.logs.heads import world_maps
     from dgt_lib.navigation.planner import InvalidQueryError
 
-    spec = _spec(args)
+    spec = resolve_vehicle(args.vehicle)
     try:  # a terrain file without imagery: the heads of the geometry-only networks
         prof, _ = costmap_profile(args.world, "dgt", args.profile_value, None)
         load_world(args.world, prof)  # a bad world: an error before any work

@@ -152,9 +152,8 @@ def compare_heads(dataset: PatchDataset, heads: dict[str, nn.Module],
                          "or drive several runs, with a stop between them")
     y = dataset.labels[test].astype(np.float64)
     prior = float(dataset.labels[dataset.split == SPLIT_NAMES.index("train")].mean())
-    rows = {"prior": np.full_like(y, prior)}
-    rows |= {name: predict(h, dataset.patches[test], batch_size)[:, 0] for name, h in
-             heads.items()}
+    rows = {"prior": np.full_like(y, prior)} | {
+        name: predict(h, dataset.patches[test], batch_size)[:, 0] for name, h in heads.items()}
     return {name: {"mae": float(np.mean(np.abs(p - y))), "n": int(test.sum())}
             for name, p in rows.items()}
 
