@@ -186,6 +186,9 @@ OTHER_FIGURES: dict[str, str] = {
     "jacksboro_plans.png": "`python examples/real_dem.py --figure docs/figures/jacksboro_plans.png "
                            "--drive --publish` (`demo`): carla_cola's plans up and down a real "
                            "DEM, the Jacksboro fault window (docs/usage.md).",
+    "log_minutes.png": "`python studies/log_minutes.py --profile demo --seeds 3 --hill --stored "
+                       "--figure docs/figures/log_minutes.png`: a robot never trained on, its "
+                       "heads' error by minutes of its drive log (docs/log_minutes.md).",
     "map_inputs.png": "`python studies/map_inputs.py --profile demo --seeds 3 --variants rgbd "
                       "shuffled geometry rgb --figure docs/figures/map_inputs.png`: what the "
                       "network looks at (docs/map_inputs.md).",
