@@ -6,6 +6,8 @@ in Experiments 1 and 2.
         --variants rgbd geometry rgb shuffled            # input attribution
     .venv/bin/python studies/map_inputs.py --profile demo --seeds 3 \\
         --variants rgbd pose_low pose_mid pose_high      # pose noise
+    .venv/bin/python studies/map_inputs.py --profile demo --seeds 3 \\
+        --variants rgbd geometry rgb shuffled --stored --publish
 
 Variants (:data:`VARIANTS`, each a set of ``--set`` settings, fixed before any was run):
 ``rgbd`` the paper (every channel, true poses); ``geometry`` / ``rgb`` the network sees only
@@ -23,7 +25,17 @@ cached and resumable like the pipeline's stages. Per (variant, seed) the script 
 (world, vehicle) of the ``dgt`` costmap, the routes of its plans for Experiment 1's
 (carla_cola, hill) and Experiment 2's (mercedes_van, ridge) queries — the paper's counts, 20
 and 50, planned only, not driven — and each head's cost at the ridge's two crossings. Then it
-prints the tables over seeds and draws ``<out>/map_inputs.png``.
+prints the tables over seeds and draws ``<out>/map_inputs.png``. ``--stored``: tables and
+figure from the stored scores only.
+
+The tables (:func:`tables`): ``mae`` (MAE per variant and (world, vehicle), mean ± std over
+seeds) and ``plans`` (the plan claims per seed, and the van's cost at the two crossings).
+``--publish`` writes them to
+``docs/runs/studies/map_inputs-<variant>_<profile>_<processor>_<date>.json``; publish a run
+once its scores are stored, with ``--stored --publish`` and the same ``--variants``. The
+record's variant is ``attribution`` for variants among rgbd, geometry, rgb and shuffled,
+``pose`` for variants among rgbd and ``pose_*``, else the variants' names ``-``-joined, so
+the two studies' records never overwrite each other.
 """
 
 from __future__ import annotations
@@ -34,9 +46,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from planned import PLANNED, planned_routes, planning_profile
+from planned import CLAIMS, PLANNED, planned_routes, planning_profile
 from planned import claim_share as _share
 from runner import Study, link, stored_or_run, write_scores
+
+from dgt_lib.records.study import table
 
 VARIANTS: dict[str, dict[str, object]] = {
     "rgbd": {},
@@ -123,37 +137,82 @@ def run_one(variant: str, profile: str, seed: int, base: Path, out: Path) -> dic
                                       profile, "--out", str(out)], f"{variant} seed {seed}")
 
 
-def tables(scores: list[dict]) -> str:
-    """Markdown: MAE per (world, vehicle) as mean ± std over seeds, and the plan claims."""
+ATTRIBUTION = ("rgbd", "geometry", "rgb", "shuffled")
+"""The input attribution's variants."""
+POSE = ("rgbd", "pose_low", "pose_mid", "pose_high")
+"""The pose-noise variants, beside the paper's true poses."""
+LABELS = {"shuffled": "shuffled colours", "geometry": "geometry only", "rgb": "RGB only"}
+"""The tables' names of the attribution's variants."""
+
+
+def row_label(variant: str, pose_run: bool) -> str:
+    """A variant's row in the tables: ``rgbd`` is the paper ("true poses" beside pose
+    noise), a pose variant its noise levels, the others :data:`LABELS`."""
+    if variant == "rgbd":
+        return "true poses (the paper)" if pose_run else "rgbd (the paper)"
+    cfg = VARIANTS[variant]
+    if "bev.pose_sigma_xy_m" in cfg:
+        xy = cfg["bev.pose_sigma_xy_m"]
+        return (f"σ_xy {xy:.1f} m" if round(xy, 1) == xy else f"σ_xy {xy:g} m") + (
+            f", σ_ψ {cfg['bev.pose_sigma_yaw_deg']:g}°, σ_d {cfg['bev.pose_drift_m']:g} m")
+    return LABELS.get(variant, variant)
+
+
+def mae_table(scores: list[dict]) -> dict:
+    """MAE per (world, vehicle) and variant, mean ± std over seeds; the last column the
+    mean over every pair and seed."""
     variants = list(dict.fromkeys(s["variant"] for s in scores))
+    pose_run = any(v in POSE[1:] for v in variants)
     pairs = list(dict.fromkeys((r["world"], r["vehicle"]) for r in scores[0]["accuracy"]))
-    seeds = sorted({s["seed"] for s in scores})
-    head = "| variant | seeds | " + " | ".join(f"{w} {v}" for w, v in pairs) + " | mean |"
-    lines = [f"MAE against the ground truth (mean ± std over the seeds of {seeds} run):", "",
-             head, "|---" * (len(pairs) + 3) + "|"]
-    for var in variants:
-        mine = [s for s in scores if s["variant"] == var]
-        per_pair = [[next(r["mae"] for r in s["accuracy"] if (r["world"], r["vehicle"]) == p)
-                     for s in mine] for p in pairs]
-        cells = [f"{np.mean(x):.3f} ± {np.std(x):.3f}" for x in per_pair]
-        ids = ", ".join(str(s["seed"]) for s in mine)
-        lines.append(f"| {var} | {ids} | " + " | ".join(cells) + f" | {np.mean(per_pair):.3f} |")
-    lines += ["", "Plans (planned, not driven; per seed):", "",
-              "| variant | hill ascents by Route A | hill descents by Route B | "
-              "ridge crossings at the smoothed section | van cost sharp / smooth (N) |",
-              "|---|---|---|---|---|"]
+    rows = []
     for var in variants:
         mine = sorted((s for s in scores if s["variant"] == var), key=lambda s: s["seed"])
-        cols = []
-        for exp, label, route in (("experiment1", "ascent", "A"), ("experiment1", "descent", "B"),
-                                  ("experiment2", None, "smooth")):
-            cols.append(", ".join("{}/{}".format(*_share(s["plans"][exp], label, route))
-                                  for s in mine))
+        per_pair = [[next(r["mae"] for r in s["accuracy"] if (r["world"], r["vehicle"]) == p)
+                     for s in mine] for p in pairs]
+        rows.append([row_label(var, pose_run), ", ".join(str(s["seed"]) for s in mine),
+                     *(f"{np.mean(x):.3f} ± {np.std(x):.3f}" for x in per_pair),
+                     f"{np.mean(per_pair):.3f}"])
+    return table("MAE of the dgt costmap against the measured ground truth (mean ± std over "
+                 "the seeds)", ["variant", "seeds", *(f"{w} {v}" for w, v in pairs), "mean"],
+                 rows)
+
+
+def plan_table(scores: list[dict]) -> dict:
+    """The plan claims per variant, one count per seed, and the mercedes_van head's cost
+    heading north at the ridge's sharp and smoothed crossings."""
+    variants = list(dict.fromkeys(s["variant"] for s in scores))
+    pose_run = any(v in POSE[1:] for v in variants)
+    rows = []
+    for var in variants:
+        mine = sorted((s for s in scores if s["variant"] == var), key=lambda s: s["seed"])
+        cols = [", ".join("{}/{}".format(*_share(s["plans"][exp], label, route)) for s in mine)
+                for exp, label, route in CLAIMS]
         costs = ", ".join(f"{s['ridge_costs']['mercedes_van']['sharp_crossing']:.2f} / "
                           f"{s['ridge_costs']['mercedes_van']['smooth_crossing']:.2f}"
                           for s in mine)
-        lines.append(f"| {var} | " + " | ".join(cols) + f" | {costs} |")
-    return "\n".join(lines) + "\n"
+        rows.append([row_label(var, pose_run), *cols, costs])
+    return table("Plans of Experiments 1–2 (planned, not driven; one count per seed) and the "
+                 "mercedes_van head's cost heading north at the ridge's two crossings",
+                 ["variant", "hill ascents by Route A", "hill descents by Route B",
+                  "ridge crossings at the smoothed section", "van cost sharp / smooth (N)"],
+                 rows)
+
+
+def tables(scores: list[dict]) -> dict[str, dict]:
+    """The study's tables (:func:`~dgt_lib.records.study.table`): ``mae`` and ``plans``."""
+    return {"mae": mae_table(scores), "plans": plan_table(scores)}
+
+
+def record_variant(scores: list[dict]) -> str:
+    """The record's variant: ``attribution`` for variants among :data:`ATTRIBUTION`,
+    ``pose`` for variants among :data:`POSE`, otherwise the variants' names ``-``-joined
+    (in :data:`VARIANTS` order), so the two studies' records never overwrite each other."""
+    ran = {s["variant"] for s in scores}
+    if ran <= set(ATTRIBUTION):
+        return "attribution"
+    if ran <= set(POSE):
+        return "pose"
+    return "-".join(v for v in VARIANTS if v in ran)
 
 
 def tick_label(variant: str) -> str:
@@ -202,7 +261,7 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    study = Study("map_inputs", __doc__, profile="demo", seeds=3, publishes=False)
+    study = Study("map_inputs", __doc__, profile="demo", seeds=3)
     parser = study.parser
     parser.add_argument("--variants", nargs="+", default=["rgbd", "geometry", "rgb", "shuffled"],
                         choices=list(VARIANTS))
@@ -232,7 +291,8 @@ def main() -> None:
     else:
         scores = [run_one(v, args.profile, s, base, out) for v in args.variants
                   for s in study.seeds]
-    print(tables(scores))
+    study.finish(tables(scores), seeds=sorted({s["seed"] for s in scores}),
+                 variant=record_variant(scores))
     figure(scores, args.figure or out / "map_inputs.png")
 
 
