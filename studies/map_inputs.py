@@ -204,13 +204,14 @@ def tables(scores: list[dict]) -> dict[str, dict]:
 
 
 def record_variant(scores: list[dict]) -> str:
-    """The record's variant: ``attribution`` for variants among :data:`ATTRIBUTION`,
-    ``pose`` for variants among :data:`POSE`, otherwise the variants' names ``-``-joined
-    (in :data:`VARIANTS` order), so the two studies' records never overwrite each other."""
+    """The record's variant: ``attribution`` for exactly the variants of :data:`ATTRIBUTION`,
+    ``pose`` for exactly those of :data:`POSE`, otherwise the variants' names ``-``-joined
+    (in :data:`VARIANTS` order), so the two studies' records never overwrite each other and
+    a partial run never overwrites a whole one."""
     ran = {s["variant"] for s in scores}
-    if ran <= set(ATTRIBUTION):
+    if ran == set(ATTRIBUTION):
         return "attribution"
-    if ran <= set(POSE):
+    if ran == set(POSE):
         return "pose"
     return "-".join(v for v in VARIANTS if v in ran)
 

@@ -73,23 +73,24 @@ def test_a_pose_run_names_its_rows_by_the_noise_and_the_paper_s_by_its_true_pose
 def test_the_attribution_and_the_pose_run_are_records_of_their_own():
     variant = map_inputs.record_variant
     assert variant(_run(["rgbd", "shuffled", "geometry", "rgb"])) == "attribution"
-    assert variant(_run(["rgbd", "geometry"])) == "attribution"
+    assert variant(_run(["rgbd", "geometry"])) == "rgbd-geometry"  # partial: its own record
     assert variant(_run(["rgbd", "pose_low", "pose_mid", "pose_high"])) == "pose"
-    assert variant(_run(["pose_high"])) == "pose"
+    assert variant(_run(["pose_high"])) == "pose_high"
     assert variant(_run(["pose_low", "rgbd", "geometry"])) == "rgbd-geometry-pose_low"
 
 
 def test_stored_scores_are_published_as_the_attribution_s_record(tmp_path, monkeypatch):
     """``--stored --publish``: the record from the stored scores alone, named by its
     variant, and the figure beside it."""
-    scores = _run(["rgbd", "geometry"])
+    scores = _run(["rgbd", "geometry", "rgb", "shuffled"])
     (tmp_path / "scores").mkdir()
     for s in scores:
         (tmp_path / "scores" / f"{s['variant']}_seed{s['seed']}.json").write_text(json.dumps(s))
     monkeypatch.setattr(records, "STUDIES", tmp_path / "records")
     monkeypatch.setattr(sys, "argv", [
         "map_inputs.py", "--seed", "0", "--seed", "2", "--variants", "rgbd", "geometry",
-        "--out", str(tmp_path), "--figure", str(tmp_path / "f.png"), "--stored", "--publish"])
+        "rgb", "shuffled", "--out", str(tmp_path), "--figure", str(tmp_path / "f.png"),
+        "--stored", "--publish"])
     map_inputs.main()
     [path] = (tmp_path / "records").glob("*.json")
     assert path.name.startswith("map_inputs-attribution_demo_")
