@@ -239,7 +239,7 @@ class ConditionedConfig:
     generated_vehicles: int = 0
 
 
-EXECUTORS: tuple[str, ...] = ("process", "dask", "ray")
+EXECUTORS: tuple[str, ...] = ("process", "dask")
 """Valid ``ExecutionConfig.executor`` values (``dgt reproduce --executor``)."""
 
 DEVICES: tuple[str, ...] = ("auto", "cpu", "cuda")
@@ -252,11 +252,10 @@ class ExecutionConfig:
 
     executor: what runs the independent jobs (collection episodes, closed-loop trials):
     ``"process"`` a pool of ``Profile.workers`` processes on this machine; ``"dask"`` a
-    Dask cluster (``pip install 'dgt-kit[dask]'``); ``"ray"`` a Ray cluster
-    (``'dgt-kit[ray]'``). address: the scheduler of an existing Dask cluster
-    (``tcp://host:8786``) or a Ray cluster (``ray://host:10001``, ``auto``); None starts a
-    local cluster of ``Profile.workers`` single-threaded workers for the run and stops it
-    after. device: where training and costmap inference run, ``"auto"`` (a CUDA GPU when
+    Dask cluster, on this machine or many (``pip install 'dgt-kit[dask]'``). address: the
+    scheduler of an existing Dask cluster (``tcp://host:8786``); None starts a local
+    cluster of ``Profile.workers`` single-threaded workers for the run and stops it after.
+    device: where training and costmap inference run, ``"auto"`` (a CUDA GPU when
     torch sees one, else the CPU), ``"cpu"`` or ``"cuda"``.
 
     No artifact's cache key includes this section and two profiles that differ only here
@@ -273,8 +272,8 @@ class ExecutionConfig:
         if self.device not in DEVICES:
             raise ValueError(f"unknown device {self.device!r}; valid: {', '.join(DEVICES)}")
         if self.address is not None and self.executor == "process":
-            raise ValueError("an address needs executor 'dask' or 'ray' (the process pool "
-                             "runs on this machine)")
+            raise ValueError("an address needs executor 'dask' (the process pool runs on "
+                             "this machine)")
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ trajectory, as the paper's aggregate over all runs does).
 Each episode is its own artifact ``episodes/<vehicle>_<index>.npz`` (written atomically
 as it completes), so an interrupted collection resumes: completed episodes are loaded,
 only the missing ones run. Episodes run through any :class:`concurrent.futures.Executor`
-— a process pool of ``profile.workers`` by default, a Dask or Ray cluster with
+— a process pool of ``profile.workers`` by default, a Dask cluster with
 ``profile.execution`` (or :func:`~dgt_lib.core.executors.use_executor`), or an executor
 passed in; workers return the episode's arrays and this process saves them, so workers
 need no access to the data directory.
@@ -107,7 +107,7 @@ def _run_training_episode(profile: Profile, vehicle: str | VehicleSpec, index: i
 def _episode_job(profile: Profile, vehicle: str | VehicleSpec, index: int
                  ) -> dict[str, np.ndarray]:
     """Worker entry point: run one episode of the training world, return its arrays."""
-    limit_threads()  # a Dask/Ray worker has no initializer of ours
+    limit_threads()  # a Dask worker has no initializer of ours
     return _run_training_episode(profile, vehicle, index).to_arrays()
 
 
@@ -130,7 +130,7 @@ def collect_episodes(
 
     executor: any :class:`concurrent.futures.Executor`; default the one of an enclosing
     :func:`~dgt_lib.core.executors.use_executor` block, else ``profile.execution``'s
-    (a process pool of ``profile.workers``, or a Dask or Ray cluster:
+    (a process pool of ``profile.workers``, or a Dask cluster:
     :func:`~dgt_lib.core.executors.run_jobs`). The episodes do not depend on it. Each
     missing episode is written as soon as it completes, so an interruption (or a worker
     that dies) loses only the episodes in flight.
