@@ -66,21 +66,16 @@ class CollectConfig:
     Episodes: spawn at a random free pose, drive at ``speed_mps`` with smooth
     random (Ornstein–Uhlenbeck) steering until ``episode_duration_s`` or a simulator
     end (flipped, off_map, diverged); ``immobilized_limit_s`` below the simulator's
-    immobile speed ends the run. Survey: nadir frames of the same camera from
-    ``survey_altitude_m`` above the terrain on a lattice (complete BEV maps).
+    immobile speed ends the run. The steering and spawn rules are constants of
+    ``dgt_lib.perception.episodes``, the glitch threshold one of ``perception.locomotion``.
+    Survey: nadir frames of the same camera from ``survey_altitude_m`` above the terrain on
+    a lattice (complete BEV maps).
     """
 
     episodes: tuple[int, int, int, int] = (40, 40, 30, 20)  # per vehicle, VEHICLES order
     episode_duration_s: float = 100.0  # paper: runs end at 100 s or when immobilized
     speed_mps: float = 5.0  # u, commanded speed (paper: Locomotion)
     immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
-    steer_tau_s: float = 2.0  # OU steering correlation time [s]
-    steer_sigma: float = 0.3  # OU stationary std of the normalised steer
-    edge_margin_m: float = 15.0  # closer to the map edge, steer back toward the centre [m]
-    tree_lookahead_m: float = 10.0  # steer around trunks this close ahead; 0 = drive into them
-    spawn_margin_m: float = 10.0  # spawn this far from the map edge [m]
-    spawn_max_slope_deg: float = 15.0  # no spawning on steeper ground [deg]
-    max_angular_rate_dps: float = 100.0  # faster = simulator glitch, dropped (paper: pre-filter)
     frame_spacing_m: float = 5.0  # onboard RGB-D frame every 5 m driven (≈1 Hz at u) [m]
     frame_max_depth_m: float = 20.0  # onboard pixels farther than this are not mapped [m]
     patch_interval_s: float = 1.33  # one patch every this many seconds of a run [s]

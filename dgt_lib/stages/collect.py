@@ -42,12 +42,19 @@ from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
 from dgt_lib.perception.colour_shuffle import shuffled_colours
 from dgt_lib.perception.episodes import (
+    EDGE_MARGIN_M,
+    SPAWN_MARGIN_M,
+    SPAWN_MAX_SLOPE_DEG,
+    STEER_SIGMA,
+    STEER_TAU_S,
+    TREE_LOOKAHEAD_M,
     Episode,
     episode_seed,
     episode_summary,
     load_episode,
     run_episode,
 )
+from dgt_lib.perception.locomotion import MAX_ANGULAR_RATE_DPS
 from dgt_lib.perception.pose_noise import Localiser, pose_noise
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
@@ -57,11 +64,17 @@ from dgt_lib.world.terrain import EXTRA_WORLD_NAMES, WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
 EPISODE_FIELDS: tuple[str, ...] = (
-    "episode_duration_s", "speed_mps", "immobilized_limit_s", "steer_tau_s", "steer_sigma",
-    "edge_margin_m", "tree_lookahead_m", "spawn_margin_m", "spawn_max_slope_deg",
-    "max_angular_rate_dps", "frame_spacing_m", "frame_max_depth_m",
+    "episode_duration_s", "speed_mps", "immobilized_limit_s", "frame_spacing_m",
+    "frame_max_depth_m",
 )
 """The :class:`CollectConfig` fields an episode depends on (its cache key)."""
+EPISODE_CONSTANTS: dict[str, float] = {
+    "steer_tau_s": STEER_TAU_S, "steer_sigma": STEER_SIGMA, "edge_margin_m": EDGE_MARGIN_M,
+    "tree_lookahead_m": TREE_LOOKAHEAD_M, "spawn_margin_m": SPAWN_MARGIN_M,
+    "spawn_max_slope_deg": SPAWN_MAX_SLOPE_DEG, "max_angular_rate_dps": MAX_ANGULAR_RATE_DPS,
+}
+"""The driver's constants an episode depends on, in its key beside :data:`EPISODE_FIELDS`
+under the names they had as collection settings: the keys of stored episodes stay valid."""
 
 EPISODE_FORMAT = 3
 """Version of the episode artifact's layout (part of its cache key). 2: per-sample segment
@@ -89,7 +102,7 @@ def episode_config(profile: Profile, vehicle: str | VehicleSpec, index: int
     """What one episode depends on (its artifact's cache key; the pose noise is left out
     while there is none, :mod:`dgt_lib.core.cache_keys`)."""
     return {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
-           "episode": _fields(profile.collect, EPISODE_FIELDS),
+           "episode": {**_fields(profile.collect, EPISODE_FIELDS), **EPISODE_CONSTANTS},
            "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
            "index": int(index), "camera": CAMERA, "lighting": LIGHTING, "physics": PHYSICS,
             "pose_noise": pose_noise(profile.bev)}
