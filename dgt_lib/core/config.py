@@ -188,8 +188,7 @@ class PlannerConfig:
     theta_bins: int = 36  # heading bins of the closed set (10°)
     closed_cell_m: float = 1.6  # xy cell of the closed set [m] (one step)
     substep_m: float = 0.2  # collision-check spacing along a primitive [m]
-    analytic_shot: bool = True  # try a Dubins / turn-then-straight shot near the goal
-    shot_distance_m: float = 20.0  # try the shot from nodes this close to the goal [m]
+    analytic_shot: bool = True  # try a Dubins / turn-then-straight shot near the goal (shots.py)
     max_expansions: int = 200_000  # search cap (expanded nodes)
     max_time_s: float = 20.0  # search cap (wall time) [s]
 

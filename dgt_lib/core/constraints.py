@@ -207,7 +207,6 @@ SETTING_RULES: dict[str, Rule] = {
     "planner.heuristic_weight": at_least(1), "planner.goal_tolerance_m": POSITIVE,
     "planner.goal_heading_tolerance_rad": above_up_to(0, math.pi),
     "planner.closed_cell_m": POSITIVE, "planner.substep_m": POSITIVE,
-    "planner.shot_distance_m": NON_NEGATIVE,
     "planner.max_time_s": POSITIVE,
     "experiments.start_jitter_m": NON_NEGATIVE, "experiments.heading_jitter_deg": between(0, 180),
     "experiments.eval_distance_m": distance_range(), "experiments.eval_min_hazard_m": NON_NEGATIVE,
