@@ -37,8 +37,7 @@ REMOVED_DEFAULTS: dict[str, object] = {
     "first_step_weight": 0.0, "corner_accel_mps2": 0.0,  # MPPIConfig
     "steer_tau_s": 2.0, "steer_sigma": 0.3, "edge_margin_m": 15.0,  # CollectConfig
     "tree_lookahead_m": 10.0, "spawn_margin_m": 10.0, "spawn_max_slope_deg": 15.0,
-    "max_angular_rate_dps": 100.0,
-    "shot_distance_m": 20.0,  # PlannerConfig
+    "max_angular_rate_dps": 100.0, "shot_distance_m": 20.0,  # the last: PlannerConfig
 }
 """Deleted settings, with the value every stored run used: :func:`legacy_form` leaves them
 out wherever a key stored in the older form has them and today's key does not (a stage

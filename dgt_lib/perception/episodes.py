@@ -53,22 +53,21 @@ class OUSteering:
 
         s_{k+1} = a·s_k + σ·√(1 − a²)·ξ_k,   a = exp(−Δt/τ),   ξ_k ~ N(0, 1),
 
-    (the exact discretisation of ds = −s/τ dt + σ√(2/τ) dW: stationary std σ,
-    correlation time τ [s]), clipped to [−1, 1]. Within :data:`EDGE_MARGIN_M` of the
-    map edge the steer blends, linearly in the distance, toward a full turn to the
-    map centre (fully at half the margin) so runs explore the map instead of
-    leaving it; a trunk in the corridor ahead makes the driver swerve
-    (:data:`TREE_LOOKAHEAD_M`).
+    (the exact discretisation of ds = −s/τ dt + σ√(2/τ) dW: stationary std σ =
+    :data:`STEER_SIGMA`, correlation time τ = :data:`STEER_TAU_S`), clipped to [−1, 1].
+    Within :data:`EDGE_MARGIN_M` of the map edge the steer blends, linearly in the
+    distance, toward a full turn to the map centre (fully at half the margin) so runs
+    explore the map instead of leaving it; a trunk in the corridor ahead makes the driver
+    swerve (:data:`TREE_LOOKAHEAD_M`).
     """
 
     rng: np.random.Generator
-    tau_s: float = STEER_TAU_S
-    sigma: float = STEER_SIGMA
     value: float = 0.0
 
     def __call__(self, dt_s: float) -> float:
-        a = math.exp(-dt_s / self.tau_s)
-        self.value = a * self.value + self.sigma * math.sqrt(1 - a * a) * self.rng.standard_normal()
+        a = math.exp(-dt_s / STEER_TAU_S)
+        noise = STEER_SIGMA * math.sqrt(1 - a * a) * self.rng.standard_normal()
+        self.value = a * self.value + noise
         return float(np.clip(self.value, -1.0, 1.0))
 
 

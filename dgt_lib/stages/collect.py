@@ -39,15 +39,10 @@ from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
 from dgt_lib.core.executors import SerialExecutor, current_executor, limit_threads, run_jobs
 from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.perception import episodes as driver
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
 from dgt_lib.perception.colour_shuffle import shuffled_colours
 from dgt_lib.perception.episodes import (
-    EDGE_MARGIN_M,
-    SPAWN_MARGIN_M,
-    SPAWN_MAX_SLOPE_DEG,
-    STEER_SIGMA,
-    STEER_TAU_S,
-    TREE_LOOKAHEAD_M,
     Episode,
     episode_seed,
     episode_summary,
@@ -63,16 +58,14 @@ from dgt_lib.world.rendering import survey_frames, survey_poses
 from dgt_lib.world.terrain import EXTRA_WORLD_NAMES, WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
-EPISODE_FIELDS: tuple[str, ...] = (
-    "episode_duration_s", "speed_mps", "immobilized_limit_s", "frame_spacing_m",
-    "frame_max_depth_m",
-)
+EPISODE_FIELDS: tuple[str, ...] = ("episode_duration_s", "speed_mps", "immobilized_limit_s",
+                                   "frame_spacing_m", "frame_max_depth_m")
 """The :class:`CollectConfig` fields an episode depends on (its cache key)."""
 EPISODE_CONSTANTS: dict[str, float] = {
-    "steer_tau_s": STEER_TAU_S, "steer_sigma": STEER_SIGMA, "edge_margin_m": EDGE_MARGIN_M,
-    "tree_lookahead_m": TREE_LOOKAHEAD_M, "spawn_margin_m": SPAWN_MARGIN_M,
-    "spawn_max_slope_deg": SPAWN_MAX_SLOPE_DEG, "max_angular_rate_dps": MAX_ANGULAR_RATE_DPS,
-}
+    "steer_tau_s": driver.STEER_TAU_S, "steer_sigma": driver.STEER_SIGMA,
+    "edge_margin_m": driver.EDGE_MARGIN_M, "tree_lookahead_m": driver.TREE_LOOKAHEAD_M,
+    "spawn_margin_m": driver.SPAWN_MARGIN_M, "spawn_max_slope_deg": driver.SPAWN_MAX_SLOPE_DEG,
+    "max_angular_rate_dps": MAX_ANGULAR_RATE_DPS}
 """The driver's constants an episode depends on, in its key beside :data:`EPISODE_FIELDS`
 under the names they had as collection settings: the keys of stored episodes stay valid."""
 
