@@ -2,12 +2,12 @@
 whether the results are identical (docs/scale-out.md).
 
 Run: ``.venv/bin/python benchmarks/bench_executors.py [--profile smoke] [--workers 2]
-[--executors process dask ray] [--episodes N] [--trials 4]``.
+[--executors process dask] [--episodes N] [--trials 4]``.
 
 1. The profile's collection episodes (smoke: 3 per vehicle, 20 s each; ``--episodes N``:
    N per vehicle) through
    ``collect_episodes`` in a fresh temporary data directory per executor — the real
-   thing: for Dask and Ray a local cluster of ``--workers`` single-threaded workers is
+   thing: for Dask a local cluster of ``--workers`` single-threaded workers is
    started for the call and stopped after, and that start-up is in the wall time (also
    printed on its own).
 2. ``--trials`` closed-loop trials of Experiment 1 (carla_cola on the hill, the binary
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from dgt_lib.core import artifacts
-from dgt_lib.core.config import ExecutionConfig, get_profile
+from dgt_lib.core.config import EXECUTORS, ExecutionConfig, get_profile
 from dgt_lib.core.executors import make_executor, run_jobs, use_executor
 from dgt_lib.evaluation.queries import hill_queries
 from dgt_lib.evaluation.trials import run_trials, trial_tasks
@@ -42,7 +42,7 @@ from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import get_world
 
-PACKAGES = {"dask": "distributed", "ray": "ray"}
+PACKAGES = {"dask": "distributed"}
 
 
 def _noop(i: int) -> int:
@@ -79,7 +79,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--profile", default="smoke")
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--executors", nargs="+", default=["process", "dask", "ray"])
+    parser.add_argument("--executors", nargs="+", default=["process", "dask"], choices=EXECUTORS)
     parser.add_argument("--episodes", type=int, default=None, metavar="N",
                         help="episodes per vehicle (default: the profile's)")
     parser.add_argument("--trials", type=int, default=4)

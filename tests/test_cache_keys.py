@@ -140,6 +140,18 @@ def test_a_deleted_setting_that_a_run_had_changed_is_rebuilt(tmp_path, monkeypat
     assert "label_weighting" in artifacts.staleness("x.json", config, profile="p")
 
 
+def test_a_deleted_setting_a_stage_keeps_as_a_constant_under_its_name_is_still_compared():
+    """The episode key holds the driver's constants under their old setting names: a key
+    stored in the older form keeps them there (compared), and drops them from the stored
+    ``CollectConfig`` (where today's key no longer has them)."""
+    current = cache_keys.jsonable({"episode": {"steer_tau_s": 2.0}, "collect": CollectConfig()})
+    stored = _legacy_meta({"episode": {"steer_tau_s": 2.0}, "collect": CollectConfig()})
+    stored["collect"]["steer_tau_s"] = 2.0
+    assert cache_keys.legacy_form(stored, current) == current == {"episode": {"steer_tau_s": 2.0}}
+    stored["episode"]["steer_tau_s"] = 3.0
+    assert cache_keys.legacy_form(stored, current) != current
+
+
 def test_keys_written_now_are_in_key_form(tmp_path, monkeypatch):
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
     cfg = {"collect": CollectConfig(speed_mps=4.0), "train": TrainConfig(), "a": np.arange(3)}

@@ -158,20 +158,17 @@ def _alive(pid: int) -> bool:
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
-@pytest.mark.parametrize("kind", ["dask", "ray"])
-def test_reproduce_runs_its_jobs_on_the_executor_it_is_given(kind, capsys, tmp_path,
-                                                             monkeypatch):
-    pytest.importorskip({"dask": "distributed", "ray": "ray"}[kind])
+def test_reproduce_runs_its_jobs_on_the_executor_it_is_given(capsys, tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
     from dgt_lib.core.executors import current_executor
 
     monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
     monkeypatch.setattr(pipeline, "STAGES", [
         pipeline.Stage("jobs", stage_examples.executor, "four quick jobs")])
-    assert main(["reproduce", "--profile", "smoke", "--executor", kind, "--workers", "2"]) == 0
+    assert main(["reproduce", "--profile", "smoke", "--executor", "dask", "--workers", "2"]) == 0
     out = capsys.readouterr().out
-    assert f"jobs: {kind} on a local cluster of 2 workers" in out
-    name = {"dask": "DaskExecutor", "ray": "RayExecutor"}[kind]
-    assert f"executor {name} with 2 workers; 2 worker processes" in out
+    assert "jobs: dask on a local cluster of 2 workers" in out
+    assert "executor DaskExecutor with 2 workers; 2 worker processes" in out
     assert current_executor() is None  # closed with the run
     assert main(["reproduce", "--profile", "smoke"]) == 0  # the default: its own pools
     assert "executor None with None workers; 2 worker processes" in capsys.readouterr().out
@@ -182,7 +179,7 @@ def test_execution_options_that_cannot_work_are_one_line_errors(capsys, monkeypa
 
     monkeypatch.setattr(pipeline, "STAGES", [])
     assert main(["reproduce", "--address", "tcp://h:8786"]) == 2
-    assert "an address needs executor 'dask' or 'ray'" in capsys.readouterr().err
+    assert "an address needs executor 'dask'" in capsys.readouterr().err
     assert main(["reproduce", "--workers", "0"]) == 2
     assert "--workers must be ≥ 1" in capsys.readouterr().err
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
@@ -192,27 +189,27 @@ def test_execution_options_that_cannot_work_are_one_line_errors(capsys, monkeypa
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
-                        lambda name, *a: None if name == "ray" else real(name, *a))
-    assert main(["reproduce", "--executor", "ray"]) == 2
-    assert "pip install 'dgt-kit[ray]'" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        main(["reproduce", "--executor", "spark"])
-    assert "invalid choice" in capsys.readouterr().err
+                        lambda name, *a: None if name == "distributed" else real(name, *a))
+    assert main(["reproduce", "--executor", "dask"]) == 2
+    assert "pip install 'dgt-kit[dask]'" in capsys.readouterr().err
+    for kind in ("ray", "spark"):
+        with pytest.raises(SystemExit):
+            main(["reproduce", "--executor", kind])
+        assert "invalid choice" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("kind", ["dask", "ray"])
-def test_ctrl_c_stops_a_cluster_run_in_seconds_and_stops_its_local_cluster(kind, tmp_path):
+def test_ctrl_c_stops_a_cluster_run_in_seconds_and_stops_its_local_cluster(tmp_path):
     """SIGINT to the whole process group (the cluster's workers included) while jobs run on
-    a local Dask or Ray cluster: exit 130 with the one line, the finished job kept, no
-    worker process left."""
-    pytest.importorskip({"dask": "distributed", "ray": "ray"}[kind])
-    script = textwrap.dedent(f"""
+    a local Dask cluster: exit 130 with the one line, the finished job kept, no worker
+    process left."""
+    pytest.importorskip("distributed")
+    script = textwrap.dedent("""
         import sys
         from dgt_lib.stages import registry
         from tests import stage_examples
         registry.STAGES[:] = [registry.Stage("pool", stage_examples.pool, "jobs")]
         from dgt_lib.app.cli import main
-        sys.exit(main(["reproduce", "--profile", "smoke", "--executor", "{kind}"]))
+        sys.exit(main(["reproduce", "--profile", "smoke", "--executor", "dask"]))
     """)
     env = {**os.environ, "DGT_DATA_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
@@ -233,7 +230,7 @@ def test_ctrl_c_stops_a_cluster_run_in_seconds_and_stops_its_local_cluster(kind,
     assert "Traceback" not in out + err
     assert [line for line in err.splitlines() if "interrupted" in line] == [
         "dgt: interrupted in seed 0 · pool. Kept: the earlier stages' outputs; what it had "
-        f"finished. Rerun `dgt reproduce --profile smoke --executor {kind}` to resume."]
+        "finished. Rerun `dgt reproduce --profile smoke --executor dask` to resume."]
     workers = [int(p.name) for p in pids.iterdir()]
     assert workers and proc.pid not in workers
     deadline = time.monotonic() + 10

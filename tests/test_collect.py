@@ -10,7 +10,14 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, CollectConfig, get_profile
 from dgt_lib.core.executors import SerialExecutor
 from dgt_lib.perception.bev import bev_quality
-from dgt_lib.perception.episodes import END_REASONS, episode_seed, run_episode, spawn_pose
+from dgt_lib.perception.episodes import (
+    END_REASONS,
+    SPAWN_MARGIN_M,
+    SPAWN_MAX_SLOPE_DEG,
+    episode_seed,
+    run_episode,
+    spawn_pose,
+)
 from dgt_lib.perception.locomotion import locomotion_signal
 from dgt_lib.stages.collect import (
     collect_episodes,
@@ -105,17 +112,16 @@ def test_survey_validates_its_configuration():
 
 def test_spawn_poses_are_free():
     world = get_world("training", "smoke")
-    cfg = CollectConfig()
     rng = np.random.default_rng(3)
     x0, x1, y0, y1 = world.grid.extent
     for _ in range(50):
-        x, y, yaw = spawn_pose(world, "carla_cola", rng, cfg)
-        assert x0 + cfg.spawn_margin_m <= x <= x1 - cfg.spawn_margin_m
-        assert y0 + cfg.spawn_margin_m <= y <= y1 - cfg.spawn_margin_m
+        x, y, yaw = spawn_pose(world, "carla_cola", rng)
+        assert x0 + SPAWN_MARGIN_M <= x <= x1 - SPAWN_MARGIN_M
+        assert y0 + SPAWN_MARGIN_M <= y <= y1 - SPAWN_MARGIN_M
         assert 0 <= yaw < 2 * math.pi
         d = np.hypot(world.trees[:, 0] - x, world.trees[:, 1] - y) - world.trees[:, 2]
         assert d.min() > 3.2  # half the truck's length
-        assert world.slope_deg()[world.grid.xy_to_cell(x, y)] <= cfg.spawn_max_slope_deg
+        assert world.slope_deg()[world.grid.xy_to_cell(x, y)] <= SPAWN_MAX_SLOPE_DEG
 
 
 @pytest.mark.parametrize("world_name", ["training", "hill"])  # rendered whole / on tiles

@@ -156,7 +156,7 @@ def test_a_changed_setting_changes_the_cache_key_of_what_depends_on_it_only(
         changed = keys(demo.with_overrides(setting))
         assert changed["experiment1"] != base["experiment1"], setting
         assert (changed["episode"], changed["bev"]) == (base["episode"], base["bev"]), setting
-    changed = keys(demo.with_overrides({"collect.steer_sigma": 0.5}))
+    changed = keys(demo.with_overrides({"collect.speed_mps": 4.0}))
     assert changed["episode"] != base["episode"]
     assert keys(demo.with_overrides({"planner.beta": 150})) == base  # the same value
 

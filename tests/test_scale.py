@@ -1,4 +1,4 @@
-"""Running bigger: the same episodes and trials on a Dask (or Ray) cluster as in the process
+"""Running bigger: the same episodes and trials on a Dask cluster as in the process
 pool, no finished work lost when a worker dies, one place that opens and closes executors,
 and the device switch (docs/scale-out.md)."""
 
@@ -29,11 +29,6 @@ from dgt_lib.stages.paths import data_dir as seed_dir
 from dgt_lib.world.terrain import get_world
 
 pytest.importorskip("distributed")  # in the dev extra: `make test` runs these
-
-needs_ray = pytest.mark.skipif(
-    __import__("importlib").util.find_spec("ray") is None,
-    reason="ray is not installed (pip install 'dgt-kit[ray]'; not in the dev extra)")
-CLUSTERS = ["dask", pytest.param("ray", marks=needs_ray)]
 
 
 def tiny_profile(episodes=(1, 0, 1, 0), duration_s=3.0):
@@ -107,9 +102,7 @@ def test_pool_workers_record_the_episodes_this_process_records(data_dir):
                     data_dir / "pool")
 
 
-@pytest.mark.parametrize("kind", CLUSTERS)
-def test_a_local_cluster_gives_the_same_episodes_and_trials_as_the_process_pool(
-        kind, data_dir):
+def test_a_local_cluster_gives_the_same_episodes_and_trials_as_the_process_pool(data_dir):
     """Same seeds → the same per-task results, whichever executor ran them: episodes
     through the profile's configuration (a cluster opened for the call), trials through
     one cluster for a block (what `dgt reproduce --executor` does)."""
@@ -117,9 +110,9 @@ def test_a_local_cluster_gives_the_same_episodes_and_trials_as_the_process_pool(
     (data_dir / "pool").mkdir()
     os.environ[artifacts.DATA_ENV_VAR] = str(data_dir / "pool")
     pooled = collect_episodes(prof, progress=False)
-    os.environ[artifacts.DATA_ENV_VAR] = str(data_dir / kind)
-    on_cluster = collect_episodes(prof.with_(execution=ExecutionConfig(kind)), progress=False)
-    _episodes_equal(pooled, on_cluster, prof, data_dir / "pool", data_dir / kind)
+    os.environ[artifacts.DATA_ENV_VAR] = str(data_dir / "dask")
+    on_cluster = collect_episodes(prof.with_(execution=ExecutionConfig("dask")), progress=False)
+    _episodes_equal(pooled, on_cluster, prof, data_dir / "pool", data_dir / "dask")
     assert (seed_dir(prof) / episode_relpath("jeep", 0)).exists()  # saved by this process
 
     hill = get_world("hill", prof)
@@ -127,17 +120,15 @@ def test_a_local_cluster_gives_the_same_episodes_and_trials_as_the_process_pool(
     tasks = trial_tasks("experiment1", "hill", "carla_cola", queries, ["binary"], prof)
     trial_maps("hill", "binary", "carla_cola", prof)  # built here; the workers read it
     pooled = run_trials(tasks, trial_maps, workers=2, progress=False)
-    with use_executor(kind, workers=2) as ex:
+    with use_executor("dask", workers=2) as ex:
         assert current_executor() is ex and ex.workers == 2
         clustered = run_trials(tasks, trial_maps, workers=2, progress=False)
     assert current_executor() is None
     _trials_equal(pooled, clustered)
 
 
-@pytest.mark.parametrize("kind", CLUSTERS)
-def test_cluster_workers_get_one_thread_headless_mujoco_and_the_data_directory(
-        kind, data_dir):
-    with make_executor(kind, workers=2) as ex:
+def test_cluster_workers_get_one_thread_headless_mujoco_and_the_data_directory(data_dir):
+    with make_executor("dask", workers=2) as ex:
         states = set(run_jobs(_worker_state, [(i,) for i in range(4)], executor=ex,
                               progress=False).values())
     assert states == {("1", "1", "egl", 1, str(data_dir))}
@@ -232,7 +223,7 @@ def test_make_executor_closes_what_it_opened_and_never_a_users_cluster(data_dir)
 
 def test_run_jobs_opens_the_profiles_executor_only_when_it_has_none():
     assert run_jobs(_square, [], backend="dask", progress=False) == {}  # no jobs, no cluster
-    with pytest.raises(ValueError, match="valid: process, dask, ray"):
+    with pytest.raises(ValueError, match="valid: process, dask$"):
         run_jobs(_square, [(1,)], backend="spark", progress=False)
     with pytest.raises(ValueError, match="no address"):
         with make_executor("process", address="tcp://x:1"):

@@ -1,7 +1,7 @@
 """Command line: ``dgt`` (or ``python -m dgt_lib``).
 
     dgt reproduce [--profile P] [--stages a b …] [--seeds N | --seed S]
-                  [--set NAME=VALUE …] [--executor process|dask|ray] [--address A]
+                  [--set NAME=VALUE …] [--executor process|dask] [--address A]
                   [--workers N] [--device auto|cpu|cuda]   run the cached pipeline stages
     dgt stages                                     list the stages
     dgt settings [--profile P] [--set NAME=VALUE …]  every NAME --set takes, its type and value
@@ -88,10 +88,6 @@ def _profile(args: argparse.Namespace) -> Profile:
     return get_profile(args.profile).with_overrides(parse_overrides(args.set or []))
 
 
-EXECUTOR_PACKAGES = {"dask": "distributed", "ray": "ray"}
-"""The package each optional executor needs (the extras ``dgt-kit[dask]``, ``dgt-kit[ray]``)."""
-
-
 class UsageError(ValueError):
     """A command-line value that cannot work here (exit status 2, one line)."""
 
@@ -110,10 +106,9 @@ def _with_execution(profile: Profile, args: argparse.Namespace) -> Profile:
                             device=getattr(args, "device", None) or ex.device)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    package = EXECUTOR_PACKAGES.get(execution.executor)
-    if package is not None and importlib.util.find_spec(package) is None:
-        raise UsageError(f"--executor {execution.executor} needs the {package!r} package: "
-                         f"pip install 'dgt-kit[{execution.executor}]'")
+    if execution.executor == "dask" and importlib.util.find_spec("distributed") is None:
+        raise UsageError("--executor dask needs the 'distributed' package: "
+                         "pip install 'dgt-kit[dask]'")
     if execution.device == "cuda":
         from dgt_lib.learning.training import resolve_device
 
@@ -335,12 +330,11 @@ def _add_reproduce(sub) -> None:
                             "pooled results are left as they are)")
     rep.add_argument("--executor", choices=EXECUTORS, default=None,
                      help="what runs collection episodes and trials: a process pool on this "
-                          "machine (default), a Dask cluster (pip install 'dgt-kit[dask]') or "
-                          "a Ray cluster ('dgt-kit[ray]'); results do not depend on it")
+                          "machine (default) or a Dask cluster (pip install 'dgt-kit[dask]'); "
+                          "results do not depend on it")
     rep.add_argument("--address", default=None, metavar="ADDRESS",
-                     help="an existing cluster's scheduler (Dask tcp://host:8786, Ray "
-                          "ray://host:10001 or auto); default: start a local cluster of "
-                          "--workers workers for the run")
+                     help="an existing Dask cluster's scheduler (tcp://host:8786); default: "
+                          "start a local cluster of --workers workers for the run")
     rep.add_argument("--workers", type=int, default=None, metavar="N",
                      help="worker processes, or local cluster workers (default: the "
                           "profile's, 2)")

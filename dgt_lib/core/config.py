@@ -66,21 +66,16 @@ class CollectConfig:
     Episodes: spawn at a random free pose, drive at ``speed_mps`` with smooth
     random (Ornstein–Uhlenbeck) steering until ``episode_duration_s`` or a simulator
     end (flipped, off_map, diverged); ``immobilized_limit_s`` below the simulator's
-    immobile speed ends the run. Survey: nadir frames of the same camera from
-    ``survey_altitude_m`` above the terrain on a lattice (complete BEV maps).
+    immobile speed ends the run. The steering and spawn rules are constants of
+    ``dgt_lib.perception.episodes``, the glitch threshold one of ``perception.locomotion``.
+    Survey: nadir frames of the same camera from ``survey_altitude_m`` above the terrain on
+    a lattice (complete BEV maps).
     """
 
     episodes: tuple[int, int, int, int] = (40, 40, 30, 20)  # per vehicle, VEHICLES order
     episode_duration_s: float = 100.0  # paper: runs end at 100 s or when immobilized
     speed_mps: float = 5.0  # u, commanded speed (paper: Locomotion)
     immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
-    steer_tau_s: float = 2.0  # OU steering correlation time [s]
-    steer_sigma: float = 0.3  # OU stationary std of the normalised steer
-    edge_margin_m: float = 15.0  # closer to the map edge, steer back toward the centre [m]
-    tree_lookahead_m: float = 10.0  # steer around trunks this close ahead; 0 = drive into them
-    spawn_margin_m: float = 10.0  # spawn this far from the map edge [m]
-    spawn_max_slope_deg: float = 15.0  # no spawning on steeper ground [deg]
-    max_angular_rate_dps: float = 100.0  # faster = simulator glitch, dropped (paper: pre-filter)
     frame_spacing_m: float = 5.0  # onboard RGB-D frame every 5 m driven (≈1 Hz at u) [m]
     frame_max_depth_m: float = 20.0  # onboard pixels farther than this are not mapped [m]
     patch_interval_s: float = 1.33  # one patch every this many seconds of a run [s]
@@ -193,8 +188,7 @@ class PlannerConfig:
     theta_bins: int = 36  # heading bins of the closed set (10°)
     closed_cell_m: float = 1.6  # xy cell of the closed set [m] (one step)
     substep_m: float = 0.2  # collision-check spacing along a primitive [m]
-    analytic_shot: bool = True  # try a Dubins / turn-then-straight shot near the goal
-    shot_distance_m: float = 20.0  # try the shot from nodes this close to the goal [m]
+    analytic_shot: bool = True  # try a Dubins / turn-then-straight shot near the goal (shots.py)
     max_expansions: int = 200_000  # search cap (expanded nodes)
     max_time_s: float = 20.0  # search cap (wall time) [s]
 
@@ -239,7 +233,7 @@ class ConditionedConfig:
     generated_vehicles: int = 0
 
 
-EXECUTORS: tuple[str, ...] = ("process", "dask", "ray")
+EXECUTORS: tuple[str, ...] = ("process", "dask")
 """Valid ``ExecutionConfig.executor`` values (``dgt reproduce --executor``)."""
 
 DEVICES: tuple[str, ...] = ("auto", "cpu", "cuda")
@@ -252,11 +246,10 @@ class ExecutionConfig:
 
     executor: what runs the independent jobs (collection episodes, closed-loop trials):
     ``"process"`` a pool of ``Profile.workers`` processes on this machine; ``"dask"`` a
-    Dask cluster (``pip install 'dgt-kit[dask]'``); ``"ray"`` a Ray cluster
-    (``'dgt-kit[ray]'``). address: the scheduler of an existing Dask cluster
-    (``tcp://host:8786``) or a Ray cluster (``ray://host:10001``, ``auto``); None starts a
-    local cluster of ``Profile.workers`` single-threaded workers for the run and stops it
-    after. device: where training and costmap inference run, ``"auto"`` (a CUDA GPU when
+    Dask cluster, on this machine or many (``pip install 'dgt-kit[dask]'``). address: the
+    scheduler of an existing Dask cluster (``tcp://host:8786``); None starts a local
+    cluster of ``Profile.workers`` single-threaded workers for the run and stops it after.
+    device: where training and costmap inference run, ``"auto"`` (a CUDA GPU when
     torch sees one, else the CPU), ``"cpu"`` or ``"cuda"``.
 
     No artifact's cache key includes this section and two profiles that differ only here
@@ -273,8 +266,8 @@ class ExecutionConfig:
         if self.device not in DEVICES:
             raise ValueError(f"unknown device {self.device!r}; valid: {', '.join(DEVICES)}")
         if self.address is not None and self.executor == "process":
-            raise ValueError("an address needs executor 'dask' or 'ray' (the process pool "
-                             "runs on this machine)")
+            raise ValueError("an address needs executor 'dask' (the process pool runs on "
+                             "this machine)")
 
 
 @dataclass(frozen=True)

@@ -2,15 +2,15 @@
 samples and closed-loop trials (docs/ARCHITECTURE.md → Scale).
 
 Any :class:`concurrent.futures.Executor` works — a process pool of spawned workers by default
-(:func:`default_executor`), a :class:`SerialExecutor` for one worker, or a Dask/Ray executor.
+(:func:`default_executor`), a :class:`SerialExecutor` for one worker, or a Dask executor.
 :func:`run_jobs` submits at most ``max_in_flight`` jobs at a time, hands every finished result
 to ``on_result`` *in this process* as soon as it is there (so the caller can save or journal
 it: an interruption loses only the jobs in flight) and shows a progress bar with an ETA.
 Results do not depend on the executor.
 
 The choice of executor is made here only: :func:`make_executor` opens one of
-:data:`~dgt_lib.core.config.EXECUTORS` — ``"process"``, ``"dask"`` (``distributed``) or
-``"ray"`` — on a local cluster or an existing one (``address``), and closes what it opened;
+:data:`~dgt_lib.core.config.EXECUTORS` — ``"process"`` or ``"dask"`` (``distributed``) —
+on a local cluster or an existing one (``address``), and closes what it opened;
 :func:`use_executor` makes it the one every :func:`run_jobs` without an executor uses
 (``dgt reproduce --executor``).
 
@@ -157,7 +157,7 @@ def worker_env() -> dict[str, str]:
 
 
 def call_in_worker(fn: Callable[..., Any], *args: Any) -> Any:
-    """What a Dask or Ray worker runs for one job: the set-up a pool worker gets from its
+    """What a Dask worker runs for one job: the set-up a pool worker gets from its
     initializer (headless MuJoCo, :func:`limit_threads`), then ``fn(*args)``. Workers of
     a cluster we did not start (``address``) get it too."""
     os.environ.setdefault("MUJOCO_GL", "egl")
@@ -190,59 +190,13 @@ class DaskExecutor(Executor):
         self._inner.shutdown(wait=wait and not cancel_futures)
 
 
-class RayExecutor(Executor):
-    """Jobs on the Ray cluster this process is connected to (``ray.init``): each job is a
-    remote task of one CPU running :func:`call_in_worker`; its ``ObjectRef.future()`` is the
-    :class:`~concurrent.futures.Future`. A worker that dies mid-job has its job retried
-    (Ray's ``max_retries``). ``workers`` is the cluster's CPU count."""
-
-    def __init__(self) -> None:
-        import ray
-
-        self._ray = ray
-        self._remote = ray.remote(num_cpus=1)(call_in_worker)
-        self._refs: dict[Future, Any] = {}
-        self._shutdown = False
-
-    @property
-    def workers(self) -> int:
-        return max(1, int(self._ray.cluster_resources().get("CPU", 1)))
-
-    def submit(self, fn, /, *args, **kwargs) -> Future:
-        if kwargs:
-            raise TypeError("RayExecutor.submit takes positional arguments only")
-        if self._shutdown:
-            raise RuntimeError("cannot schedule new futures after shutdown")
-        ref = self._remote.remote(fn, *args)
-        future = ref.future()
-        self._refs[future] = ref
-        future.add_done_callback(lambda f: self._refs.pop(f, None))
-        return future
-
-    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
-        """Stop taking jobs; ``cancel_futures`` (or ``wait=False``) cancels the jobs not
-        finished (their workers are stopped). Ray stays connected (:func:`make_executor`)."""
-        self._shutdown = True
-        refs = list(self._refs.values())
-        if cancel_futures or not wait:
-            for ref in refs:
-                with contextlib.suppress(Exception):
-                    self._ray.cancel(ref, force=True)
-        elif refs:
-            self._ray.wait(refs, num_returns=len(refs))
-
-
-def _missing(kind: str, module: str) -> ImportError:
-    return ImportError(f"executor {kind!r} needs the {module!r} package: "
-                       f"pip install 'dgt-kit[{kind}]' (or pip install {module})")
-
-
 @contextlib.contextmanager
 def _dask(address: str | None, workers: int) -> Iterator[Executor]:
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise _missing("dask", "distributed") from None
+        raise ImportError("executor 'dask' needs the 'distributed' package: "
+                          "pip install 'dgt-kit[dask]' (or pip install distributed)") from None
     cluster = None
     if address is None:  # our own cluster: single-threaded worker processes, quiet logs
         # no dashboard, and its HTTP server on a free port: never "8787 already in use"
@@ -267,32 +221,6 @@ def _dask(address: str | None, workers: int) -> Iterator[Executor]:
 
 
 @contextlib.contextmanager
-def _ray(address: str | None, workers: int) -> Iterator[Executor]:
-    try:
-        import ray
-    except ImportError:
-        raise _missing("ray", "ray") from None
-    own = not ray.is_initialized()  # a user's own ray.init() stays as it is
-    if own:
-        kwargs: dict[str, Any] = {"runtime_env": {"env_vars": worker_env()},
-                                  "logging_level": logging.ERROR}
-        if address is None:  # a local cluster of `workers` CPUs, stopped at the end
-            kwargs.update(num_cpus=max(1, workers), include_dashboard=False)
-        ray.init(address=address, **kwargs)
-    try:
-        ex = RayExecutor()
-        try:
-            yield ex
-        except BaseException:
-            ex.shutdown(wait=False, cancel_futures=True)
-            raise
-        ex.shutdown(wait=True)
-    finally:
-        if own:
-            ray.shutdown()  # stops a local cluster; only disconnects from `address`
-
-
-@contextlib.contextmanager
 def make_executor(kind: str = "process", *, address: str | None = None, workers: int = 2,
                   start_method: str = "spawn") -> Iterator[Executor]:
     """An executor of ``kind`` for the ``with`` block, closed after it — the one place
@@ -301,23 +229,18 @@ def make_executor(kind: str = "process", *, address: str | None = None, workers:
     ``"process"``: :func:`default_executor` (``workers`` processes, ``start_method``; a
     :class:`SerialExecutor` for ``workers <= 1``). ``"dask"``: a :class:`DaskExecutor` on
     the scheduler at ``address``, or on a ``LocalCluster`` of ``workers`` single-threaded
-    worker processes started here (needs ``distributed``). ``"ray"``: a
-    :class:`RayExecutor` on the cluster at ``address``, or on a local one of ``workers``
-    CPUs (needs ``ray``). Local workers get :func:`worker_env`.
+    worker processes started here (needs ``distributed``). Local workers get
+    :func:`worker_env`.
 
     On an exception or Ctrl-C in the block, the jobs not finished are cancelled and the
-    pool's processes terminated (:func:`stop_workers`); the Dask client or Ray connection
-    opened here is closed, and a local cluster started here is stopped — a cluster at
-    ``address`` is never stopped.
+    pool's processes terminated (:func:`stop_workers`); the Dask client opened here is
+    closed, and a local cluster started here is stopped — a cluster at ``address`` is
+    never stopped.
     """
     if kind not in EXECUTORS:
         raise ValueError(f"unknown executor {kind!r}; valid: {', '.join(EXECUTORS)}")
     if kind == "dask":
         with _dask(address, workers) as ex:
-            yield ex
-        return
-    if kind == "ray":
-        with _ray(address, workers) as ex:
             yield ex
         return
     if address is not None:
@@ -345,7 +268,7 @@ def use_executor(kind: str = "process", *, address: str | None = None,
                  workers: int = 2) -> Iterator[Executor | None]:
     """Run every :func:`run_jobs` of the block that is given no executor through one
     executor of ``kind`` (:func:`make_executor`), opened once for the block — one local
-    Dask or Ray cluster for a whole ``dgt reproduce``. ``"process"`` changes nothing
+    Dask cluster for a whole ``dgt reproduce``. ``"process"`` changes nothing
     (each :func:`run_jobs` keeps its own pool, forked for trials) and yields None."""
     if kind == "process":
         if address is not None:
@@ -395,7 +318,7 @@ def run_jobs(
 
     executor: any Executor; default the one of the enclosing :func:`use_executor` block,
     else one :func:`make_executor` opens for this call — ``backend`` (``"process"``:
-    ``workers`` processes started by ``start_method``; ``"dask"``, ``"ray"``: a local
+    ``workers`` processes started by ``start_method``; ``"dask"``: a local
     cluster of ``workers``, or the one at ``address``) — and closes afterwards. On an
     exception or Ctrl-C (KeyboardInterrupt) the jobs not yet finished are cancelled and
     the exception re-raised; an executor opened here is stopped at once (the pool's
@@ -403,7 +326,7 @@ def run_jobs(
     result already handed to ``on_result`` stays with the caller; so does every result
     that finished together with a failed job. At most
     ``max_in_flight`` jobs are submitted at once (default 2 per worker — the cluster's
-    workers for a Dask or Ray executor —, 1 for a :class:`SerialExecutor`), in ``jobs``
+    workers for a Dask executor —, 1 for a :class:`SerialExecutor`), in ``jobs``
     order. ``on_result(job, result)`` runs in this
     process for each finished job, in ``jobs`` order among those finishing together.
     The bar starts at ``initial`` of ``total`` (default ``initial + len(jobs)``), for

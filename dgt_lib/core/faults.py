@@ -99,15 +99,9 @@ GAVE_UP = {
         "the Dask cluster gave up on a job after the workers running it died "
         "(distributed.scheduler.allowed-failures times): usually out of memory — give the "
         "workers more memory or run fewer per machine (--workers)"),
-    "ray.exceptions.WorkerCrashedError": (
-        "a Ray worker died running a job, after Ray's retries: usually out of memory — give "
-        "the workers more memory or run fewer per machine (--workers)"),
-    "ray.exceptions.OutOfMemoryError": (
-        "Ray stopped a job for lack of memory, after its retries: give the workers more "
-        "memory or run fewer per machine (--workers)"),
 }
-"""A cluster's "I give up on this job" exceptions (by module and class name, so neither
-package is imported to recognise them) → what happened and what to do."""
+"""A cluster's "I give up on this job" exceptions (by module and class name, so
+``distributed`` is not imported to recognise them) → what happened and what to do."""
 
 
 def gave_up_message(exc: BaseException) -> str | None:

@@ -244,7 +244,7 @@ def _crossing(ep, along: np.ndarray, cell: np.ndarray, d: np.ndarray,
 def drive_job(profile: Profile, world_name: str, vehicle: str, x: float, y: float,
               theta: float) -> dict[str, float | int]:
     """Worker entry point: :func:`drive_through` on the profile's world ``world_name``."""
-    limit_threads()  # a Dask/Ray worker has no initializer of ours
+    limit_threads()  # a Dask worker has no initializer of ours
     prof = as_profile(profile)
     return drive_through(get_world(world_name, prof), vehicle, (x, y), theta,
                          prof.ground_truth, prof.collect)

@@ -186,8 +186,8 @@ def run_trials(tasks: Sequence[TrialTask], load_maps: MapsLoader,
     """Run trials in parallel, with a progress bar; results come back in task order.
 
     executor: default that of an enclosing :func:`~dgt_lib.core.executors.use_executor`
-    block, else ``backend`` at ``address`` (a process pool of ``workers``, or a Dask or
-    Ray cluster, :func:`~dgt_lib.core.executors.run_jobs`). The results do not depend on
+    block, else ``backend`` at ``address`` (a process pool of ``workers``, or a Dask
+    cluster, :func:`~dgt_lib.core.executors.run_jobs`). The results do not depend on
     it. A worker calls ``load_maps``: with :func:`dgt_lib.stages.experiments.trial_maps`,
     cluster workers must see this machine's data directory (``DGT_DATA_DIR``, a shared
     file system on a multi-machine cluster).

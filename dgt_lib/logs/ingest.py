@@ -50,7 +50,7 @@ from dgt_lib.perception.dataset import (
     pose_at,
     split_by_trajectory,
 )
-from dgt_lib.perception.locomotion import WINDOW_S, locomotion, mean_command
+from dgt_lib.perception.locomotion import MAX_ANGULAR_RATE_DPS, WINDOW_S, locomotion, mean_command
 from dgt_lib.perception.patches import extract_patches
 
 MIN_COMMAND_MPS = 0.5
@@ -123,7 +123,7 @@ def log_patches(robot: Trajectory, command: tuple[np.ndarray, np.ndarray], bev: 
     t, poses = robot.time_s, robot.poses
     pose = np.stack([poses[:, 0, 3], poses[:, 1, 3],
                      np.arctan2(poses[:, 1, 0], poses[:, 0, 0])], axis=1)
-    valid = angular_rate_dps(robot) <= cfg.max_angular_rate_dps
+    valid = angular_rate_dps(robot) <= MAX_ANGULAR_RATE_DPS
     cmd_t, cmd_v = command
     u_now = np.interp(t, cmd_t, cmd_v)  # a zero-order hold read at the pose times
     moving = u_now >= MIN_COMMAND_MPS

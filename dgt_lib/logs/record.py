@@ -175,7 +175,7 @@ def record_log(world: World, vehicle: VehicleSpec, out: str | Path, *, seed: int
                          compressed)
         sim = simulator(world, vehicle)
         renderer = terrain_renderer(world, cfg.frame_max_depth_m)
-        ou = OUSteering(cfg.steer_tau_s, cfg.steer_sigma, np.random.default_rng([seed, 8]))
+        ou = OUSteering(np.random.default_rng([seed, 8]))
         trees = np.asarray(world.trees, np.float64).reshape(-1, 4)
         clock = {"odom": 0.0, "cmd": 0.0, "cam": 0.0}
         last: dict[str, Any] = {"base": 0.0}
@@ -205,7 +205,7 @@ def record_log(world: World, vehicle: VehicleSpec, out: str | Path, *, seed: int
                     use[:3, 3] = last["pose"][:3, 3] + frac * (pose[:3, 3] - last["pose"][:3, 3])
                 bag.odometry(clock["odom"], topics, noisy(use), st.speed_mps, st.angular_rate)
                 clock["odom"] += 1.0 / realism.odometry_hz
-            s = random_steer(st, ou, world, trees, vehicle, cfg)
+            s = random_steer(st, ou, world, trees, vehicle)
             if now + 1e-9 >= clock["cmd"]:
                 rate = cfg.speed_mps * math.tan(s * vehicle.max_steer_rad) / vehicle.wheelbase_m
                 bag.write(topics.cmd, now, bag.twist(cfg.speed_mps, rate))

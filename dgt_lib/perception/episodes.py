@@ -28,6 +28,7 @@ from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.perception.bev import BEVAccumulator, bev_grid
+from dgt_lib.perception.locomotion import MAX_ANGULAR_RATE_DPS
 from dgt_lib.perception.pose_noise import Localiser
 from dgt_lib.world.rendering import onboard_camera_pose, simulator, terrain_renderer
 from dgt_lib.world.simulator import CONTROL_DT_S, VehicleState
@@ -38,6 +39,13 @@ END_REASONS: tuple[str, ...] = ("timeout", "immobilized", "flipped", "off_map", 
 """Why an episode ended: its duration, stuck, a simulator ``done_reason``, or the caller's
 ``stop`` condition (:func:`run_episode`; the ground-truth drives, never collection)."""
 
+STEER_TAU_S = 2.0  # OU steering correlation time τ [s]
+STEER_SIGMA = 0.3  # OU stationary std σ of the normalised steer (of [−1, 1])
+EDGE_MARGIN_M = 15.0  # closer to the map edge than this, steer back toward the centre [m]
+TREE_LOOKAHEAD_M = 10.0  # steer around trunks this close ahead [m]
+SPAWN_MARGIN_M = 10.0  # spawn this far from the map edge [m]
+SPAWN_MAX_SLOPE_DEG = 15.0  # no spawning on steeper ground [deg]
+
 
 @dataclass
 class OUSteering:
@@ -45,31 +53,29 @@ class OUSteering:
 
         s_{k+1} = a·s_k + σ·√(1 − a²)·ξ_k,   a = exp(−Δt/τ),   ξ_k ~ N(0, 1),
 
-    (the exact discretisation of ds = −s/τ dt + σ√(2/τ) dW: stationary std σ,
-    correlation time τ [s]), clipped to [−1, 1]. Within ``edge_margin_m`` of the
-    map edge the steer blends, linearly in the distance, toward a full turn to the
-    map centre (fully at half the margin) so runs explore the map instead of
-    leaving it; a trunk in the corridor ahead makes the driver swerve
-    (``tree_lookahead_m``).
+    (the exact discretisation of ds = −s/τ dt + σ√(2/τ) dW: stationary std σ =
+    :data:`STEER_SIGMA`, correlation time τ = :data:`STEER_TAU_S`), clipped to [−1, 1].
+    Within :data:`EDGE_MARGIN_M` of the map edge the steer blends, linearly in the
+    distance, toward a full turn to the map centre (fully at half the margin) so runs
+    explore the map instead of leaving it; a trunk in the corridor ahead makes the driver
+    swerve (:data:`TREE_LOOKAHEAD_M`).
     """
 
-    tau_s: float
-    sigma: float
     rng: np.random.Generator
     value: float = 0.0
 
     def __call__(self, dt_s: float) -> float:
-        a = math.exp(-dt_s / self.tau_s)
-        self.value = a * self.value + self.sigma * math.sqrt(1 - a * a) * self.rng.standard_normal()
+        a = math.exp(-dt_s / STEER_TAU_S)
+        noise = STEER_SIGMA * math.sqrt(1 - a * a) * self.rng.standard_normal()
+        self.value = a * self.value + noise
         return float(np.clip(self.value, -1.0, 1.0))
 
 
-def _homing(steer: float, x: float, y: float, yaw: float, grid: GridSpec, margin_m: float
-            ) -> float:
+def _homing(steer: float, x: float, y: float, yaw: float, grid: GridSpec) -> float:
     """Blend ``steer`` toward the map centre near the edge (see :class:`OUSteering`)."""
     x0, x1, y0, y1 = grid.extent
     d_edge = min(x - x0, x1 - x, y - y0, y1 - y)
-    w = float(np.clip(2.0 * (margin_m - d_edge) / margin_m, 0.0, 1.0)) if margin_m > 0 else 0.0
+    w = float(np.clip(2.0 * (EDGE_MARGIN_M - d_edge) / EDGE_MARGIN_M, 0.0, 1.0))
     if w == 0.0:
         return steer
     to_centre = math.atan2(0.5 * (y0 + y1) - y, 0.5 * (x0 + x1) - x)
@@ -79,19 +85,19 @@ def _homing(steer: float, x: float, y: float, yaw: float, grid: GridSpec, margin
 
 
 def _avoid_trees(steer: float, x: float, y: float, yaw: float, trees: np.ndarray,
-                 half_width_m: float, lookahead_m: float) -> float:
+                 half_width_m: float) -> float:
     """Steer fully away from the nearest trunk in the corridor ahead, else ``steer``.
 
     trees: (N, 4) x, y, radius, height. A trunk is in the corridor when it lies
-    0–``lookahead_m`` ahead and its edge comes within ``half_width_m`` + 1 m of
+    0–:data:`TREE_LOOKAHEAD_M` ahead and its edge comes within ``half_width_m`` + 1 m of
     the vehicle's centre line; the vehicle turns away from its side."""
-    if lookahead_m <= 0 or len(trees) == 0:
+    if len(trees) == 0:
         return steer
     c, s = math.cos(yaw), math.sin(yaw)
     dx, dy = trees[:, 0] - x, trees[:, 1] - y
     ahead, left = dx * c + dy * s, -dx * s + dy * c
-    threat = (ahead > 0) & (ahead < lookahead_m) & (np.abs(left) < half_width_m + 1.0
-                                                     + trees[:, 2])
+    threat = (ahead > 0) & (ahead < TREE_LOOKAHEAD_M) & (np.abs(left) < half_width_m + 1.0
+                                                          + trees[:, 2])
     if not threat.any():
         return steer
     i = np.flatnonzero(threat)[np.argmin(ahead[threat])]
@@ -99,18 +105,17 @@ def _avoid_trees(steer: float, x: float, y: float, yaw: float, trees: np.ndarray
 
 
 def spawn_pose(world: World, vehicle: str | VehicleSpec, rng: np.random.Generator,
-               config: CollectConfig | None = None, max_tries: int = 10_000) -> np.ndarray:
+               max_tries: int = 10_000) -> np.ndarray:
     """A random free start pose (x [m], y [m], yaw [rad]) on ``world``.
 
-    Free: at least ``spawn_margin_m`` from the map edge, the vehicle's
+    Free: at least :data:`SPAWN_MARGIN_M` from the map edge, the vehicle's
     half-length plus 1 m clear of every trunk, and the steepest slope within the
-    vehicle's half-length at most ``spawn_max_slope_deg``. Raises RuntimeError if
+    vehicle's half-length at most :data:`SPAWN_MAX_SLOPE_DEG`. Raises RuntimeError if
     no such pose is found in ``max_tries`` draws.
     """
-    cfg = config or CollectConfig()
     spec = get_vehicle(vehicle)
     x0, x1, y0, y1 = world.grid.extent
-    m = cfg.spawn_margin_m
+    m = SPAWN_MARGIN_M
     if x1 - x0 <= 2 * m or y1 - y0 <= 2 * m:
         raise ValueError(f"world {world.name!r} is too small for a spawn margin of {m} m")
     slope = world.slope_deg()
@@ -126,7 +131,7 @@ def spawn_pose(world: World, vehicle: str | VehicleSpec, rng: np.random.Generato
         r, c = world.grid.xy_to_cell(x + offsets[:, 0], y + offsets[:, 1])
         r = np.clip(r, 0, world.grid.height - 1)
         c = np.clip(c, 0, world.grid.width - 1)
-        if slope[r, c].max() > cfg.spawn_max_slope_deg:
+        if slope[r, c].max() > SPAWN_MAX_SLOPE_DEG:
             continue
         return np.array([x, y, rng.uniform(0.0, 2 * np.pi)])
     raise RuntimeError(f"no free spawn pose for {spec.name} on {world.name!r} "
@@ -201,12 +206,12 @@ def episode_seed(profile_seed: int, vehicle: str | VehicleSpec, index: int) -> i
 
 
 def random_steer(st: VehicleState, ou: OUSteering, world: World, trees: np.ndarray,
-                  spec: VehicleSpec, cfg: CollectConfig) -> float:
+                 spec: VehicleSpec) -> float:
     """The collection's steering: OU noise, turned home near the world's edge and away
     from trees ahead."""
     x, y = st.position[0], st.position[1]
-    s = _homing(ou(CONTROL_DT_S), x, y, st.yaw, world.grid, cfg.edge_margin_m)
-    return _avoid_trees(s, x, y, st.yaw, trees, 0.5 * spec.width_m, cfg.tree_lookahead_m)
+    s = _homing(ou(CONTROL_DT_S), x, y, st.yaw, world.grid)
+    return _avoid_trees(s, x, y, st.yaw, trees, 0.5 * spec.width_m)
 
 
 def run_episode(
@@ -232,9 +237,9 @@ def run_episode(
     cfg = config or CollectConfig()
     spec = get_vehicle(vehicle)
     rng = np.random.default_rng(seed)
-    pose0 = spawn_pose(world, spec, rng, cfg) if start_pose is None else np.asarray(
+    pose0 = spawn_pose(world, spec, rng) if start_pose is None else np.asarray(
         start_pose, np.float64)
-    ou = OUSteering(cfg.steer_tau_s, cfg.steer_sigma, rng)
+    ou = OUSteering(rng)
     trees = np.asarray(world.trees, np.float64).reshape(-1, 4)
     sim = simulator(world, spec)
     grid = bev_grid(world.grid.extent)
@@ -254,7 +259,7 @@ def run_episode(
         n += 1
         travelled += float(np.hypot(*(st.position[:2] - last_xy)))
         last_xy = st.position[:2].copy()
-        if render and travelled >= next_frame_m and rate <= cfg.max_angular_rate_dps:
+        if render and travelled >= next_frame_m and rate <= MAX_ANGULAR_RATE_DPS:
             frame = renderer.render(onboard_camera_pose(sim))
             if localise is not None:
                 frame = localise(frame)
@@ -272,17 +277,17 @@ def run_episode(
         if st.immobilized_s > cfg.immobilized_limit_s:  # paper: a run ends when immobilised
             reason = "immobilized"
             break
-        s = steer(st) if steer is not None else random_steer(st, ou, world, trees, spec, cfg)
+        s = steer(st) if steer is not None else random_steer(st, ou, world, trees, spec)
         st = sim.step(speed_cmd_mps=cfg.speed_mps, steer=s)
     rows = rows[:n]
     if reason == "diverged":  # the simulator repeats the last good state: drop it
         rows = rows[:-1] if n > 1 else rows
-    return _episode(rows, spec.name, index, seed, reason, cfg, n_frames,
+    return _episode(rows, spec.name, index, seed, reason, n_frames,
                     acc.to_sparse() if render else None)
 
 
 def _episode(rows: np.ndarray, vehicle: str, index: int, seed: int, reason: str,
-             cfg: CollectConfig, n_frames: int, bev: dict[str, np.ndarray] | None) -> Episode:
+             n_frames: int, bev: dict[str, np.ndarray] | None) -> Episode:
     """The :class:`Episode` of a drive's rows (t, x, y, yaw, z, speed, |ω| [°/s]), with the
     rows whose time does not increase dropped."""
     keep = np.concatenate([[True], np.diff(rows[:, 0]) > 0])  # strictly increasing time
@@ -292,7 +297,7 @@ def _episode(rows: np.ndarray, vehicle: str, index: int, seed: int, reason: str,
         time_s=rows[:, 0].astype(np.float32), pose=rows[:, 1:4].astype(np.float32),
         z=rows[:, 4].astype(np.float32), speed_mps=rows[:, 5].astype(np.float32),
         angular_rate_dps=rows[:, 6].astype(np.float32),
-        valid=rows[:, 6] <= cfg.max_angular_rate_dps, end_reason=reason,
+        valid=rows[:, 6] <= MAX_ANGULAR_RATE_DPS, end_reason=reason,
         n_frames=n_frames, bev=bev,
     )
 

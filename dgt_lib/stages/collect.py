@@ -10,7 +10,7 @@ trajectory, as the paper's aggregate over all runs does).
 Each episode is its own artifact ``episodes/<vehicle>_<index>.npz`` (written atomically
 as it completes), so an interrupted collection resumes: completed episodes are loaded,
 only the missing ones run. Episodes run through any :class:`concurrent.futures.Executor`
-— a process pool of ``profile.workers`` by default, a Dask or Ray cluster with
+— a process pool of ``profile.workers`` by default, a Dask cluster with
 ``profile.execution`` (or :func:`~dgt_lib.core.executors.use_executor`), or an executor
 passed in; workers return the episode's arrays and this process saves them, so workers
 need no access to the data directory.
@@ -39,6 +39,7 @@ from dgt_lib.core.config import VEHICLES, CollectConfig, Profile, as_profile
 from dgt_lib.core.executors import SerialExecutor, current_executor, limit_threads, run_jobs
 from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.core.vehicles import get_vehicle
+from dgt_lib.perception import episodes as driver
 from dgt_lib.perception.bev import BEV_FORMAT, BEVAccumulator, BEVMap, bev_grid, bev_quality
 from dgt_lib.perception.colour_shuffle import shuffled_colours
 from dgt_lib.perception.episodes import (
@@ -48,6 +49,7 @@ from dgt_lib.perception.episodes import (
     load_episode,
     run_episode,
 )
+from dgt_lib.perception.locomotion import MAX_ANGULAR_RATE_DPS
 from dgt_lib.perception.pose_noise import Localiser, pose_noise
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
@@ -56,12 +58,16 @@ from dgt_lib.world.rendering import survey_frames, survey_poses
 from dgt_lib.world.terrain import EXTRA_WORLD_NAMES, WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
-EPISODE_FIELDS: tuple[str, ...] = (
-    "episode_duration_s", "speed_mps", "immobilized_limit_s", "steer_tau_s", "steer_sigma",
-    "edge_margin_m", "tree_lookahead_m", "spawn_margin_m", "spawn_max_slope_deg",
-    "max_angular_rate_dps", "frame_spacing_m", "frame_max_depth_m",
-)
+EPISODE_FIELDS: tuple[str, ...] = ("episode_duration_s", "speed_mps", "immobilized_limit_s",
+                                   "frame_spacing_m", "frame_max_depth_m")
 """The :class:`CollectConfig` fields an episode depends on (its cache key)."""
+EPISODE_CONSTANTS: dict[str, float] = {
+    "steer_tau_s": driver.STEER_TAU_S, "steer_sigma": driver.STEER_SIGMA,
+    "edge_margin_m": driver.EDGE_MARGIN_M, "tree_lookahead_m": driver.TREE_LOOKAHEAD_M,
+    "spawn_margin_m": driver.SPAWN_MARGIN_M, "spawn_max_slope_deg": driver.SPAWN_MAX_SLOPE_DEG,
+    "max_angular_rate_dps": MAX_ANGULAR_RATE_DPS}
+"""The driver's constants an episode depends on, in its key beside :data:`EPISODE_FIELDS`
+under the names they had as collection settings: the keys of stored episodes stay valid."""
 
 EPISODE_FORMAT = 3
 """Version of the episode artifact's layout (part of its cache key). 2: per-sample segment
@@ -89,7 +95,7 @@ def episode_config(profile: Profile, vehicle: str | VehicleSpec, index: int
     """What one episode depends on (its artifact's cache key; the pose noise is left out
     while there is none, :mod:`dgt_lib.core.cache_keys`)."""
     return {"format": EPISODE_FORMAT, "bev_format": BEV_FORMAT,
-           "episode": _fields(profile.collect, EPISODE_FIELDS),
+           "episode": {**_fields(profile.collect, EPISODE_FIELDS), **EPISODE_CONSTANTS},
            "worlds": profile.worlds, "seed": profile.seed, "vehicle": get_vehicle(vehicle),
            "index": int(index), "camera": CAMERA, "lighting": LIGHTING, "physics": PHYSICS,
             "pose_noise": pose_noise(profile.bev)}
@@ -107,7 +113,7 @@ def _run_training_episode(profile: Profile, vehicle: str | VehicleSpec, index: i
 def _episode_job(profile: Profile, vehicle: str | VehicleSpec, index: int
                  ) -> dict[str, np.ndarray]:
     """Worker entry point: run one episode of the training world, return its arrays."""
-    limit_threads()  # a Dask/Ray worker has no initializer of ours
+    limit_threads()  # a Dask worker has no initializer of ours
     return _run_training_episode(profile, vehicle, index).to_arrays()
 
 
@@ -130,7 +136,7 @@ def collect_episodes(
 
     executor: any :class:`concurrent.futures.Executor`; default the one of an enclosing
     :func:`~dgt_lib.core.executors.use_executor` block, else ``profile.execution``'s
-    (a process pool of ``profile.workers``, or a Dask or Ray cluster:
+    (a process pool of ``profile.workers``, or a Dask cluster:
     :func:`~dgt_lib.core.executors.run_jobs`). The episodes do not depend on it. Each
     missing episode is written as soon as it completes, so an interruption (or a worker
     that dies) loses only the episodes in flight.

@@ -36,6 +36,7 @@ from dgt_lib.evaluation.ground_truth import GroundTruth, drive_job, sample_cells
 from dgt_lib.evaluation.journal import Journal, read_journal
 from dgt_lib.mapping.methods import METHODS
 from dgt_lib.mapping.world_maps import WorldMaps
+from dgt_lib.perception.locomotion import MAX_ANGULAR_RATE_DPS
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_tau_s, ensure_world_costmaps
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir, profile_root, results_dir
@@ -47,9 +48,11 @@ GROUND_TRUTH_FORMAT = 3
 sample reads the L of a standing vehicle, not of its run's last second; 3: stuck means
 the cell under the vehicle (half its length), not within the patch (4.4 m)."""
 GROUND_TRUTH_WORLDS: tuple[str, ...] = ("hill", "ridge", "eval")
-COLLECT_FIELDS: tuple[str, ...] = ("speed_mps", "immobilized_limit_s", "max_angular_rate_dps")
+COLLECT_FIELDS: tuple[str, ...] = ("speed_mps", "immobilized_limit_s")
 """The :class:`~dgt_lib.core.config.CollectConfig` fields a drive uses: the commanded
-speed, when a stall ends it, what counts as a glitch."""
+speed and when a stall ends it; what counts as a glitch
+(:data:`~dgt_lib.perception.locomotion.MAX_ANGULAR_RATE_DPS`) is in the key beside them, under
+the name it had as a collection setting."""
 ACCURACY_FORMAT = 3
 """Version of the scores' layout (part of their cache key). 2: multi-task against
 single-task by a paired test on the same samples; 3: and by at least MIN_MAE_DIFFERENCE."""
@@ -72,7 +75,8 @@ def ground_truth_config(world: str, vehicle: str, prof: Profile) -> dict[str, ob
     return {"stage": "ground_truth", "format": GROUND_TRUTH_FORMAT, "world": world,
             "worlds": prof.worlds, "vehicle": get_vehicle(vehicle),
             "ground_truth": prof.ground_truth, "n_headings": prof.costmap.n_headings,
-            "collect": {f: getattr(prof.collect, f) for f in COLLECT_FIELDS},
+            "collect": {**{f: getattr(prof.collect, f) for f in COLLECT_FIELDS},
+                        "max_angular_rate_dps": MAX_ANGULAR_RATE_DPS},
             "physics": PHYSICS}
 
 

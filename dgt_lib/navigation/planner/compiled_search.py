@@ -23,7 +23,7 @@ from dgt_lib.navigation.planner.result import (
     no_path,
     success,
 )
-from dgt_lib.navigation.planner.shots import shot_poses
+from dgt_lib.navigation.planner.shots import SHOT_DISTANCE_M, shot_poses
 
 
 class CompiledSearch:
@@ -68,7 +68,7 @@ class CompiledSearch:
             tol2=float(cfg.goal_tolerance_m * cfg.goal_tolerance_m),
             heading_tol=float(cfg.goal_heading_tolerance_rad), beta=float(cfg.beta),
             weight=float(cfg.heuristic_weight), use_cost_to_go=cfg.heuristic == "cost_to_go",
-            shot_range2=float(cfg.shot_distance_m**2 if cfg.analytic_shot else -1.0),
+            shot_range2=float(SHOT_DISTANCE_M**2 if cfg.analytic_shot else -1.0),
             max_expansions=int(cfg.max_expansions))
 
     def _relaxations(self):

@@ -37,7 +37,7 @@ from dgt_lib.navigation.planner.result import (
     no_path,
     success,
 )
-from dgt_lib.navigation.planner.shots import shot_cost, shot_poses
+from dgt_lib.navigation.planner.shots import SHOT_DISTANCE_M, shot_cost, shot_poses
 
 EdgeCost = Callable[[float, float, float], float]
 """g_edge [m] of a move: (length s [m], looked-up cost C, β) → s(1 + C(1 + βC))."""
@@ -153,9 +153,10 @@ class Search:
 
     def try_shot(self, node: Node) -> Node | None:
         """Open (and return) the goal reached by a collision-free analytic shot from
-        ``node``, when it is within ``shot_distance_m`` and beats the best goal so far."""
+        ``node``, when it is within :data:`~dgt_lib.navigation.planner.shots.SHOT_DISTANCE_M`
+        and beats the best goal so far."""
         q, cfg, maps = self.query, self.cfg, self.maps
-        reach2 = cfg.shot_distance_m**2 if cfg.analytic_shot else -1.0
+        reach2 = SHOT_DISTANCE_M**2 if cfg.analytic_shot else -1.0
         if (node.x - q.gx) ** 2 + (node.y - q.gy) ** 2 > reach2:
             return None
         if node.g + distance(node.x - q.gx, node.y - q.gy) >= self.best_goal:

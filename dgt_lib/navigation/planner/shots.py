@@ -19,6 +19,10 @@ from dgt_lib.navigation.planner.primitives import (
     travel_heading_bin,
 )
 
+SHOT_DISTANCE_M = 20.0
+"""The search tries a shot from nodes this close to the goal [m] (with
+``PlannerConfig.analytic_shot``)."""
+
 
 def sample_segments(pose, segments, radius: float, spacing_m: float) -> np.ndarray:
     """Poses (N, 3) along consecutive (kind, length [m]) segments, kind ∈ {"L", "S", "R"},
