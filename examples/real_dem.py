@@ -8,9 +8,11 @@ data, public domain, added to matplotlib's sample data in matplotlib pull reques
 matplotlib's hillshading examples draw it (Pine Mountain then runs north-east, as it
 does).
 
-This script crops a window of it by slope statistics (:func:`choose_window`), writes it as
-a GeoTIFF in EPSG:4326 (longitude, latitude in degrees: the kit reprojects it to UTM),
-and with ``--figure`` plans carla_cola up and down the window with the profile's models
+This script crops the window where Experiment 1 can repeat on real ground — a route
+carla_cola climbs beside a slope it can only descend, between the same two points
+(:func:`choose_window`) — writes it as a GeoTIFF in EPSG:4326 (longitude, latitude in
+degrees: the kit reprojects it to UTM) and prints the two ``dgt plan`` queries, up and
+down (:func:`window_queries`). With ``--figure`` it plans both with the profile's models
 (the geometry-only DGT-Map: the DEM has no imagery), drives both plans with ``--drive``,
 and draws them; ``--publish`` writes the plans' table as a record that docs/usage.md
 quotes::
@@ -40,7 +42,8 @@ cells at the kit's 0.4 m (the kit maps at most 4 million)."""
 
 OCCUPIED_DEG = 27.0
 """Ground steeper than this [deg] is an obstacle to every vehicle: τ_s, the occupancy
-map's gradient threshold, is 0.51 m/m (27°) in the ``smoke`` profile."""
+map's gradient threshold, is 0.51 m/m (27°) in the ``smoke`` profile; a slope carla_cola
+only descends has no point steeper."""
 
 DEFAULT_OUT = Path("data/examples/jacksboro.tif")
 
@@ -89,34 +92,73 @@ def load_sample() -> SampleDem:
     return SampleDem(heights, west, north, step)
 
 
+@dataclass(frozen=True)
+class Window:
+    """A window of the DEM and its two landmarks. ``row``, ``col``: its north-west cell;
+    ``low``, ``high``: (row, column) of two of its patches (between cell centres, row 0
+    north) joined by ground carla_cola climbs, while the straight line between them
+    crosses ground it only descends; ``rise_m``: ``high``'s mean height above ``low``'s."""
+
+    row: int
+    col: int
+    low: tuple[int, int]
+    high: tuple[int, int]
+    rise_m: float
+
+
 def choose_window(dem: SampleDem, cells: int = WINDOW_CELLS, climb_deg: float | None = None,
-                  occupied_deg: float = OCCUPIED_DEG) -> tuple[int, int]:
-    """The (row, column) of the north-west cell of the ``cells`` × ``cells`` window that
-    mixes three kinds of ground most evenly: ground every vehicle climbs (gentler than
-    half of carla_cola's limit ``climb_deg``), ground carla_cola descends but cannot climb
-    (from ``climb_deg`` to ``occupied_deg``) and ground too steep for any vehicle (an
-    obstacle on the occupancy map). The score is the smallest of the three shares of the
-    window's patches (:meth:`SampleDem.patch_slopes_deg`: at their centres for the first
-    two, their steepest for the third); windows with a dead-flat patch (SRTM flattens
-    lakes to one height) are skipped; ties go to the larger relief, then to the first in
-    row order. ``climb_deg``: carla_cola's torque-limited climb (11.8°) by default."""
+                  occupied_deg: float = OCCUPIED_DEG) -> Window:
+    """The ``cells`` × ``cells`` window where Experiment 1 can repeat on real ground: two
+    patches joined by a route carla_cola climbs — patches whose steepest point is gentler
+    than half its torque-limited climb ``climb_deg`` (11.8° by default), the class
+    Experiment 1's Route A (5°) belongs to — while the straight line between them crosses
+    a patch it can only descend (its centre steeper than ``climb_deg``, no point steeper
+    than ``occupied_deg``). Of all windows and such pairs (the lowest and the highest
+    patch of each connected gentle region), the one with the largest rise; ties go to the
+    first in row order. Patches are :meth:`SampleDem.patch_slopes_deg`'s: what the kit's
+    bilinear resampling makes of the DEM. Windows with a dead-flat patch (SRTM flattens
+    lakes to one height) are skipped."""
     from numpy.lib.stride_tricks import sliding_window_view
+    from scipy.ndimage import label
 
     if climb_deg is None:
         from dgt_lib.core.vehicles import get_vehicle
 
         climb_deg = get_vehicle("carla_cola").max_climb_deg
     centre, steepest = dem.patch_slopes_deg()
-    side = (cells - 1, cells - 1)  # patches per window side
-    centre, steepest = sliding_window_view(centre, side), sliding_window_view(steepest, side)
-    shares = [(centre < climb_deg / 2).mean(axis=(2, 3)),
-              ((centre > climb_deg) & (centre < occupied_deg)).mean(axis=(2, 3)),
-              (steepest > occupied_deg).mean(axis=(2, 3))]
-    score = np.where(steepest.min(axis=(2, 3)) > 0.0, np.minimum.reduce(shares), -1.0)
-    heights = sliding_window_view(dem.heights, (cells, cells))
-    relief = heights.max(axis=(2, 3)) - heights.min(axis=(2, 3))
-    best = np.lexsort((-relief.ravel(), -score.ravel()))[0]  # score first, then relief
-    return tuple(int(i) for i in np.unravel_index(best, score.shape))
+    z = dem.heights.astype(np.float64)
+    patch_z = (z[:-1, :-1] + z[1:, :-1] + z[:-1, 1:] + z[1:, 1:]) / 4  # mean of its corners
+    gentle = steepest < climb_deg / 2
+    descend_only = (centre > climb_deg) & (steepest < occupied_deg)
+    n = cells - 1  # patches per window side
+    windows = sliding_window_view  # each window's patches: (rows, cols, n, n)
+    candidates = ((windows(steepest, (n, n)).min(axis=(2, 3)) > 0.0)
+                  & windows(descend_only, (n, n)).any(axis=(2, 3))
+                  & (windows(gentle, (n, n)).sum(axis=(2, 3)) >= 2))
+    best: Window | None = None
+    for row, col in np.argwhere(candidates):
+        box = np.s_[row:row + n, col:col + n]
+        regions, count = label(gentle[box])
+        for k in range(1, count + 1):
+            cells_k = np.argwhere(regions == k)
+            zk = patch_z[box][regions == k]
+            low, high = cells_k[zk.argmin()], cells_k[zk.argmax()]
+            rise = float(zk.max() - zk.min())
+            if (best is None or rise > best.rise_m) and _crosses(descend_only[box], low, high):
+                best = Window(int(row), int(col), (int(low[0]), int(low[1])),
+                              (int(high[0]), int(high[1])), rise)
+    if best is None:
+        raise ValueError("no window of the DEM has a gentle route beside a descend-only slope")
+    return best
+
+
+def _crosses(mask: np.ndarray, a: np.ndarray, b: np.ndarray, samples: int = 64) -> bool:
+    """Whether the straight line between patch centres ``a`` and ``b`` (row, column)
+    passes through a patch of ``mask``."""
+    t = np.linspace(0.0, 1.0, samples)
+    rows = np.rint(a[0] + t * (b[0] - a[0])).astype(int)
+    cols = np.rint(a[1] + t * (b[1] - a[1])).astype(int)
+    return bool(mask[rows, cols].any())
 
 
 def write_window(path: str | Path, dem: SampleDem, row: int, col: int,
@@ -139,33 +181,50 @@ def write_window(path: str | Path, dem: SampleDem, row: int, col: int,
     return path
 
 
-UPHILL = ((60.0, 300.0, -1.5708), (180.0, 25.0))
-"""carla_cola's query up the window: from the valley floor (x, y [m] from the map's
-south-west corner, heading south, yaw [rad] as the README's ``dgt plan --start`` gives it)
-to the hillside's upper slope."""
-DOWNHILL = ((180.0, 25.0, 1.5708), (60.0, 300.0))
-"""The way back down: from the upper slope, heading north, to the valley floor."""
+Query = tuple[tuple[float, float, float], tuple[float, float]]
+"""A ``dgt plan`` query: start (x, y [m], yaw [rad]) and goal (x, y [m]) in the world."""
+
+
+def window_queries(dem: SampleDem, window: Window, georef) -> tuple[Query, Query]:
+    """carla_cola's two queries on the window's world: up from ``window.low``'s centre to
+    ``window.high``'s, starting towards it, and back down, starting towards ``low``. In
+    metres from the world's south-west corner (``georef``: the world's
+    :class:`~dgt_lib.world.dem.Georeference`, which places a longitude and latitude),
+    rounded to the metre, as ``dgt plan --start X,Y,YAW --goal X,Y`` takes them."""
+    def centre(patch: tuple[int, int]) -> tuple[float, float]:
+        # a patch lies between cell centres: its centre is one cell in from its cell's corner
+        lon = dem.west + (window.col + patch[1] + 1) * dem.step
+        lat = dem.north - (window.row + patch[0] + 1) * dem.step
+        x, y = georef.to_local([lon], [lat])
+        return float(np.rint(x[0])), float(np.rint(y[0]))
+
+    low, high = centre(window.low), centre(window.high)
+    up = float(np.round(np.arctan2(high[1] - low[1], high[0] - low[0]), 4))
+    down = float(np.round(np.arctan2(low[1] - high[1], low[0] - high[0]), 4))
+    return ((*low, up), high), ((*high, down), low)
+
 
 PLAN_SETTINGS = {"planner.max_time_s": 120.0, "planner.max_expansions": 2_000_000}
 """The plans' changes to the profile (``dgt plan --set planner.max_time_s=120 --set
-planner.max_expansions=2000000``): the way up, which DGT-Map prices high in every heading
-that climbs, takes over a million expansions on the window's million cells — more than
-the default budget of 200,000 — and the time budget counts the 2D relaxation over the whole
+planner.max_expansions=2000000``): the way up, round the slope DGT-Map prices high in
+every heading that climbs it, takes more expansions on the window's million cells than
+the default budget of 200,000, and the time budget counts the 2D relaxation over the whole
 map too."""
 
 
-def plan_both_ways(world_path: Path, profile: str, vehicle: str = "carla_cola",
-                   method: str = "dgt", drive: bool = False) -> list:
-    """``dgt plan``'s engine on the window, up (:data:`UPHILL`) and back down
-    (:data:`DOWNHILL`), under
-    :data:`PLAN_SETTINGS` (``drive``: each found plan driven as ``dgt plan --drive``
-    drives it): two :class:`~dgt_lib.app.plan_one.QueryReport`."""
+def plan_both_ways(world_path: Path, queries: tuple[Query, Query], profile: str,
+                   vehicle: str = "carla_cola", method: str = "dgt",
+                   drive: bool = False) -> list:
+    """``dgt plan``'s engine on the window for the two ``queries`` (up, then down:
+    :func:`window_queries`) under :data:`PLAN_SETTINGS` (``drive``: each found plan
+    driven as ``dgt plan --drive`` drives it): two
+    :class:`~dgt_lib.app.plan_one.QueryReport`."""
     from dgt_lib.app.plan_one import plan_query
     from dgt_lib.core.config import get_profile
 
     prof = get_profile(profile).with_overrides(PLAN_SETTINGS)
     return [plan_query(str(world_path), vehicle, start, goal, method=method, profile=prof,
-                       drive=drive) for start, goal in (UPHILL, DOWNHILL)]
+                       drive=drive) for start, goal in queries]
 
 
 def plans_table(reports: list) -> dict:
@@ -186,7 +245,7 @@ def plans_table(reports: list) -> dict:
                  ["way", "from → to [m]", "plan", "expansions", "driven"], rows)
 
 
-def draw(dem: SampleDem, window: tuple[int, int], world_path: Path, costmap_path: Path,
+def draw(dem: SampleDem, window: Window, world_path: Path, costmap_path: Path,
          reports: list, out: Path, profile: str) -> Path:
     """Left: the whole sample DEM, hill-shaded, and the window. Right: the window as the
     kit's world (heights, 10 m contours; metres from its south-west corner), the
@@ -211,8 +270,7 @@ def draw(dem: SampleDem, window: tuple[int, int], world_path: Path, costmap_path
                              blend_mode="overlay"),
                  extent=(dem.west, dem.west + w * dem.step, dem.north - h * dem.step, dem.north),
                  aspect=dy / dx)
-    row, col = window
-    x0, y1 = dem.west + col * dem.step, dem.north - row * dem.step
+    x0, y1 = dem.west + window.col * dem.step, dem.north - window.row * dem.step
     side = WINDOW_CELLS * dem.step
     ax[0].add_patch(plt.Rectangle((x0, y1 - side), side, side, fill=False, color="red", lw=2))
     ax[0].set(title="matplotlib's Jacksboro DEM (SRTM, 3″) and the window",
@@ -233,7 +291,7 @@ def draw(dem: SampleDem, window: tuple[int, int], world_path: Path, costmap_path
         if report.plan.success:
             ax[1].plot(report.plan.path[:, 0], report.plan.path[:, 1], color=color, lw=2,
                        label=f"{label}: {report.plan.length_m:.0f} m")
-    (sx, sy, _), (gx, gy) = UPHILL
+    (sx, sy, _), (gx, gy) = reports[0].start, reports[0].goal
     ax[1].plot(sx, sy, "ko", ms=6)
     ax[1].plot(gx, gy, "k*", ms=11)
     ax[1].legend(loc="upper right", fontsize=8)
@@ -255,25 +313,34 @@ def main(argv: list[str] | None = None) -> int:
                         help="write the plans' table to docs/runs/studies/ (with --figure)")
     args = parser.parse_args(argv)
     dem = load_sample()
-    row, col = choose_window(dem)
+    window = choose_window(dem)
+    row, col = window.row, window.col
     path = write_window(args.out, dem, row, col)
     dx, dy = dem.cell_size_m()
     print(f"window: rows {row}–{row + WINDOW_CELLS - 1}, columns {col}–{col + WINDOW_CELLS - 1} "
           f"of {dem.heights.shape}, ≈ {WINDOW_CELLS * dx:.0f} m × {WINDOW_CELLS * dy:.0f} m, "
           f"north-west corner {dem.west + col * dem.step:.5f}° E, "
           f"{dem.north - row * dem.step:.5f}° N → {path}")
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.world.dem import read_dem
+
+    georef = read_dem(path, get_profile(args.profile).worlds.hfield_resolution_m).georef
+    queries = window_queries(dem, window, georef)
+    print(f"carla_cola's queries, {window.rise_m:.0f} m up and back down:")
+    for way, ((x, y, yaw), (gx, gy)) in zip(("up", "down"), queries, strict=True):
+        print(f"  {way + ':':<5} dgt plan --world {path} --vehicle carla_cola "
+              f"--start {x:g},{y:g},{yaw:g} --goal {gx:g},{gy:g}")
     if args.figure is None:
         return 0
     from dgt_lib.app.costmap_export import export_costmap
 
     costmap = export_costmap(str(path), "carla_cola", path.with_name(f"{path.stem}_carla_cola.tif"),
                              profile=args.profile)[0]
-    reports = plan_both_ways(path, args.profile, drive=args.drive)
+    reports = plan_both_ways(path, queries, args.profile, drive=args.drive)
     for report in reports:
         print(report.summary())
-    print(draw(dem, (row, col), path, costmap, reports, args.figure, args.profile))
+    print(draw(dem, window, path, costmap, reports, args.figure, args.profile))
     if args.publish:
-        from dgt_lib.core.config import get_profile
         from dgt_lib.records.study import publish_study, study_record
 
         record = study_record("real_dem", args.profile, [get_profile(args.profile).seed],

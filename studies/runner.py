@@ -22,6 +22,7 @@ resumes (:func:`stored_or_run`, :func:`write_scores`).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import subprocess
@@ -31,7 +32,11 @@ from pathlib import Path
 
 from dgt_lib.core.artifacts import DATA_ENV_VAR
 from dgt_lib.core.config import PROFILE_NAMES, get_profile
+from dgt_lib.core.faults import sigterm_as_interrupt
 from dgt_lib.records.study import publish_study, render_table, study_record
+
+_HELD = contextlib.ExitStack()
+"""What :meth:`Study.parse` sets up for the whole process (SIGTERM as Ctrl-C)."""
 
 
 class Study:
@@ -69,7 +74,10 @@ class Study:
         self.args: argparse.Namespace | None = None
 
     def parse(self, argv: Sequence[str] | None = None) -> argparse.Namespace:
-        """Parse the command line; ``--data-dir`` becomes the cache every stage reads."""
+        """Parse the command line; ``--data-dir`` becomes the cache every stage reads. From
+        here on SIGTERM (``kill``, a scheduler) stops the study as Ctrl-C does: training
+        snapshots are written, temporary folders removed, stored scores kept."""
+        _HELD.enter_context(sigterm_as_interrupt())  # for the life of the process
         self.argv = list(sys.argv[1:] if argv is None else argv)
         self.args = self.parser.parse_args(self.argv)
         if self.several_profiles and not self.args.profile:

@@ -189,3 +189,30 @@ def test_multitask_jeep_head_collapses_with_the_default_init_only(jeep_and_van):
     assert collapsed_heads(default) == ["jeep"], default
     assert collapsed_heads(prior) == [], prior
     assert prior["jeep"]["mse"] < default["jeep"]["mse"]
+
+
+def test_the_training_stage_reports_a_collapsed_head_once(synthetic_pipeline, monkeypatch,
+                                                          capsys):
+    """``dgt reproduce`` says a collapsed head once, as its own warning line (trained now
+    or read from the cache), not a second time as a Python warning from the training."""
+    from dgt_lib.core.config import get_profile
+    from dgt_lib.learning import run, training
+    from dgt_lib.learning.synthetic import synthetic_dataset
+    from dgt_lib.stages.train import models_stage
+
+    def every_head(metrics, *args, **kwargs):
+        return list(metrics)
+
+    monkeypatch.setattr(run, "collapsed_heads", every_head)
+    monkeypatch.setattr(training, "collapsed_heads", every_head)
+    dataset = synthetic_dataset((120, 60, 60, 40), seed=0)
+    for _ in range(2):  # trained, then from the cache
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            out = models_stage(get_profile("smoke"), dataset, kinds=("multitask",),
+                               progress=False)
+        assert not [w for w in caught if "near-constant" in str(w.message)]
+        lines = [ln for ln in capsys.readouterr().out.splitlines() if "near-constant" in ln]
+        assert len(lines) == len(VEHICLES) and all("[dgt] warning: multitask" in ln
+                                                   for ln in lines)
+        assert out.summary.count("COLLAPSED") == len(VEHICLES)

@@ -1,6 +1,8 @@
 """A real DEM in and its costmap out: matplotlib's Jacksboro SRTM sample through
 examples/real_dem.py, `dgt_lib.world.dem` and `dgt costmap`."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,13 @@ from dgt_lib.core.config import get_profile
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.occupancy import FREE
 from dgt_lib.world.dem import read_dem
-from examples.real_dem import WINDOW_CELLS, choose_window, load_sample, write_window
+from examples.real_dem import (
+    WINDOW_CELLS,
+    choose_window,
+    load_sample,
+    window_queries,
+    write_window,
+)
 
 rasterio = pytest.importorskip("rasterio")
 from rasterio.warp import transform_bounds  # noqa: E402
@@ -20,11 +28,12 @@ PROFILE = get_profile("smoke")
 @pytest.fixture(scope="module")
 def sample():
     dem = load_sample()
-    return dem, choose_window(dem)
+    window = choose_window(dem)
+    return dem, (window.row, window.col), window
 
 
 def test_the_sample_is_the_documented_grid(sample):
-    dem, _ = sample
+    dem, *_ = sample
     assert dem.heights.shape == (344, 403)
     assert dem.step == pytest.approx(1 / 1200)  # 3 arc-seconds
     assert (dem.west, dem.north) == pytest.approx((-84.41375, 36.73291667))
@@ -33,7 +42,7 @@ def test_the_sample_is_the_documented_grid(sample):
 
 
 def test_the_window_is_a_geographic_geotiff_of_the_samples_cells(sample, tmp_path):
-    dem, (row, col) = sample
+    dem, (row, col), _ = sample
     path = write_window(tmp_path / "jacksboro.tif", dem, row, col)
     with rasterio.open(path) as src:
         assert src.crs.to_epsg() == 4326 and src.shape == (WINDOW_CELLS, WINDOW_CELLS)
@@ -47,7 +56,7 @@ def test_the_window_is_a_geographic_geotiff_of_the_samples_cells(sample, tmp_pat
 
 
 def test_the_window_becomes_a_metric_world_of_its_size_and_heights(sample, tmp_path):
-    dem, (row, col) = sample
+    dem, (row, col), _ = sample
     path = write_window(tmp_path / "jacksboro.tif", dem, row, col)
     res = PROFILE.worlds.hfield_resolution_m
     world = read_dem(path, res)
@@ -62,12 +71,39 @@ def test_the_window_becomes_a_metric_world_of_its_size_and_heights(sample, tmp_p
     assert world.heights.min() >= source.min() - 1e-3  # bilinear: no invented heights
     assert world.heights.max() <= source.max() + 1e-3
     assert np.ptp(world.heights) > 0.95 * np.ptp(source)
-    # the three kinds of ground the window was chosen for survive the resampling
-    slope = np.degrees(np.arctan(np.hypot(*np.gradient(world.heights.astype(float), res))))
+
+
+def test_the_window_has_a_climbable_route_beside_a_slope_carla_cola_only_descends(
+        sample, tmp_path):
+    """What the window was chosen for survives the resampling to the kit's 0.4 m grid:
+    its two query points are joined by ground gentler than carla_cola's climb, the
+    straight line between them crosses ground steeper than it, and the way up rises."""
+    from scipy.ndimage import label
+
+    dem, (row, col), window = sample
+    res = PROFILE.worlds.hfield_resolution_m
+    world = read_dem(write_window(tmp_path / "jacksboro.tif", dem, row, col), res)
+    up, down = window_queries(dem, window, world.georef)
+    (sx, sy, yaw), (gx, gy) = up
+    assert down == ((gx, gy, pytest.approx(yaw - np.pi if yaw > 0 else yaw + np.pi, abs=1e-3)),
+                    (sx, sy))
+    assert np.hypot(gx - sx, gy - sy) > 100.0  # whole facets apart
+    assert np.cos(yaw) * (gx - sx) + np.sin(yaw) * (gy - sy) > 0.99 * np.hypot(gx - sx, gy - sy)
+
+    def cell(x, y):
+        return int(y / res), int(x / res)
+
+    heights = world.heights.astype(float)
+    rise = heights[cell(gx, gy)] - heights[cell(sx, sy)]
+    assert rise == pytest.approx(window.rise_m, abs=3.0) and rise > 10.0
+    slope = np.degrees(np.arctan(np.hypot(*np.gradient(heights, res))))
     climb = get_vehicle("carla_cola").max_climb_deg
-    assert (slope < climb / 2).mean() > 0.25  # every vehicle climbs it
-    assert ((slope > climb) & (slope < 27.0)).mean() > 0.25  # carla_cola only descends it
-    assert (slope > 27.0).mean() > 0.05  # an obstacle to all
+    regions, _ = label(slope < climb)
+    assert regions[cell(sx, sy)] != 0 and regions[cell(sx, sy)] == regions[cell(gx, gy)]
+    t = np.linspace(0.0, 1.0, 400)
+    line = slope[((sy + t * (gy - sy)) / res).astype(int),
+                 ((sx + t * (gx - sx)) / res).astype(int)]
+    assert (line > climb).mean() > 0.1  # its straight line climbs what carla_cola cannot
 
 
 @pytest.mark.filterwarnings("ignore:.*near-constant")  # a model of 2 epochs learns little
@@ -76,7 +112,7 @@ def test_dgt_costmap_on_the_window_writes_k_headings_in_utm(sample, synthetic_pi
     """End to end on the smoke profile with a model trained on a synthetic dataset (no
     driving episodes: seconds), on the 2 × 2 cells at the middle of the window (its survey takes a
     sixth of the whole window's)."""
-    dem, (row, col) = sample
+    dem, (row, col), _ = sample
     tmp_path = synthetic_pipeline
     path = write_window(tmp_path / "corner.tif", dem, row + 2, col + 2, cells=2)
     out = tmp_path / "cola.tif"
@@ -105,3 +141,20 @@ def test_dgt_costmap_on_the_window_writes_k_headings_in_utm(sample, synthetic_pi
     free = bands[k] == FREE
     assert free.mean() > 0.5
     assert ((bands[:k, free] >= 0.0) & (bands[:k, free] <= 1.0)).all()
+
+
+def test_the_documented_commands_plan_the_scripts_queries(sample, tmp_path):
+    """README and docs/usage.md quote the queries `examples/real_dem.py` prints."""
+    import re
+
+    dem, (row, col), window = sample
+    world = read_dem(write_window(tmp_path / "jacksboro.tif", dem, row, col),
+                     PROFILE.worlds.hfield_resolution_m)
+    expected = {(f"{x:g},{y:g},{yaw:g}", f"{gx:g},{gy:g}")
+                for (x, y, yaw), (gx, gy) in window_queries(dem, window, world.georef)}
+    root = Path(__file__).resolve().parent.parent
+    for page in ("README.md", "docs/usage.md"):
+        text = " ".join((root / page).read_text().replace("\\\n", " ").split())
+        found = set(re.findall(r"jacksboro\.tif --vehicle carla_cola --start (\S+) --goal (\S+)",
+                               text))
+        assert found >= expected, page

@@ -112,3 +112,30 @@ def test_a_study_that_only_prints_has_no_publish_and_may_take_the_profile_s_seed
         quiet.parse(["--publish"])
     assert "unrecognized arguments: --publish" in capsys.readouterr().err
     sys.modules.pop("runner", None)
+
+
+def test_a_study_stopped_by_sigterm_cleans_up_as_on_ctrl_c(tmp_path):
+    """``kill`` (SIGTERM) stops a study as Ctrl-C does: its ``finally`` blocks run, so a
+    temporary folder it made (a drive log's, for instance) does not stay behind."""
+    import signal
+    import subprocess
+
+    script = (
+        "import pathlib, shutil, sys, tempfile, time\n"
+        f"sys.path.insert(0, {str(ROOT / 'studies')!r})\n"
+        "from runner import Study\n"
+        "Study('toy', None).parse([])\n"
+        "work = pathlib.Path(tempfile.mkdtemp(dir=sys.argv[1]))\n"
+        "try:\n"
+        "    print('ready', flush=True)\n"
+        "    time.sleep(60)\n"
+        "finally:\n"
+        "    shutil.rmtree(work)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script, str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "ready"
+    assert len(list(tmp_path.iterdir())) == 1
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=30)
+    assert proc.returncode != 0
+    assert list(tmp_path.iterdir()) == []  # the finally block ran

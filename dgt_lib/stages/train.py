@@ -9,6 +9,7 @@ each model by what determines it (dataset, settings, seed) and stores it under
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -206,7 +207,9 @@ def models_stage(profile: Profile, dataset: PatchDataset,
             parts.append(f"{kind} skipped (no train or val samples: {counts[vehicles[0]]})")
             print(f"[dgt] {parts[-1]}")
             continue
-        result = ensure_model(profile, dataset, kind, progress=progress)
+        with warnings.catch_warnings():  # said once, below, trained now or read from the cache
+            warnings.filterwarnings("ignore", message=".*near-constant L̂")
+            result = ensure_model(profile, dataset, kind, progress=progress)
         paths.append(data_dir(profile) / model_relpath(kind, profile.train.inputs))
         scores = ", ".join(f"{v} mse {m['mse']:.3f} ρ {m['spearman']:.2f}"
                            for v, m in result.metrics.items())
