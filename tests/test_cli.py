@@ -431,3 +431,42 @@ def test_a_heightmap_resolution_no_machine_can_map_is_refused_by_the_parser(caps
               "--out", "x.tif"])
     assert exit_.value.code == 2
     assert "metres per pixel in [0.001, 100]" in capsys.readouterr().err
+
+
+def test_a_seed_s_results_are_shown_before_the_next_seed_runs(capsys, tmp_path, monkeypatch):
+    """`make reproduce` runs several seeds for an hour or more: the first seed's claims and
+    arrivals are printed as soon as its experiments are done, not only at the end."""
+    import json
+
+    import dgt_lib.app.report
+    from dgt_lib.stages.output import StageOutput
+    from dgt_lib.stages.paths import results_dir
+
+    monkeypatch.setenv("DGT_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(pipeline, "STAGES", [
+        pipeline.Stage("experiments", stage_examples.first, "stands in", report=True)])
+
+    def report_stage(name, profile, output):
+        out = results_dir(profile)
+        out.mkdir(parents=True, exist_ok=True)
+        claims = {"hill_ascent_A": [3, 3, True], "ridge_smooth": [1, 2, False],
+                  "ridge_jeep_sharp": [0, 0, False]}
+        (out / "summary.json").write_text(json.dumps({"claims": claims}))
+        (out / "README.md").write_text("# Results")
+        return StageOutput([out / "README.md", out / "summary.json"],
+                           f"experiment1: DGT-Map {profile.seed + 2}/3")
+
+    monkeypatch.setattr(dgt_lib.app.report, "report_stage", report_stage)
+    monkeypatch.setattr(dgt_lib.app.report, "write_seeds_report", lambda profile: tmp_path)
+    assert main(["reproduce", "--profile", "smoke", "--seeds", "3"]) == 0
+    out = capsys.readouterr().out
+    first = out.index("── seed 0's results (seeds 1, 2 follow")
+    assert out.index("── seed 0 · experiments") < first < out.index("── seed 1 · experiments")
+    block = out[first:out.index("── seed 1 · experiments")]
+    assert "✓ DGT-Map's carla_cola ascents planned by Route A: 3/3" in block
+    assert "✗ DGT-Map's mercedes_van plans crossing at the smoothed section: 1/2" in block
+    assert "jeep" not in block  # nothing to check in this seed: not listed
+    assert "arrivals: experiment1: DGT-Map 2/3" in block
+    assert str(tmp_path / "smoke" / "seed-0" / "results" / "README.md") in block
+    assert "── seed 1's results (seed 2 follows" in out
+    assert "── seed 2's results" not in out  # the last seed: the pooled report follows

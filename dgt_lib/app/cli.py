@@ -166,14 +166,17 @@ def _reproduce(args: argparse.Namespace) -> int:
             started, load, t0 = time.time(), machine_load(), time.perf_counter()
             result = stage.run(run)
             if stage.report:  # figures, tables and recordings: the top level's
-                from dgt_lib.app.report import report_stage
+                from dgt_lib.app import report
 
                 with faults.report_writes(f"the {stage.name} report"):
-                    result = report_stage(stage.name, run, result)
+                    result = report.report_stage(stage.name, run, result)
             seconds = time.perf_counter() - t0
             record_stage_time(run, stage.name, seconds, run=invocation,
                               started_unix_s=started, load_before=load)
             rows.append((run.seed, stage.name, seconds, result))
+            if stage.report and run is not runs[-1]:  # a seed's results before the next's
+                later = [r.seed for r in runs[runs.index(run) + 1:]]
+                tqdm.write(report.seed_results(run.seed, result, later))
     args.stage = (None, None)
     print("\nSummary")
     for seed, name, seconds, result in rows:

@@ -158,6 +158,30 @@ def report_stage(name: str, profile: Profile, output: StageOutput) -> StageOutpu
     return StageOutput(paths + output.paths, output.summary)
 
 
+def seed_results(seed: int, output: StageOutput, later: list[int]) -> str:
+    """What ``dgt reproduce`` prints when one seed's experiments are done and ``later``
+    seeds are still to run: the claims checked in that seed
+    (:data:`~dgt_lib.evaluation.seeds.CLAIMS`, count/total and whether it holds), its
+    arrivals, and its report (``output``: the report step's, :func:`report_stage`)."""
+    import json
+
+    from dgt_lib.evaluation.seeds import CLAIMS
+
+    summary = next((p for p in output.paths if p.name == "summary.json"), None)
+    record = json.loads(summary.read_text()) if summary else {}  # none when it was not written
+    follow = (f"seeds {', '.join(map(str, later))} follow" if len(later) > 1
+              else f"seed {later[0]} follows")
+    lines = [f"── seed {seed}'s results ({follow}; the verdicts pooled over every seed "
+             "come after the last):"]
+    for name, (count, total, holds) in record.get("claims", {}).items():
+        if total:
+            lines.append(f"   {'✓' if holds else '✗'} {CLAIMS[name][0]}: {count}/{total}")
+    lines.append(f"   arrivals: {output.summary}")
+    if summary:
+        lines.append(f"   report: {summary.with_name('README.md')}")
+    return "\n".join(lines)
+
+
 def write_seeds_report(profile: Profile) -> Path:
     """``data/<profile>/results/README.md``: every experiment over the profile's seeds —
     k/n per seed, pooled with its Wilson interval, the spread — the claims per seed, the
