@@ -520,3 +520,16 @@ def test_train_epoch_trains_with_the_loss_it_is_given(dataset):
         lambda p, y, h: ((p.gather(1, h[:, None])[:, 0] - y) ** 2).sum()))
     assert lib[0] == same[0] and torch.equal(lib[1], same[1])
     assert not torch.equal(lib[1], summed[1])
+
+
+def test_the_costmap_s_window_predictor_is_predict_in_another_memory_layout(trained, dataset):
+    """The costmap runs the network on a channels-last copy (faster CPU convolutions): the
+    same locomotion up to float rounding, and the trained model keeps its own layout."""
+    model = trained.model
+    weight = next(p for p in model.parameters() if p.dim() == 4)  # a 7 × 7 stem kernel
+    assert weight.is_contiguous()
+    patches = dataset.patches[:300]
+    fast = train.window_predictor(model, batch_size=64)(patches)
+    np.testing.assert_allclose(fast, train.predict(model, patches, 64), atol=1e-5)
+    assert weight.is_contiguous() and not weight.is_contiguous(memory_format=torch.channels_last)
+    assert fast.shape == (300, len(model.vehicles)) and np.ptp(fast) > 0.01

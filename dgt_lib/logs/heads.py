@@ -29,7 +29,7 @@ from dgt_lib.core import artifacts
 from dgt_lib.core.config import Profile
 from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.learning.model import DGTNet
-from dgt_lib.learning.training import predict
+from dgt_lib.learning.training import predict, window_predictor
 from dgt_lib.mapping.costmap import directional_costmap
 from dgt_lib.mapping.occupancy import occupancy_map, select_tau_s
 from dgt_lib.mapping.world_maps import WorldMaps
@@ -188,7 +188,7 @@ def log_costmap(bev: BEVMap, head: nn.Module, profile: Profile, tau_s: float, *,
     """The K-heading costmap (K, H, W) of the log's map by ``head`` (one column), with the
     profile's inference settings, and the occupancy map (H, W) at ``tau_s``."""
     cfg = profile.costmap
-    cost = directional_costmap(bev, lambda p: predict(head, p, cfg.batch_size), cfg.n_headings,
+    cost = directional_costmap(bev, window_predictor(head, cfg.batch_size), cfg.n_headings,
                                stride=cfg.stride, batch_size=cfg.batch_size, progress=progress)
     return cost[0], occupancy_map(bev, tau_s)
 

@@ -194,12 +194,12 @@ def ensure_conditioned_costmaps(world: World | str, specs: tuple[VehicleSpec | s
               "specs": list(specs)}
 
     def build() -> dict[str, np.ndarray]:
-        from dgt_lib.learning.training import predict
+        from dgt_lib.learning.training import window_predictor
 
         net = ensure_conditioned_model(prof, ensure_dataset(prof, progress=progress), leave_out,
                                        progress=progress).model
         heads = net.for_vehicles(specs)
-        cost = directional_costmap(bev, lambda p: predict(heads, p, prof.costmap.batch_size),
+        cost = directional_costmap(bev, window_predictor(heads, prof.costmap.batch_size),
                                    prof.costmap.n_headings, stride=prof.costmap.stride,
                                    batch_size=prof.costmap.batch_size, progress=progress)
         return dict(zip(names, cost, strict=True))

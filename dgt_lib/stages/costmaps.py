@@ -236,11 +236,11 @@ def ensure_world_costmaps(world: World | str, vehicles: tuple[str, ...] | None =
     def model_costmap(kind: str) -> tuple[np.ndarray, tuple[str, ...]]:
         """Model ``kind``'s (n_heads, K, H, W) costmap of this world, and its heads'
         vehicles: the model is loaded (torch imported) only to build a costmap."""
-        from dgt_lib.learning.training import predict
+        from dgt_lib.learning.training import window_predictor
 
         model = ensure_model(prof, dataset(), kind, dataset_hash=ds_hash,
                              progress=progress).model
-        cost = directional_costmap(bev, lambda p: predict(model, p, prof.costmap.batch_size),
+        cost = directional_costmap(bev, window_predictor(model, prof.costmap.batch_size),
                                    k, **kwargs)
         return cost, model.vehicles
 
