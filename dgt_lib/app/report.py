@@ -11,6 +11,7 @@ failed trials ended (marker by reason), and the ground truth on the learned laye
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import matplotlib
@@ -48,30 +49,28 @@ def _headless() -> None:
     matplotlib.use("Agg", force=False)
 
 
+def _save(fig: plt.Figure, path: Path, dpi: int) -> Path:
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def _figures(result: ExperimentResult, prof: Profile, out: Path) -> list[Path]:
     _headless()
-    paths = []
-    fig = viz.plot_success_rates(result, PAPER.get(result.name))
-    paths.append(out / f"{result.name}_success.png")
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
-    fig = viz.plot_failure_map(get_world(result.world, prof), result,
-                               queries=result.world == "eval")
-    paths.append(out / f"{result.name}_failures.png")
-    fig.savefig(paths[-1], dpi=80)
-    plt.close(fig)
+    world = get_world(result.world, prof)
+    paths = [_save(viz.plot_success_rates(result, PAPER.get(result.name)),
+                   out / f"{result.name}_success.png", 90),
+             _save(viz.plot_failure_map(world, result, queries=result.world == "eval"),
+                   out / f"{result.name}_failures.png", 80)]
     labels = sorted({r.task.query.label for r in result.results})
     if result.world in ("hill", "ridge"):
-        world = get_world(result.world, prof)
         vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
         maps = ensure_world_costmaps(result.world, vehicles, prof, progress=False)
         fig, axes = plt.subplots(1, len(labels), figsize=(7 * len(labels), 6.5), squeeze=False)
         for ax, label in zip(axes[0], labels, strict=True):
             viz.plot_planned_paths(ax, world, maps, result, label)
         fig.tight_layout()
-        paths.append(out / f"{result.name}_paths.png")
-        fig.savefig(paths[-1], dpi=90)
-        plt.close(fig)
+        paths.append(_save(fig, out / f"{result.name}_paths.png", 90))
     return paths
 
 
@@ -101,10 +100,8 @@ def _accuracy_section(prof: Profile, out: Path) -> list[str]:
     for world, vehicle in ACCURACY_FIGURES:
         truth = ensure_ground_truth(world, vehicle, prof, progress=False)
         maps = ensure_world_costmaps(world, (vehicle,), prof, progress=False)
-        fig = viz.plot_ground_truth_beside_layers(get_world(world, prof), maps, truth)
-        path = out / f"accuracy_{world}.png"
-        fig.savefig(path, dpi=80)
-        plt.close(fig)
+        path = _save(viz.plot_ground_truth_beside_layers(get_world(world, prof), maps, truth),
+                     out / f"accuracy_{world}.png", 80)
         parts.append(f"![{path.stem}]({path.name})")
     return parts + [""]
 
@@ -161,21 +158,18 @@ def report_stage(name: str, profile: Profile, output: StageOutput) -> StageOutpu
 def seed_results(seed: int, output: StageOutput, later: list[int]) -> str:
     """What ``dgt reproduce`` prints when one seed's experiments are done and ``later``
     seeds are still to run: the claims checked in that seed
-    (:data:`~dgt_lib.evaluation.seeds.CLAIMS`, count/total and whether it holds), its
-    arrivals, and its report (``output``: the report step's, :func:`report_stage`)."""
-    import json
-
+    (:data:`~dgt_lib.evaluation.seeds.CLAIMS`: count/total, ✓ where it holds), its
+    arrivals and its report (``output``: :func:`report_stage`'s)."""
     from dgt_lib.evaluation.seeds import CLAIMS
 
     summary = next((p for p in output.paths if p.name == "summary.json"), None)
-    record = json.loads(summary.read_text()) if summary else {}  # none when it was not written
+    claims = json.loads(summary.read_text())["claims"] if summary else {}  # none if unwritten
     follow = (f"seeds {', '.join(map(str, later))} follow" if len(later) > 1
               else f"seed {later[0]} follows")
-    lines = [f"── seed {seed}'s results ({follow}; the verdicts pooled over every seed "
-             "come after the last):"]
-    for name, (count, total, holds) in record.get("claims", {}).items():
-        if total:
-            lines.append(f"   {'✓' if holds else '✗'} {CLAIMS[name][0]}: {count}/{total}")
+    lines = [f"── seed {seed}'s results ({follow}; the verdicts pooled over every seed come "
+             "after the last):"]
+    lines += [f"   {'✓' if ok else '✗'} {CLAIMS[name][0]}: {k}/{n}"
+              for name, (k, n, ok) in claims.items() if n]
     lines.append(f"   arrivals: {output.summary}")
     if summary:
         lines.append(f"   report: {summary.with_name('README.md')}")

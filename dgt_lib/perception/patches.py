@@ -122,15 +122,6 @@ def sample_bev(bev: BEVMap, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, n
     return _sample_image(image, obs, bev.grid, x, y)
 
 
-def sample_channels(channels: np.ndarray, observed: np.ndarray, grid: GridSpec, x: np.ndarray,
-                    y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`sample_bev` for any stack of per-cell layers on ``grid``: channels (C, H, W),
-    observed (H, W) bool, world points x, y (A, B) [m] → (C, A, B) float32, (A, B) bool."""
-    image = np.ascontiguousarray(np.moveaxis(channels, 0, -1), dtype=np.float32)
-    return _sample_image(image, observed.astype(np.float32), grid,
-                         np.asarray(x, np.float64), np.asarray(y, np.float64))
-
-
 def _sample_image(image: np.ndarray, obs: np.ndarray, grid: GridSpec, x: np.ndarray,
                   y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     row, col = grid.xy_to_rc(x, y)
