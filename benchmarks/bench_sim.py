@@ -64,13 +64,13 @@ def physics_rtf(world, vehicle: str, sim_seconds: float,
     x0, x1, y0, y1 = world.extent
     simulated, wall, cpu = 0.0, 0.0, 0.0
     while simulated < sim_seconds:
-        sim.reset(rng.uniform(x0 + 15, x1 - 15), rng.uniform(y0 + 15, y1 - 15),
-                  rng.uniform(0, 2 * np.pi))
+        st = sim.reset(rng.uniform(x0 + 15, x1 - 15), rng.uniform(y0 + 15, y1 - 15),
+                       rng.uniform(0, 2 * np.pi))
         t, c = time.perf_counter(), time.process_time()
         if clock:
             clock.on = True
         for _ in range(int(20.0 / CONTROL_DT_S)):  # 20 s episodes, ended early if done
-            st = sim.step(speed_cmd_mps=5.0, steer=0.2 * math.sin(0.2 * sim.time_s))
+            st = sim.step(speed_cmd_mps=5.0, steer=0.2 * math.sin(0.2 * st.time_s))
             if st.done or st.immobilized_s > 10.0:  # collection respawns (paper: 10 s)
                 break
         if clock:

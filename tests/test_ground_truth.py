@@ -168,3 +168,17 @@ def test_ground_truth_assembles_every_drive_and_round_trips_through_arrays():
     del drives[(0, 2)]
     with pytest.raises(ValueError, match="1 of 8 drives missing"):
         GroundTruth.from_drives("w", "jeep", cells, np.array([0, 1]), 4, drives)
+
+
+def test_a_robot_from_its_own_vehicle_file_is_measured_like_a_named_vehicle(ramp):
+    """my_truck (examples/my_truck.toml, a spec no network has a head for) climbs at most
+    14.8°: on the 26° ramp it stalls uphill and descends at speed."""
+    from pathlib import Path
+
+    from dgt_lib.core.vehicle_file import load_vehicle
+
+    truck = load_vehicle(Path(__file__).resolve().parents[1] / "examples" / "my_truck.toml")
+    up = drive_through(ramp, truck, (12.0, 30.0), math.pi / 2)
+    down = drive_through(ramp, truck, (12.0, 30.0), 3 * math.pi / 2)
+    assert _status(up) == "stuck" and up["locomotion"] == L_STANDING, up
+    assert _status(down) == "passed" and down["locomotion"] > 0.8, down

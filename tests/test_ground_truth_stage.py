@@ -10,6 +10,7 @@ import pytest
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.core.executors import SerialExecutor
+from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation.ground_truth import STATUSES, GroundTruth
 from dgt_lib.mapping.world_maps import WorldMaps
 from dgt_lib.perception.bev import BEVMap
@@ -58,6 +59,27 @@ def test_ground_truth_is_measured_once_per_profile_not_per_seed(drives, tmp_path
     longer = PROFILE.with_(ground_truth=replace(PROFILE.ground_truth, run_up_m=20.0))
     _measure(longer)  # another drive: measured again
     assert drives["n"] == 2 * N_DRIVES
+
+
+def test_a_robots_own_spec_is_measured_and_stored_under_its_name(drives, tmp_path,
+                                                                 monkeypatch):
+    """A vehicle file's spec (not a named vehicle) reaches the drives as the spec itself and
+    its ground truth is stored under its name, apart from the named vehicles'."""
+    seen = []
+    fake = stage.drive_job
+
+    def spy(profile, world, vehicle, x, y, theta):
+        seen.append(vehicle)
+        return fake(profile, world, vehicle, x, y, theta)
+
+    monkeypatch.setattr(stage, "drive_job", spy)
+    robot = replace(get_vehicle("jeep"), name="my_robot", mass_kg=2500.0)
+    gt = stage.ensure_ground_truth("flat", robot, PROFILE, executor=SerialExecutor(),
+                                   progress=False)
+    assert seen and all(v == robot for v in seen)
+    assert gt.vehicle == "my_robot" and gt.measured.all()
+    assert (tmp_path / "smoke" / "ground_truth" / "flat_my_robot.npz").exists()
+    assert not (tmp_path / "smoke" / "ground_truth" / "flat_jeep.npz").exists()
 
 
 def test_an_interrupted_measurement_resumes_with_only_the_missing_drives(drives, tmp_path):

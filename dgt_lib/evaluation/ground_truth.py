@@ -26,6 +26,7 @@ from scipy import ndimage
 from dgt_lib.core.config import CollectConfig, GroundTruthConfig, Profile, as_profile
 from dgt_lib.core.executors import limit_threads
 from dgt_lib.core.geometry import heading_bins
+from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.navigation.control.pure_pursuit import PurePursuit
 from dgt_lib.perception.episodes import run_episode
@@ -145,7 +146,7 @@ def _corridor_blocked(world: World, a: np.ndarray, b: np.ndarray, half_width_m: 
     return bool(np.any((along >= 0) & (along <= length) & (across - t[:, 2] < half_width_m)))
 
 
-def straight_run(world: World, vehicle: str, cell, theta: float, start_m: float,
+def straight_run(world: World, vehicle: str | VehicleSpec, cell, theta: float, start_m: float,
                  config: GroundTruthConfig | None = None, collect: CollectConfig | None = None,
                  until_m: float | None = None):
     """One straight run at heading ``theta`` [rad] from rest ``start_m`` [m] before the
@@ -172,7 +173,7 @@ def straight_run(world: World, vehicle: str, cell, theta: float, start_m: float,
     return ep, along
 
 
-def drive_through(world: World, vehicle: str, xy, theta: float,
+def drive_through(world: World, vehicle: str | VehicleSpec, xy, theta: float,
                   config: GroundTruthConfig | None = None,
                   collect: CollectConfig | None = None) -> dict[str, float | int]:
     """Drive ``vehicle`` straight through the cell at ``xy`` [m] at heading ``theta``
@@ -198,7 +199,7 @@ def drive_through(world: World, vehicle: str, xy, theta: float,
     if _corridor_blocked(world, cell - (gt.run_up_m + half_length) * d, cell, half_width):
         blocked = "blocked_tree"
     else:
-        ep, along = straight_run(world, spec.name, cell, theta, gt.run_up_m, gt, col)
+        ep, along = straight_run(world, spec, cell, theta, gt.run_up_m, gt, col)
         out["sim_s"] += float(ep.time_s[-1])
         if along.max() >= 0:
             return {**out, **_crossing(ep, along, cell, d, col)}
@@ -211,7 +212,7 @@ def drive_through(world: World, vehicle: str, xy, theta: float,
     # Blocked: does the cell's own terrain hold the vehicle? Start at rest on the cell.
     if _corridor_blocked(world, cell - half_length * d, cell + half_length * d, half_width):
         return {**out, "status": STATUSES.index(blocked)}  # no room to start on it
-    ep, along = straight_run(world, spec.name, cell, theta, 0.0, gt, col, until_m=MOVE_OFF_M)
+    ep, along = straight_run(world, spec, cell, theta, 0.0, gt, col, until_m=MOVE_OFF_M)
     out["sim_s"] += float(ep.time_s[-1])
     if ep.end_reason in ("off_map", "diverged"):
         return {**out, "status": ended["failed"]}
@@ -241,7 +242,7 @@ def _crossing(ep, along: np.ndarray, cell: np.ndarray, d: np.ndarray,
             "cross_track_m": float(abs((p_c - cell) @ np.array([-d[1], d[0]])))}
 
 
-def drive_job(profile: Profile, world_name: str, vehicle: str, x: float, y: float,
+def drive_job(profile: Profile, world_name: str, vehicle: str | VehicleSpec, x: float, y: float,
               theta: float) -> dict[str, float | int]:
     """Worker entry point: :func:`drive_through` on the profile's world ``world_name``."""
     limit_threads()  # a Dask worker has no initializer of ours

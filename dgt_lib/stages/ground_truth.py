@@ -30,6 +30,7 @@ from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.executors import run_jobs
 from dgt_lib.core.faults import report_writes
 from dgt_lib.core.geometry import heading_bins
+from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.evaluation import accuracy
 from dgt_lib.evaluation.ground_truth import GroundTruth, drive_job, sample_cells
@@ -65,12 +66,12 @@ def ground_truth_pairs(worlds: Sequence[str] = GROUND_TRUTH_WORLDS) -> list[tupl
     return [(w, v) for w in worlds for v in EXPERIMENT_VEHICLES[w]]
 
 
-def ground_truth_relpath(world: str, vehicle: str) -> str:
+def ground_truth_relpath(world: str, vehicle: str | VehicleSpec) -> str:
     """``ground_truth/<world>_<vehicle>.npz`` under ``data/<profile>/`` (not a seed's)."""
-    return f"ground_truth/{world}_{vehicle}.npz"
+    return f"ground_truth/{world}_{get_vehicle(vehicle).name}.npz"
 
 
-def ground_truth_config(world: str, vehicle: str, prof: Profile) -> dict[str, object]:
+def ground_truth_config(world: str, vehicle: str | VehicleSpec, prof: Profile) -> dict[str, object]:
     """What one pair's ground truth depends on (its cache key): no run seed."""
     return {"stage": "ground_truth", "format": GROUND_TRUTH_FORMAT, "world": world,
             "worlds": prof.worlds, "vehicle": get_vehicle(vehicle),
@@ -80,15 +81,16 @@ def ground_truth_config(world: str, vehicle: str, prof: Profile) -> dict[str, ob
             "physics": PHYSICS}
 
 
-def _journal_path(world: str, vehicle: str, prof: Profile) -> Path:
+def _journal_path(world: str, vehicle: str | VehicleSpec, prof: Profile) -> Path:
     digest = artifacts.config_hash(ground_truth_config(world, vehicle, prof))
-    return profile_root(prof) / "ground_truth" / f"{world}_{vehicle}.{digest}.journal"
+    stem = ground_truth_relpath(world, vehicle).removesuffix(".npz")
+    return profile_root(prof) / f"{stem}.{digest}.journal"
 
 
-def ensure_ground_truths(pairs: Sequence[tuple[str, str]] | None = None,
+def ensure_ground_truths(pairs: Sequence[tuple[str, str | VehicleSpec]] | None = None,
                          profile: Profile | str | None = None, *,
                          executor: Executor | None = None, progress: bool = True
-                         ) -> dict[tuple[str, str], GroundTruth]:
+                         ) -> dict[tuple[str, str | VehicleSpec], GroundTruth]:
     """The ground truth of every (world, vehicle) of ``pairs`` (default
     :func:`ground_truth_pairs`), loaded from ``data/<profile>/ground_truth/`` or measured:
     ``profile.ground_truth.cells`` cells per world × K headings, every missing drive in
@@ -99,7 +101,7 @@ def ensure_ground_truths(pairs: Sequence[tuple[str, str]] | None = None,
     k = prof.costmap.n_headings
     thetas = heading_bins(k)
     out: dict[tuple[str, str], GroundTruth] = {}
-    todo: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, dict]] = {}
+    todo: dict[tuple[str, str | VehicleSpec], tuple[np.ndarray, np.ndarray, dict]] = {}
     for w, v in pairs:
         rel, cfg = ground_truth_relpath(w, v), ground_truth_config(w, v, prof)
         if artifacts.is_fresh(rel, cfg, profile=prof.name):
@@ -138,19 +140,23 @@ def ensure_ground_truths(pairs: Sequence[tuple[str, str]] | None = None,
         for journal in journals.values():
             journal.close()
     for (w, v), (cells, stratum, done) in todo.items():
-        gt = GroundTruth.from_drives(w, v, cells, stratum, k, done)
+        name = get_vehicle(v).name
+        gt = GroundTruth.from_drives(w, name, cells, stratum, k, done)
         artifacts.ensure(ground_truth_relpath(w, v), ground_truth_config(w, v, prof),
                          gt.to_arrays, profile=prof.name)
-        for stale in (profile_root(prof) / "ground_truth").glob(f"{w}_{v}.*.journal"):
+        for stale in (profile_root(prof) / "ground_truth").glob(f"{w}_{name}.*.journal"):
             stale.unlink(missing_ok=True)  # done, or another configuration's
         out[(w, v)] = gt
     return {pair: out[pair] for pair in pairs}
 
 
-def ensure_ground_truth(world: str, vehicle: str, profile: Profile | str | None = None, *,
+def ensure_ground_truth(world: str, vehicle: str | VehicleSpec,
+                        profile: Profile | str | None = None, *,
                         executor: Executor | None = None, progress: bool = True
                         ) -> GroundTruth:
-    """The ground truth of one vehicle on one world (see :func:`ensure_ground_truths`)."""
+    """The ground truth of one vehicle on one world (see :func:`ensure_ground_truths`):
+    a named vehicle or any :class:`~dgt_lib.core.vehicle_spec.VehicleSpec` (a robot's own
+    file), stored under its name."""
     return ensure_ground_truths([(world, vehicle)], profile, executor=executor,
                                 progress=progress)[(world, vehicle)]
 

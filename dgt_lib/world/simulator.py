@@ -320,7 +320,7 @@ class Simulator:
             mujoco.mj_step(self.model, self.data, nstep=chunk)
         if diverged(self.data.qpos, self.data.qvel, self._warnings):
             self._done = "diverged"
-            self._state = _replace_done(st, "diverged", st.time_s + n * TIMESTEP_S)
+            self._state = replace(st, done_reason="diverged", time_s=st.time_s + n * TIMESTEP_S)
             return self._state
         self._state = self._read_state(dt=n * TIMESTEP_S)
         return self._state
@@ -353,10 +353,6 @@ class Simulator:
         if self._state is None:
             raise RuntimeError("call Simulator.reset(x, y, yaw) first")
         return self._state
-
-    @property
-    def time_s(self) -> float:
-        return float(self.data.time)
 
     def _read_state(self, dt: float = 0.0) -> VehicleState:
         d = self.data
@@ -476,6 +472,3 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
     cam_up = np.cross(right, fwd)
     return eye, np.stack([right, cam_up, -fwd], axis=1)
 
-
-def _replace_done(st: VehicleState, reason: str, time_s: float) -> VehicleState:
-    return replace(st, done_reason=reason, time_s=time_s)
