@@ -36,6 +36,7 @@ measure and train models rather than draw: they live in :mod:`dgt_lib.learning.t
 and are re-exported here for notebook 03.
 """
 
+# ruff: noqa: F401 - the names below are this package's interface, re-exported
 from dgt_lib.learning.tradeoff import inference_rate, width_tradeoff
 from dgt_lib.viz.accuracy import (
     plot_ground_truth_beside_layers,
@@ -131,37 +132,3 @@ from dgt_lib.viz.training import (
     shape_trace,
     tradeoff_table,
 )
-
-__all__ = [
-    # common
-    "COST_CMAP", "COST_LABEL", "METHOD_COLORS", "ROUTE_COLORS", "VEHICLE_COLORS",
-    "source_markdown",
-    # terrain (notebook 01)
-    "chase_view", "height_errors", "plot_backprojection", "plot_bev", "plot_bev_error",
-    "plot_images", "plot_rgbd", "plot_slope_histogram", "plot_speed_vs_distance",
-    "plot_survey", "plot_world", "plot_worlds", "quality_table", "survey_footprints",
-    "vehicle_table",
-    # labels (notebook 02)
-    "PAPER_DATASET", "binned_mean", "dataset_table", "directional_table", "gallery_indices",
-    "plot_dataset_counts",
-    "plot_head_init", "plot_label_histograms", "plot_label_vs_slope",
-    "plot_locomotion_curve", "plot_patch_gallery", "plot_run_labels",
-    # costmaps and occupancy (notebook 04)
-    "OCCUPANCY_COLORS", "plot_cost_layer", "plot_heading_explained", "plot_heading_layers",
-    "plot_layer_panels", "plot_method_layers", "plot_occupancy", "plot_uphill_downhill",
-    "plot_vehicle_layers",
-    # training (notebook 03) and the width trade-off (dgt_lib.learning.tradeoff)
-    "METRIC_NAMES", "TRAINING_COLORS", "comparison_table", "head_gradient_norms",
-    "inference_rate", "own_head_predictions", "parameter_table", "plot_learning_curves",
-    "plot_metric_comparison", "plot_predicted_patches", "plot_predicted_vs_true",
-    "plot_width_tradeoff", "shape_table", "shape_trace", "tradeoff_table", "width_tradeoff",
-    # planner (notebook 05, dgt plan)
-    "PLAN_COLORS", "PRIMITIVES", "PRIMITIVE_COLORS", "plan_table", "plot_cost_amplification",
-    "plot_motion_primitives", "plot_plans", "plot_query", "primitive_lookups",
-    # experiments (notebooks 06–08, the report)
-    "FAILURE_MARKERS", "QUERY_FATES", "end_position", "plot_failure_map", "plot_failures",
-    "plot_planned_paths", "plot_queries", "plot_query_draw", "plot_success_rates",
-    "plot_trial_speeds",
-    # accuracy against the ground truth (notebook 09, the report)
-    "plot_ground_truth_beside_layers", "plot_predicted_vs_measured", "plot_truth_dots",
-]

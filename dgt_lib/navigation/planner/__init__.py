@@ -51,6 +51,7 @@ The modules, the footprint check, the conventions and the heuristic's proof:
 docs/planner.md.
 """
 
+# ruff: noqa: F401 - the names below are this package's interface, re-exported
 from dgt_lib.core.vehicle_spec import footprint_circles
 from dgt_lib.navigation.planner.heuristics import HEURISTICS, CostToGo, step_cell_bounds
 from dgt_lib.navigation.planner.hybrid_astar import BACKENDS, HybridAStar, plan
@@ -72,31 +73,3 @@ from dgt_lib.navigation.planner.result import (
 from dgt_lib.navigation.planner.search import Expansion, Priced, Search
 from dgt_lib.navigation.planner.shots import dubins_path, sample_segments, turn_then_straight
 from dgt_lib.navigation.planner.validation import check_query_on_world
-
-__all__ = [
-    "BACKENDS",
-    "BUDGET",
-    "FAILURES",
-    "HEURISTICS",
-    "CostToGo",
-    "Expansion",
-    "HybridAStar",
-    "InvalidQueryError",
-    "NO_PATH",
-    "PlanResult",
-    "PlannerMaps",
-    "Priced",
-    "Search",
-    "amplified_cost",
-    "arc_poses",
-    "check_query_on_world",
-    "dubins_path",
-    "edge_cost",
-    "footprint_circles",
-    "plan",
-    "sample_segments",
-    "step_cell_bounds",
-    "step_cost",
-    "travel_heading_bin",
-    "turn_then_straight",
-]
