@@ -312,11 +312,12 @@ def figure(scores: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(5.5, 3.6), constrained_layout=True)
-    for head, style in zip(HEADS, ("k:", "C0-", "C2-", "C3--"), strict=True):
+    for head, color, line in zip(HEADS, ("k", "C0", "C2", "C3"), (":", "-", "-", "--"),
+                                 strict=True):
         per_seed = np.array([[r["mae"][head] for r in s["rows"]] for s in scores])
-        ax.plot(MINUTES, per_seed.mean(axis=0), style, marker="o", label=head)
+        ax.plot(MINUTES, per_seed.mean(axis=0), color=color, ls=line, marker="o", label=head)
         for values in per_seed:
-            ax.plot(MINUTES, values, style[:2], marker=".", ls="none", alpha=0.4)
+            ax.plot(MINUTES, values, color=color, marker=".", ls="none", alpha=0.4)
     ax.set_xscale("log")
     ax.set_xticks(MINUTES, [f"{m:g}" for m in MINUTES])
     ax.set_xlabel("labelled minutes of the robot's drive log")
