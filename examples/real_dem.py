@@ -295,8 +295,9 @@ def draw(dem: SampleDem, window: Window, world_path: Path, costmap_path: Path,
     ax[1].plot(sx, sy, "ko", ms=6)
     ax[1].plot(gx, gy, "k*", ms=11)
     ax[1].legend(loc="upper right", fontsize=8)
+    occupied = f"{int(occupancy.sum()):,} occupied (red)" if occupancy.any() else "none occupied"
     ax[1].set(title=f"the window as a world: {world.heights.shape[1]} × "
-                    f"{world.heights.shape[0]} cells, occupied red",
+                    f"{world.heights.shape[0]} cells, {occupied}",
               xlabel="x east [m]", ylabel="y north [m]")
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
