@@ -218,7 +218,7 @@ def plan_both_ways(world_path: Path, queries: tuple[Query, Query], profile: str,
     """``dgt plan``'s engine on the window for the two ``queries`` (up, then down:
     :func:`window_queries`) under :data:`PLAN_SETTINGS` (``drive``: each found plan
     driven as ``dgt plan --drive`` drives it): two
-    :class:`~dgt_lib.app.plan_one.QueryReport`."""
+    :class:`~dgt_lib.app.query.QueryReport`."""
     from dgt_lib.app.plan_one import plan_query
     from dgt_lib.core.config import get_profile
 

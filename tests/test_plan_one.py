@@ -254,7 +254,7 @@ def test_the_training_notice_says_which_stages_run_and_promises_no_time(tmp_path
     now says what will run before the costmap, and no duration."""
     import re
 
-    from dgt_lib.app.plan_one import training_notice
+    from dgt_lib.app.query import training_notice
     from dgt_lib.stages.paths import data_dir
     from dgt_lib.stages.train import model_relpath
 
@@ -356,7 +356,7 @@ def test_dgt_plan_under_other_settings_writes_other_files(data_dir, tmp_path, ca
 
 
 def test_output_stem_of_the_profile_s_own_settings_is_unchanged():
-    from dgt_lib.app.plan_one import output_stem
+    from dgt_lib.app.query import output_stem
     from dgt_lib.core.vehicles import get_vehicle
 
     world, jeep = ramp_world(), get_vehicle("jeep")
@@ -426,7 +426,7 @@ def test_a_long_vehicle_or_world_name_gives_a_file_name_that_fits(data_dir):
     """A 210-character vehicle name lost the computed plan when its figure was saved."""
     from dataclasses import replace
 
-    from dgt_lib.app.plan_one import output_stem
+    from dgt_lib.app.query import output_stem
     from dgt_lib.core.vehicles import get_vehicle
 
     world = from_heightmap(np.zeros((40, 40), np.float32), RES, name="w" * 300)

@@ -14,7 +14,6 @@ from dgt_lib.navigation.planner import (
     amplified_cost,
     dubins_path,
     edge_cost,
-    plan,
     sample_segments,
     travel_heading_bin,
     turn_then_straight,
@@ -297,7 +296,8 @@ def test_unreachable_goal_ends_with_no_path(hill):
 def test_deterministic(hill):
     costmap, occupancy, grid = hill
     a = planner_for(costmap, occupancy, grid).plan(*ASCENT)
-    b = plan(*ASCENT, costmap, occupancy, grid, min_turn_radius_m=R_MIN, footprint=FOOTPRINT)
+    b = HybridAStar(costmap, occupancy, grid, min_turn_radius_m=R_MIN,
+                    footprint=FOOTPRINT).plan(*ASCENT)  # another planner, the same plan
     np.testing.assert_array_equal(a.path, b.path)
     assert a.cost == b.cost and a.expansions == b.expansions
 

@@ -284,7 +284,7 @@ def _stdout_to_stderr():
 
 def _plan(args: argparse.Namespace) -> int:
     """``dgt plan``: :func:`dgt_lib.app.plan_one.plan_query` checks the query before any data is
-    collected or model trained (:func:`dgt_lib.app.plan_one.check_query`), then says when
+    collected or model trained (:func:`dgt_lib.app.query.check_query`), then says when
     training comes first. ``--json``: the report as one JSON object, alone on stdout."""
     from dgt_lib.app.never_driven import plan_vehicle_query
     from dgt_lib.navigation.planner import InvalidQueryError

@@ -13,7 +13,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from dgt_lib.app.plan_one import costmap_profile, load_world, training_notice
+from dgt_lib.app.plan_one import costmap_profile, load_world
+from dgt_lib.app.query import training_notice
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.outputs import check_output_path
 from dgt_lib.core.vehicles import get_vehicle

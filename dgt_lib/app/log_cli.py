@@ -185,7 +185,8 @@ def _head(args: argparse.Namespace, spec: VehicleSpec, prof: Profile) -> tuple[d
 
 
 def _plan(args: argparse.Namespace) -> int:
-    from dgt_lib.app.plan_one import CostmapSource, costmap_profile, load_world, plan_query
+    from dgt_lib.app.plan_one import costmap_profile, load_world, plan_query
+    from dgt_lib.app.query import CostmapSource
     from dgt_lib.logs.heads import world_maps
     from dgt_lib.navigation.planner import InvalidQueryError
 

@@ -3,7 +3,7 @@
 from the vehicle-conditioned network trained on the four named vehicles
 (docs/vehicles.md). It stays apart from :mod:`dgt_lib.app.plan_one`, which plans the named
 vehicles with the paper's methods alone, and hands it a
-:class:`~dgt_lib.app.plan_one.CostmapSource`.
+:class:`~dgt_lib.app.query.CostmapSource`.
 
 A name of a named vehicle, or a file that holds exactly a named vehicle's spec, plans as
 before with that vehicle's own maps. Any other spec has no head of its own: ``dgt`` maps
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from dgt_lib.app import plan_one
-from dgt_lib.app.plan_one import CostmapSource, QueryReport
+from dgt_lib.app.query import CostmapSource, QueryReport
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.vehicle_range import VehicleRangeWarning, resolve_vehicle
 from dgt_lib.core.vehicle_spec import VehicleSpec

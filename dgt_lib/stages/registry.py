@@ -9,6 +9,7 @@ tables and recordings written by the top level (:func:`dgt_lib.app.report.report
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -27,68 +28,39 @@ class Stage:
     """Whether ``dgt reproduce`` hands its output to :func:`dgt_lib.app.report.report_stage`."""
 
 
-def collect(profile: Profile) -> StageOutput:
-    from dgt_lib.stages.collect import stage_collect
+def _lazy(target: str) -> Callable[[Profile], StageOutput]:
+    """``"module:function"`` as a stage's ``run``: the module is imported when it runs."""
+    module, name = target.split(":")
 
-    return stage_collect(profile)
+    def run(profile: Profile) -> StageOutput:
+        return getattr(importlib.import_module(f"dgt_lib.stages.{module}"), name)(profile)
 
-
-def bev(profile: Profile) -> StageOutput:
-    from dgt_lib.stages.collect import stage_bev
-
-    return stage_bev(profile)
-
-
-def dataset(profile: Profile) -> StageOutput:
-    from dgt_lib.stages.dataset import stage_dataset
-
-    return stage_dataset(profile)
-
-
-def train(profile: Profile) -> StageOutput:
-    from dgt_lib.stages.train import stage_train
-
-    return stage_train(profile)
-
-
-def costmaps(profile: Profile) -> StageOutput:
-    from dgt_lib.stages.costmaps import stage_costmaps
-
-    return stage_costmaps(profile)
-
-
-def ground_truth(profile: Profile) -> StageOutput:
-    from dgt_lib.stages.ground_truth import stage_ground_truth
-
-    return stage_ground_truth(profile)
-
-
-def experiments(profile: Profile) -> StageOutput:
-    from dgt_lib.stages.experiments import stage_experiments
-
-    return stage_experiments(profile)
+    run.__name__ = name
+    return run
 
 
 STAGES: list[Stage] = [
-    Stage("collect", collect,
+    Stage("collect", _lazy("collect:stage_collect"),
           "drive every vehicle on the training world (episodes, sparse RGB-D)",
           "every episode finished so far"),
-    Stage("bev", bev, "global BEV maps of the training, hill, ridge and eval worlds",
+    Stage("bev", _lazy("collect:stage_bev"),
+          "global BEV maps of the training, hill, ridge and eval worlds",
           "every BEV map finished so far"),
-    Stage("dataset", dataset,
+    Stage("dataset", _lazy("dataset:stage_dataset"),
           "heading-aligned patches + locomotion labels, split by trajectory",
           "the episodes and BEV maps it needs (the dataset itself is built again)"),
-    Stage("train", train, "multi-task model and one single-task model per vehicle",
+    Stage("train", _lazy("train:stage_train"),
+          "multi-task model and one single-task model per vehicle",
           "every model finished so far, and the interrupted one's training up to its last "
           "snapshot (models/<kind>.resume.pt)"),
-    Stage("costmaps", costmaps,
+    Stage("costmaps", _lazy("costmaps:stage_costmaps"),
           "directional costmaps of every method, occupancy maps (τ_s)",
           "every costmap finished so far"),
-    Stage("ground_truth", ground_truth,
+    Stage("ground_truth", _lazy("ground_truth:stage_ground_truth"),
           "drive every experiment vehicle through sampled cells at the K headings (L*, once "
           "per profile); score each method's costmap against it",
           "every drive finished so far (journaled)"),
-    Stage("experiments", experiments,
+    Stage("experiments", _lazy("experiments:stage_experiments"),
           "Experiments 1–3 in closed loop: tables, figures, rerun recordings",
           "every finished experiment and every finished trial (journaled)", report=True),
 ]

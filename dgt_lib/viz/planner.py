@@ -247,7 +247,7 @@ def plot_plans(world: World, plans: Mapping[str, object], ax=None, *, background
 
 
 def plot_query(world: World, maps, cost: np.ndarray, report):
-    """One planning query (:class:`dgt_lib.app.plan_one.QueryReport`): the terrain with its
+    """One planning query (:class:`dgt_lib.app.query.QueryReport`): the terrain with its
     occupancy (left) and the method's cost layer of the start heading (right), both with
     the path (when found), the start (dot) and the goal (star), titled by the report's
     first summary line. maps: the world's costmaps (``occupancy`` and ``grid``); cost

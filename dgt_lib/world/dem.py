@@ -23,6 +23,7 @@ camera sees.
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from collections.abc import Callable
@@ -214,6 +215,7 @@ def _band(src, p: Path, band: int | None, log: Callable[[str], None] | None) -> 
     return band or 1
 
 
+@functools.cache  # each line once per process: a DEM loaded again says nothing new
 def _stderr(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 

@@ -28,10 +28,10 @@ Usage::
     for step in search.steps():            # pop, expand the primitives, push
         ...
 
-:func:`plan` is the one-call form; :meth:`HybridAStar.for_vehicle` takes a vehicle's
-turning radius and footprint. A :class:`HybridAStar` keeps what depends only on the map
-(:class:`PlannerMaps`: footprint dilation, the 2D cost field) and the cost-to-go of recent
-goals, so repeated queries on one map are cheaper.
+:meth:`HybridAStar.for_vehicle` takes a vehicle's turning radius and footprint. A
+:class:`HybridAStar` keeps what depends only on the map (:class:`PlannerMaps`: footprint
+dilation, the 2D cost field) and the cost-to-go of recent goals, so repeated queries on one
+map are cheaper.
 
 Search: A* with f = g + w·h over the nodes' exact poses and a closed set over (x, y, θ)
 cells (Hybrid A*'s state merging); heuristics ``"euclidean"`` (the paper's) or
@@ -54,7 +54,7 @@ docs/planner.md.
 # ruff: noqa: F401 - the names below are this package's interface, re-exported
 from dgt_lib.core.vehicle_spec import footprint_circles
 from dgt_lib.navigation.planner.heuristics import HEURISTICS, CostToGo, step_cell_bounds
-from dgt_lib.navigation.planner.hybrid_astar import BACKENDS, HybridAStar, plan
+from dgt_lib.navigation.planner.hybrid_astar import BACKENDS, HybridAStar
 from dgt_lib.navigation.planner.maps import PlannerMaps
 from dgt_lib.navigation.planner.primitives import (
     amplified_cost,

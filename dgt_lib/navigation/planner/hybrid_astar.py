@@ -217,25 +217,3 @@ class HybridAStar:
             return Search(self.maps, query)
         return Search(self.maps, query, self.edge_cost)
 
-
-def plan(
-    start,
-    goal,
-    costmap: np.ndarray,
-    occupancy: np.ndarray,
-    grid: GridSpec,
-    *,
-    min_turn_radius_m: float,
-    footprint: tuple[float, float],
-    cfg: PlannerConfig | None = None,
-    backend: str = "compiled",
-) -> PlanResult:
-    """One query: ``HybridAStar(costmap, occupancy, grid, ...).plan(start, goal)``.
-
-    start (x, y, θ), goal (x, y) or (x, y, θ) [m, m, rad]; costmap (K, H, W) in
-    [0, 1]; occupancy (H, W) uint8; footprint (length_m, width_m). See
-    :class:`HybridAStar`. For several queries on one map, build the planner once.
-    """
-    planner = HybridAStar(costmap, occupancy, grid, min_turn_radius_m=min_turn_radius_m,
-                          footprint=footprint, cfg=cfg, backend=backend)
-    return planner.plan(start, goal)
