@@ -185,20 +185,20 @@ def _head(args: argparse.Namespace, spec: VehicleSpec, prof: Profile) -> tuple[d
 
 
 def _plan(args: argparse.Namespace) -> int:
-    from dgt_lib.app.plan_one import costmap_profile, load_world, plan_query
-    from dgt_lib.app.query import CostmapSource
+    from dgt_lib.app.plan_one import costmap_profile, load_world
+    from dgt_lib.app.query import CostmapSource, plan_on_world
     from dgt_lib.logs.heads import world_maps
     from dgt_lib.navigation.planner import InvalidQueryError
 
     spec = resolve_vehicle(args.vehicle)
     try:  # a terrain file without imagery: the heads of the geometry-only networks
-        prof, _ = costmap_profile(args.world, "dgt", args.profile_value, None)
-        load_world(args.world, prof)  # a bad world: an error before any work
+        prof, inputs = costmap_profile(args.world, "dgt", args.profile_value, None)
+        world, _ = load_world(args.world, prof)  # a bad world: an error before any work
         _, head = _head(args, spec, prof)
         source = CostmapSource(lambda w: world_maps(w, head, prof),
                                None, f"{args.head} head from the log {args.bag}")
-        report = plan_query(args.world, spec, args.start, args.goal, profile=prof,
-                            drive=args.drive, source=source)
+        report = plan_on_world(world, spec, args.start, args.goal, profile=prof,
+                               drive=args.drive, source=source, inputs=inputs)
     except (InvalidQueryError, FileNotFoundError, ValueError) as exc:
         print(f"dgt log plan: error: {exc}", file=sys.stderr)
         return 2
