@@ -197,8 +197,9 @@ def test_code_lines_leave_out_docstrings_comments_and_blank_lines():
 
 
 def test_the_paper_path_is_counted_and_does_not_reach_beyond():
-    """Notebooks 01–09 and every module they reach (any import) stay clear of ``beyond`` and
-    of the readers of terrain files (a DEM is ``dgt plan``'s, resolved in ``app.plan_one``)."""
+    """Notebooks 01–09 and every module they reach (any import) stay clear of ``beyond``, of
+    the readers of terrain files (a DEM is ``dgt plan``'s, resolved in ``app.plan_one``) and
+    of the results report ``dgt reproduce`` writes (``app.report``)."""
     code_size = _code_size()
     notebooks = sorted(p for p in (PACKAGE.parent / "notebooks").glob("*.ipynb")
                        if p.name.startswith(code_size.PAPER_NOTEBOOKS))
@@ -206,12 +207,12 @@ def test_the_paper_path_is_counted_and_does_not_reach_beyond():
     assert len(notebooks) == 9 and beyond == set()
     assert {"dgt_lib.stages.costmaps", "dgt_lib.navigation.planner.search",
             "dgt_lib.core.config"} <= reached
-    assert not {"dgt_lib.world.dem", "dgt_lib.app.plan_one"} & reached
+    assert not {"dgt_lib.world.dem", "dgt_lib.app.plan_one", "dgt_lib.app.report"} & reached
     counts = code_size.sizes(PACKAGE, reached)
     assert "beyond" not in counts and sum(counts.values()) > 5000
 
 
-PAPER_PATH_BUDGET = 13_348
+PAPER_PATH_BUDGET = 12_934
 """Code lines the paper path (notebooks 01–09 and what they reach) may hold: the size it
 has, lowered whenever the code shrinks (aim: 8,000)."""
 PACKAGE_BUDGET = 17_221

@@ -24,15 +24,14 @@ from dgt_lib.evaluation.paper import PAPER
 from dgt_lib.records import tables
 from dgt_lib.records.record import seed_summaries, write_seed_record
 from dgt_lib.stages.costmaps import ensure_world_costmaps
-from dgt_lib.stages.experiments import experiment_stem
 from dgt_lib.stages.ground_truth import (
     accuracy_markdown,
     cached_costmap_accuracy,
     ensure_ground_truth,
 )
 from dgt_lib.stages.output import StageOutput
-from dgt_lib.stages.paths import data_dir, profile_root, results_dir
-from dgt_lib.viz import recording, recording_layout
+from dgt_lib.stages.paths import profile_root, results_dir
+from dgt_lib.viz import recording
 from dgt_lib.world.terrain import get_world
 
 
@@ -43,12 +42,6 @@ def _title(prof: Profile) -> str:
     return prof.describe().replace(repr(prof.name), name, 1)
 
 
-def _headless() -> None:
-    """Draw off-screen when called from the command line; a notebook keeps its backend
-    (inline figures), so importing this module never switches it."""
-    matplotlib.use("Agg", force=False)
-
-
 def _save(fig: plt.Figure, path: Path, dpi: int) -> Path:
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
@@ -56,7 +49,7 @@ def _save(fig: plt.Figure, path: Path, dpi: int) -> Path:
 
 
 def _figures(result: ExperimentResult, prof: Profile, out: Path) -> list[Path]:
-    _headless()
+    matplotlib.use("Agg", force=False)  # off-screen when the report draws, not on import
     world = get_world(result.world, prof)
     paths = [_save(viz.plot_success_rates(result, PAPER.get(result.name)),
                    out / f"{result.name}_success.png", 90),
@@ -96,7 +89,7 @@ def _accuracy_section(prof: Profile, out: Path) -> list[str]:
         return parts + ["Not measured for this seed: run `dgt reproduce --stages "
                         "ground_truth` (it runs before the experiments).", ""]
     parts += [ACCURACY_INTRO, "", accuracy_markdown(result)]
-    _headless()
+    matplotlib.use("Agg", force=False)  # off-screen when the report draws, not on import
     for world, vehicle in ACCURACY_FIGURES:
         truth = ensure_ground_truth(world, vehicle, prof, progress=False)
         maps = ensure_world_costmaps(world, (vehicle,), prof, progress=False)
@@ -123,23 +116,6 @@ def write_results(results: list[ExperimentResult], prof: Profile) -> Path:
     return path
 
 
-def write_recording(result: ExperimentResult, prof: Profile) -> Path:
-    """``runs/<stem>.rrd`` of an experiment (``experiment_stem``: a variant's has its own),
-    rewritten when older than its results or than ``dgt_lib/viz/recording.py`` or
-    ``recording_layout.py`` (the code that lays it out)."""
-    out = data_dir(prof)
-    stem = experiment_stem(result.name, prof)
-    rrd = out / "runs" / f"{stem}.rrd"
-    pkl = out / "experiments" / f"{stem}.pkl"
-    sources = [p for p in (pkl, Path(recording.__file__), Path(recording_layout.__file__))
-               if p.exists()]
-    if not rrd.exists() or rrd.stat().st_mtime < max(p.stat().st_mtime for p in sources):
-        vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
-        maps = ensure_world_costmaps(result.world, vehicles, prof, progress=False)
-        recording.log_experiment(result, get_world(result.world, prof), maps, rrd, prof)
-    return rrd
-
-
 def report_stage(name: str, profile: Profile, output: StageOutput) -> StageOutput:
     """The report step of a stage with ``report`` set (:mod:`dgt_lib.stages.registry`),
     run by ``dgt reproduce`` after it: for ``experiments``, every experiment's recording
@@ -151,7 +127,7 @@ def report_stage(name: str, profile: Profile, output: StageOutput) -> StageOutpu
     prof = as_profile(profile)
     results = output.value
     paths = [write_results(results, prof), write_seed_record(results, prof)]
-    paths += [write_recording(res, prof) for res in results]
+    paths += [recording.experiment_recording(res, prof) for res in results]
     return StageOutput(paths + output.paths, output.summary)
 
 

@@ -398,3 +398,25 @@ def log_experiment(result: ExperimentResult, world: World, maps: WorldMaps,
                                    {"speed_mps": r.speed}, color, vehicle=r.task.vehicle)
         rec.log_text("results", result.markdown(PAPER.get(result.name)))
     return rec.layout
+
+
+def experiment_recording(result: ExperimentResult, profile: Profile) -> Path:
+    """``runs/<stem>.rrd`` of an experiment in the profile's data directory
+    (``experiment_stem``: a variant's has its own), written by :func:`log_experiment` when
+    missing or older than its results or than this module or ``recording_layout.py`` (the
+    code that lays it out); returns its path."""
+    from dgt_lib.stages.costmaps import ensure_world_costmaps
+    from dgt_lib.stages.experiments import experiment_stem
+    from dgt_lib.stages.paths import data_dir
+    from dgt_lib.viz import recording_layout
+    from dgt_lib.world.terrain import get_world
+
+    out, stem = data_dir(profile), experiment_stem(result.name, profile)
+    rrd = out / "runs" / f"{stem}.rrd"
+    pkl = out / "experiments" / f"{stem}.pkl"
+    sources = [p for p in (pkl, Path(__file__), Path(recording_layout.__file__)) if p.exists()]
+    if not rrd.exists() or rrd.stat().st_mtime < max(p.stat().st_mtime for p in sources):
+        vehicles = tuple(sorted({r.task.vehicle for r in result.results}))
+        maps = ensure_world_costmaps(result.world, vehicles, profile, progress=False)
+        log_experiment(result, get_world(result.world, profile), maps, rrd, profile)
+    return rrd
