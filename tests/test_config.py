@@ -231,6 +231,11 @@ def test_a_pair_valid_together_is_accepted_in_either_order():
                   {"planner.step_m": 3.0, "planner.substep_m": 2.0}):
         p = demo.with_overrides(order)
         assert (p.planner.step_m, p.planner.substep_m) == (3.0, 2.0)
+    # a rule inside one section too: thinning a vehicle's runs, fraction named first
+    for order in ({"train.scarce_fraction": 0.3, "train.scarce_vehicle": "vw_van"},
+                  {"train.scarce_vehicle": "vw_van", "train.scarce_fraction": 0.3}):
+        p = demo.with_overrides(order)
+        assert (p.train.scarce_vehicle, p.train.scarce_fraction) == ("vw_van", 0.3)
 
 
 @pytest.mark.parametrize("value", ["inf", "-inf", float("inf")])

@@ -132,9 +132,6 @@ class TrainConfig:
 
     def __post_init__(self):
         check_section(self, "train")  # each field's rule (core/constraints.py)
-        if 0 < self.scarce_fraction < 1 and self.scarce_vehicle == "none":  # (else: rules)
-            raise ValueError("train.scarce_fraction needs train.scarce_vehicle: whose runs "
-                             "to thin out")
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 from dgt_lib.core.overrides import InvalidOverrideError, format_setting
 
@@ -272,6 +273,10 @@ CROSS_RULES: tuple[CrossRule, ...] = (
                                                               p.mppi.w_rate_std) > 0,
               "biased sampling needs noise around its rollout",
               {"mppi.ancillary_fraction": 0.1, "mppi.w_rate_std": 0.0}),
+    CrossRule(("train.scarce_fraction", "train.scarce_vehicle"),
+              lambda p: not 0 < p.train.scarce_fraction < 1 or p.train.scarce_vehicle != "none",
+              "a fraction of the runs below 1 names whose runs to thin out",
+              {"train.scarce_fraction": 0.3}),
 )
 
 
@@ -282,8 +287,9 @@ def _value(profile: object, name: str) -> object:
 
 def check_section(section: object, name: str) -> None:
     """Raise :class:`InvalidSettingError` for the first field of a settings object outside
-    its :data:`SETTING_RULES` entry (``name`` is its section, e.g. ``"mppi"``): what a
-    section made on its own (``MPPIConfig(temperature=0)``) is checked against, too."""
+    its :data:`SETTING_RULES` entry (``name`` is its section, e.g. ``"mppi"``), or for the
+    first broken :data:`CROSS_RULES` entry between its own fields: what a section made on
+    its own (``MPPIConfig(temperature=0)``) is checked against, too."""
     prefix = name + "."
     for setting, rule in SETTING_RULES.items():
         if setting.startswith(prefix):
@@ -291,6 +297,15 @@ def check_section(section: object, name: str) -> None:
             if not rule.check(value):
                 raise InvalidSettingError(f"{setting}={format_setting(value)} is not allowed: "
                                           f"{setting} must be {rule.allowed}")
+    _check_cross(SimpleNamespace(**{name: section}),
+                 [r for r in CROSS_RULES if all(n.startswith(prefix) for n in r.names)])
+
+
+def _check_cross(profile: object, rules: list[CrossRule] | tuple[CrossRule, ...]) -> None:
+    for rule in rules:
+        if not rule.check(profile):
+            given = ", ".join(f"{n}={format_setting(_value(profile, n))}" for n in rule.names)
+            raise InvalidSettingError(f"{given} do not fit together: {rule.allowed}")
 
 
 def check_settings(profile: object) -> None:
@@ -301,7 +316,4 @@ def check_settings(profile: object) -> None:
         if not rule.check(value):
             raise InvalidSettingError(f"{name}={format_setting(value)} is not allowed: "
                                       f"{name} must be {rule.allowed}")
-    for rule in CROSS_RULES:
-        if not rule.check(profile):
-            given = ", ".join(f"{n}={format_setting(_value(profile, n))}" for n in rule.names)
-            raise InvalidSettingError(f"{given} do not fit together: {rule.allowed}")
+    _check_cross(profile, CROSS_RULES)

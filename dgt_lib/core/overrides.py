@@ -181,7 +181,7 @@ def apply_overrides(profile: P, overrides: Mapping[str, object]) -> P:
     every override in, so its range and cross-field checks
     (:mod:`dgt_lib.core.constraints`) see the settings together."""
     top: dict[str, object] = {}
-    sections: dict[str, object] = {}
+    changed: dict[str, dict[str, object]] = {}
     recorded = dict(profile.overrides)
     for key, raw in overrides.items():
         section, name, hint = setting_type(type(profile), key)
@@ -189,15 +189,11 @@ def apply_overrides(profile: P, overrides: Mapping[str, object]) -> P:
         if section is None:
             top[name] = value
         else:
-            try:  # a section's own check (TrainConfig's choices)
-                sections[section] = replace(sections.get(section, getattr(profile, section)),
-                                            **{name: value})
-            except InvalidOverrideError:
-                raise  # a section's rule: it names the setting and the value
-            except ValueError as exc:
-                raise InvalidOverrideError(f"{key.strip()}={format_setting(value)}: {exc}"
-                                           ) from None
+            changed.setdefault(section, {})[name] = value
         recorded[key.strip()] = value
+    # Each section is made once, with all its changes: its own checks (core/constraints.py,
+    # an InvalidSettingError naming the settings) see them together, in any order.
+    sections = {s: replace(getattr(profile, s), **values) for s, values in changed.items()}
     return replace(profile, **top, **sections, overrides=tuple(recorded.items()))
 
 
