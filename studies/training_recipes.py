@@ -1,6 +1,7 @@
 """Which training recipe gives models whose conclusions hold in every seed? Per recipe:
 
-    .venv/bin/python studies/training_recipes.py --profile demo --train-seeds 0 100
+    .venv/bin/python studies/training_recipes.py --profile demo --seeds 3 --train-seeds 0 100 \\
+        --recipes constant-best cosine-last --publish
     .venv/bin/python studies/training_recipes.py --profile paper --seed 0 \\
         --recipes cosine-last --epochs 8          # a shorter paper training budget
 
@@ -17,18 +18,21 @@ training seed, trains the multi-task model and the four single-task models with 
    C*, on free cells) on the hill, ridge and eval worlds.
 
 Training seed ``t`` seeds the weights and batch order only (the dataset is the run seed's),
-so the spread over training seeds is what luck in the learning alone does. Nothing is
-written to the cache; the tables go to stdout (and ``--out`` as JSON).
+so the spread over training seeds is what luck in the learning alone does. No model is
+written to the cache; each evaluation's measurements are stored whole under
+``<data>/studies/training_recipes/<profile>/`` as it finishes (a rerun resumes; ``--stored``
+only prints), and ``--publish`` writes the table as a record that docs/training.md quotes.
 """
 
 from __future__ import annotations
 
 import json
+import sys
 import time
 from collections import Counter
 
 import numpy as np
-from runner import Study
+from runner import Study, write_scores
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, get_profile
@@ -41,6 +45,7 @@ from dgt_lib.mapping.costmap import directional_costmap
 from dgt_lib.mapping.occupancy import occupancy_map
 from dgt_lib.navigation.planner import HybridAStar
 from dgt_lib.perception.dataset import PatchDataset
+from dgt_lib.records.study import table
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_tau_s, world_bev
 from dgt_lib.stages.dataset import DATASET_RELPATH
 from dgt_lib.stages.ground_truth import GROUND_TRUTH_WORLDS, ensure_ground_truths
@@ -128,8 +133,9 @@ def evaluate_run(prof, recipe: dict, train_seed: int, n_queries: int, truths) ->
     return out
 
 
-def _summary_line(name: str, seed: int, t: int, r: dict) -> str:
-    worst = min(r["collapse"].items(), key=lambda kv: kv[1])
+def _row(name: str, r: dict) -> list[object]:
+    """One table row of a stored evaluation (:func:`evaluate_run` plus its names)."""
+    head, worst = min(r["collapse"].items(), key=lambda kv: kv[1])
     hill, ridge = r["routes"]["hill"]["dgt"], r["routes"]["ridge"]["dgt"]
     up = sum(c for k, c in hill.items() if k.startswith("ascent"))
     down = sum(c for k, c in hill.items() if k.startswith("descent"))
@@ -137,18 +143,30 @@ def _summary_line(name: str, seed: int, t: int, r: dict) -> str:
     smooth = sum(c for k, c in ridge.items() if k.endswith(":smooth"))
     st_smooth = sum(c for k, c in r["routes"]["ridge"]["single-task"].items()
                     if k.endswith(":smooth"))
-    acc = r["accuracy"]
-    mae = np.mean([a["mae"] for k, a in acc.items() if k.endswith("/dgt")])
-    rho = np.mean([a["spearman"] for k, a in acc.items() if k.endswith("/dgt")])
-    return (f"{name:<12} seed {seed} train {t:>3} | worst std ratio {worst[1]:.2f} ({worst[0]})"
-            f"{' COLLAPSED' if worst[1] < COLLAPSE_RATIO else ''} | hill up A "
-            f"{hill.get('ascent:A', 0)}/{up}, down B {hill.get('descent:B', 0)}/{down} | "
-            f"ridge smooth DGT {smooth}/{ridge_n}, ST {st_smooth}/{ridge_n} | DGT MAE "
-            f"{mae:.3f} ρ {rho:.2f} | epochs {r['epochs']['multitask']} | {r['train_s']:.0f} s")
+    mae = np.mean([a["mae"] for k, a in r["accuracy"].items() if k.endswith("/dgt")])
+    collapsed = worst < COLLAPSE_RATIO
+    holds = (not collapsed and hill.get("ascent:A", 0) == up
+             and hill.get("descent:B", 0) == down and smooth == ridge_n)
+    return [name, r["seed"], r["train_seed"],
+            f"{worst:.2f} ({head}{', COLLAPSED' if collapsed else ''})",
+            f"{hill.get('ascent:A', 0)}/{up}, {hill.get('descent:B', 0)}/{down}",
+            f"{smooth}/{ridge_n}, {st_smooth}/{ridge_n}", f"{mae:.3f}",
+            r["epochs"]["multitask"], "✓" if holds else "✗"]
+
+
+def recipes_table(results: list[dict]) -> dict:
+    """The study's table: one row per (recipe, run seed, training seed)."""
+    return table("Training recipes without the closed loop",
+                 ["recipe", "run seed", "training seed",
+                  "lowest std(L̂) ÷ std(L) of the 8 heads", "DGT-Map hill: ascents by A, "
+                  "descents by B", "ridge crossings at the smoothed section: DGT-Map, "
+                  "DGT-Map(ST)", "DGT-Map ground-truth MAE (mean of 5 world–vehicle pairs)",
+                  "multi-task epoch kept", "claims hold"],
+                 [_row(r["recipe"], r) for r in results])
 
 
 def main() -> None:
-    study = Study("training_recipes", __doc__, profile="demo", seeds=None, publishes=False)
+    study = Study("training_recipes", __doc__, profile="demo", seeds=None)
     parser = study.parser
     parser.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     parser.add_argument("--train-seeds", nargs="+", type=int, default=[0],
@@ -158,27 +176,39 @@ def main() -> None:
                         help="epochs of every recipe (default: the profile's)")
     parser.add_argument("--width", type=int, default=None,
                         help="network width of every recipe (default: the profile's)")
-    parser.add_argument("--out", default=None, help="JSON file for every measurement")
+    parser.add_argument("--stored", action="store_true",
+                        help="the table from the evaluations already stored; train nothing")
     args = study.parse()
     prof = get_profile(args.profile)
-    truths = ensure_ground_truths(None, prof, progress=False)
+    changed = {k: v for k, v in (("epochs", args.epochs), ("width", args.width))
+               if v is not None}
+    tag = "".join(f"_{k}{v}" for k, v in changed.items())
+    scores = artifacts.data_root() / "studies" / "training_recipes" / args.profile
+    truths = None
     results = []
-    runs = [prof.with_(seed=seed) for seed in study.seeds]
-    for run in runs:
+    for run in [prof.with_(seed=seed) for seed in study.seeds]:
         for t in args.train_seeds:
             for name in args.recipes:
-                recipe = {**RECIPES[name], **{k: v for k, v in (("epochs", args.epochs),
-                                                                   ("width", args.width))
-                                                if v is not None}}
-                r = evaluate_run(run, recipe, run.seed + t, args.queries, truths)
-                print(_summary_line(name, run.seed, run.seed + t, r), flush=True)
-                results.append({"recipe": name, "seed": run.seed, "train_seed": run.seed + t,
-                                **{k: (v if k != "routes" else
-                                       {w: {m: dict(c) for m, c in d.items()}
-                                        for w, d in v.items()}) for k, v in r.items()}})
-                if args.out:
-                    with open(args.out, "w") as f:
-                        json.dump(results, f, indent=1)
+                path = scores / f"{name}{tag}_seed{run.seed}_train{run.seed + t}.json"
+                if not path.exists():
+                    if args.stored:
+                        continue
+                    truths = truths or ensure_ground_truths(None, prof, progress=False)
+                    r = evaluate_run(run, {**RECIPES[name], **changed}, run.seed + t,
+                                     args.queries, truths)
+                    r["routes"] = {w: {m: dict(c) for m, c in d.items()}
+                                   for w, d in r["routes"].items()}
+                    write_scores(path, {"recipe": name, "seed": run.seed,
+                                        "train_seed": run.seed + t, **r})
+                    print(f"[training_recipes] {name} seed {run.seed} train {run.seed + t}: "
+                          f"{r['train_s']:.0f} s of training", flush=True)
+                results.append(json.loads(path.read_text()))
+    if not results:
+        print(f"no stored evaluations under {scores}: run without --stored first",
+              file=sys.stderr)
+        raise SystemExit(2)
+    study.finish({"recipes": recipes_table(results)},
+                 seeds=sorted({r["seed"] for r in results}), variant=tag.strip("_"))
 
 
 if __name__ == "__main__":
