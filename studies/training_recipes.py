@@ -136,6 +136,8 @@ def evaluate_run(prof, recipe: dict, train_seed: int, n_queries: int, truths) ->
 def _row(name: str, r: dict) -> list[object]:
     """One table row of a stored evaluation (:func:`evaluate_run` plus its names)."""
     head, worst = min(r["collapse"].items(), key=lambda kv: kv[1])
+    kind, _, vehicle = head.partition("/")  # "multitask/jeep", "single:jeep/jeep"
+    head = f"{'multi-task' if kind == 'multitask' else 'single-task'} {vehicle}"
     hill, ridge = r["routes"]["hill"]["dgt"], r["routes"]["ridge"]["dgt"]
     up = sum(c for k, c in hill.items() if k.startswith("ascent"))
     down = sum(c for k, c in hill.items() if k.startswith("descent"))
