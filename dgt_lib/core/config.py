@@ -392,10 +392,9 @@ def _demo() -> Profile:
         worlds=WorldsConfig(training_size_m=160.0, eval_size_m=120.0),
         collect=CollectConfig(episodes=(40, 40, 30, 20)),
         # width 32: ~3× faster training and inference than 64 (benchmarks/bench_train.py).
-        # cosine schedule, last epoch kept: with ~30–100 validation patches of the smaller
-        # vehicles, picking the lowest validation loss picked epoch 1 by a 2e-5 lead in one
-        # seed (the van then crossed the sharp ridge), a near-prior model in another
-        # (studies/training_recipes.py: docs/results.md → "Training recipe").
+        # cosine schedule, last epoch kept: the smaller vehicles' validation splits are a
+        # few runs' patches, too few to pick an epoch by (docs/training.md → The `demo`
+        # recipe; studies/training_recipes.py).
         train=TrainConfig(epochs=15, batch_size=128, width=32, lr_schedule="cosine",
                           selection="last"),
         # stride 4×2: ~9× faster than the literal procedure, mean |ΔC| 0.004 (6×3: 18×, 0.006;
