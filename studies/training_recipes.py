@@ -173,7 +173,7 @@ def main() -> None:
     parser.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     parser.add_argument("--train-seeds", nargs="+", type=int, default=[0],
                         help="offsets added to the run seed for weights and batch order")
-    parser.add_argument("--queries", type=int, default=12)
+    parser.add_argument("--queries", type=int, default=12, help="hill and ridge queries each")
     parser.add_argument("--epochs", type=int, default=None,
                         help="epochs of every recipe (default: the profile's)")
     parser.add_argument("--width", type=int, default=None,
@@ -184,7 +184,8 @@ def main() -> None:
     prof = get_profile(args.profile)
     changed = {k: v for k, v in (("epochs", args.epochs), ("width", args.width))
                if v is not None}
-    tag = "".join(f"_{k}{v}" for k, v in changed.items())
+    tag = "".join(f"_{k}{v}" for k, v in {**changed, "queries": args.queries}.items()
+                  if k != "queries" or v != 12)  # the default query count keeps short names
     scores = artifacts.data_root() / "studies" / "training_recipes" / args.profile
     truths = None
     results = []
