@@ -100,10 +100,12 @@ class Study:
         """Print every table and list; with ``--publish`` write the record (and say where).
         ``variant`` keeps one of the study's several records apart. Returns the record."""
         profile = self.args.profile
+        # the command that reruns it from nothing: without --stored (which only reads what
+        # an earlier run stored), with --publish once
+        rerun = [a for a in self.argv if a not in ("--publish", "--stored")] + ["--publish"]
         record = study_record(self.name, ", ".join(profile) if self.several_profiles else profile,
                               self.seeds if seeds is None else seeds, tables, lists,
-                              argv=[a for a in self.argv if a != "--publish"] + ["--publish"],
-                              variant=variant)
+                              argv=rerun, variant=variant)
         for tab in tables.values():
             print(render_table(tab))
         for name, lines in (lists or {}).items():

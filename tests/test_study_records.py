@@ -78,8 +78,9 @@ def test_the_study_runner_reads_seeds_and_data_dir_and_publishes(tmp_path, monke
     monkeypatch.setattr(study, "STUDIES", tmp_path / "studies")
     monkeypatch.delenv(artifacts.DATA_ENV_VAR, raising=False)
     toy = Study("toy", "A toy study.")
+    toy.parser.add_argument("--stored", action="store_true")  # a study's own switch
     args = toy.parse(["--seed", "1", "--seed", "4", "--data-dir", str(tmp_path / "d"),
-                      "--publish"])
+                      "--publish", "--stored"])
     assert toy.seeds == [1, 4] and args.profile == "demo"
     assert artifacts.data_root() == tmp_path / "d"
     record = toy.finish({"arrivals": study.table("arrivals", ["m", "k/n"], [["DGT-Map", "1/2"]])})
