@@ -339,9 +339,7 @@ def stored(path: Path, make, rerun: bool) -> dict | None:
 
 
 def main() -> None:
-    study = Study("log_minutes", __doc__, profile="demo", seeds=3)
-    study.parser.add_argument("--stored", action="store_true",
-                              help="only the tables of the stored scores")
+    study = Study("log_minutes", __doc__, profile="demo", seeds=3, stores=True)
     study.parser.add_argument("--truth", action="store_true",
                               help="also score and plan the longest log's heads on the hill "
                                    "and the ridge against the truck's ground truth")

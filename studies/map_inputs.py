@@ -262,7 +262,7 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    study = Study("map_inputs", __doc__, profile="demo", seeds=3)
+    study = Study("map_inputs", __doc__, profile="demo", seeds=3, stores=True)
     parser = study.parser
     parser.add_argument("--variants", nargs="+", default=["rgbd", "geometry", "rgb", "shuffled"],
                         choices=list(VARIANTS))
@@ -270,8 +270,6 @@ def main() -> None:
                         help="where the variants' data and scores go (default: "
                              "<data>/studies/map_inputs)")
     parser.add_argument("--figure", type=Path, default=None, help="figure path (default: in --out)")
-    parser.add_argument("--stored", action="store_true",
-                        help="tables and figure from the scores already stored; compute nothing")
     parser.add_argument("--one", nargs=2, metavar=("VARIANT", "SEED"), help=argparse.SUPPRESS)
     args = study.parse()
     from dgt_lib.core import artifacts

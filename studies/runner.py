@@ -44,10 +44,12 @@ class Study:
 
     def __init__(self, name: str, doc: str | None, *, profile: str = "demo",
                  seeds: int | None = 3, per_seed: bool = True, several_profiles: bool = False,
-                 publishes: bool = True) -> None:
+                 publishes: bool = True, stores: bool = False) -> None:
         """``seeds``: how many run seeds by default (None: the profile's own count, as
         ``dgt reproduce``); ``per_seed=False``: no run seeds to choose; ``publishes=False``:
-        the study only prints, and has no ``--publish``."""
+        the study only prints, and has no ``--publish``; ``stores=True``: the study keeps
+        each evaluation as it finishes, and ``--stored`` prints (and publishes) from those
+        alone."""
         self.name = name
         self.several_profiles = several_profiles
         self.parser = argparse.ArgumentParser(
@@ -71,6 +73,10 @@ class Study:
         if publishes:
             self.parser.add_argument("--publish", action="store_true",
                                      help="also write the study's record to docs/runs/studies/")
+        if stores:
+            self.parser.add_argument("--stored", action="store_true",
+                                     help="tables (and figure) from the evaluations already "
+                                          "stored; compute nothing")
         self.args: argparse.Namespace | None = None
 
     def parse(self, argv: Sequence[str] | None = None) -> argparse.Namespace:

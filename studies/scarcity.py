@@ -313,7 +313,7 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    study = Study("scarcity", __doc__, profile="demo", seeds=3)
+    study = Study("scarcity", __doc__, profile="demo", seeds=3, stores=True)
     parser = study.parser
     parser.add_argument("--vehicles", nargs="+", default=list(STUDIED), choices=STUDIED)
     parser.add_argument("--fractions", type=float, nargs="+", default=list(FRACTIONS))
@@ -324,8 +324,6 @@ def main() -> None:
                         help="where the variants' data and scores go (default: "
                              "<data>/studies/scarcity)")
     parser.add_argument("--figure", type=Path, default=None, help="figure path (default: in --out)")
-    parser.add_argument("--stored", action="store_true",
-                        help="tables and figure from the scores already stored; compute nothing")
     parser.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     parser.add_argument("--loop", nargs=3, help=argparse.SUPPRESS)
     args = study.parse()

@@ -168,7 +168,7 @@ def recipes_table(results: list[dict]) -> dict:
 
 
 def main() -> None:
-    study = Study("training_recipes", __doc__, profile="demo", seeds=None)
+    study = Study("training_recipes", __doc__, profile="demo", seeds=None, stores=True)
     parser = study.parser
     parser.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=list(RECIPES))
     parser.add_argument("--train-seeds", nargs="+", type=int, default=[0],
@@ -178,8 +178,6 @@ def main() -> None:
                         help="epochs of every recipe (default: the profile's)")
     parser.add_argument("--width", type=int, default=None,
                         help="network width of every recipe (default: the profile's)")
-    parser.add_argument("--stored", action="store_true",
-                        help="the table from the evaluations already stored; train nothing")
     args = study.parse()
     prof = get_profile(args.profile)
     changed = {k: v for k, v in (("epochs", args.epochs), ("width", args.width))

@@ -214,15 +214,13 @@ def figure(scores: list[dict], path: Path) -> None:
 
 
 def main() -> None:
-    study = Study("zero_shot", __doc__, profile="demo", seeds=3)
+    study = Study("zero_shot", __doc__, profile="demo", seeds=3, stores=True)
     parser = study.parser
     parser.add_argument("--vehicles", nargs="+", default=list(VEHICLES), choices=VEHICLES,
                         help="the vehicles to leave out, each in turn (default: all four)")
     parser.add_argument("--out", type=Path, default=None,
                         help="where the scores and figure go (default: <data>/studies/zero_shot)")
     parser.add_argument("--figure", type=Path, default=None, help="figure path (default: in --out)")
-    parser.add_argument("--stored", action="store_true",
-                        help="tables and figure from the scores already stored; compute nothing")
     parser.add_argument("--generated", type=int, default=0, metavar="N",
                         help="generated training vehicles for the conditioned networks "
                              "(conditioned.generated_vehicles; default 0: the named only)")

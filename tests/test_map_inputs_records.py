@@ -97,5 +97,6 @@ def test_stored_scores_are_published_as_the_attribution_s_record(tmp_path, monke
     record = json.loads(path.read_text())
     assert record["seeds"] == [0, 2] and record["variant"] == "attribution"
     assert record["tables"] == map_inputs.tables(scores)
-    assert record["command"].endswith("--stored --publish")
+    # the command reruns the study from nothing: no --stored
+    assert record["command"].endswith(f"--out {tmp_path} --figure {tmp_path / 'f.png'} --publish")
     assert (tmp_path / "f.png").exists()

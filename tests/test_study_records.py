@@ -77,8 +77,7 @@ def test_the_study_runner_reads_seeds_and_data_dir_and_publishes(tmp_path, monke
 
     monkeypatch.setattr(study, "STUDIES", tmp_path / "studies")
     monkeypatch.delenv(artifacts.DATA_ENV_VAR, raising=False)
-    toy = Study("toy", "A toy study.")
-    toy.parser.add_argument("--stored", action="store_true")  # a study's own switch
+    toy = Study("toy", "A toy study.", stores=True)
     args = toy.parse(["--seed", "1", "--seed", "4", "--data-dir", str(tmp_path / "d"),
                       "--publish", "--stored"])
     assert toy.seeds == [1, 4] and args.profile == "demo"
@@ -90,6 +89,8 @@ def test_the_study_runner_reads_seeds_and_data_dir_and_publishes(tmp_path, monke
     assert written["seeds"] == [1, 4] and written["tables"] == record["tables"]
     assert "| DGT-Map | 1/2 |" in capsys.readouterr().out
     default = Study("toy", None)
+    with pytest.raises(SystemExit):  # a study that stores nothing has nothing to read back
+        Study("toy", None).parse(["--stored"])
     default.parse([])
     assert default.seeds == [0, 1, 2] and not default.args.publish
     sys.modules.pop("runner", None)
