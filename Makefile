@@ -2,7 +2,7 @@
 #   make reproduce   run the whole pipeline (DGT_PROFILE, default demo)
 #   make test        unit tests + every notebook under nbmake (smoke profile)
 #   make figures     the README's figures from the demo run (docs/figures/)
-#   make docs        the README's and docs' result tables from the committed run records
+#   make docs        the result tables of the README, docs and notebooks from the committed run records
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV ?= .venv

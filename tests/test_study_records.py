@@ -141,3 +141,25 @@ def test_a_study_stopped_by_sigterm_cleans_up_as_on_ctrl_c(tmp_path):
     proc.communicate(timeout=30)
     assert proc.returncode != 0
     assert list(tmp_path.iterdir()) == []  # the finally block ran
+
+
+def test_a_notebook_quoting_a_study_is_rendered_in_its_markdown_cell_alone(tmp_path):
+    path = study.publish_study(_record(), tmp_path / "docs" / "runs" / "studies")
+    block = f"study:{path.stem}/arrivals"
+    code = {"cell_type": "code", "execution_count": None, "id": "c0", "metadata": {},
+            "outputs": [], "source": [f"# <!-- generated: {block} --> in code stays\n"]}
+    prose = {"cell_type": "markdown", "id": "m0", "metadata": {},
+             "source": ["Measured:\n", "\n", f"<!-- generated: {block} -->\n",
+                        f"<!-- end generated: {block} -->\n"]}
+    notebook = {"cells": [code, prose], "metadata": {}, "nbformat": 4, "nbformat_minor": 5}
+    page = tmp_path / "notebooks" / "toy.ipynb"
+    page.parent.mkdir()
+    page.write_text(json.dumps(notebook, indent=1) + "\n")
+    assert documents.pages(tmp_path)[-1] == "notebooks/toy.ipynb"  # `make docs` takes it
+    rendered = documents.render_notebook(page.read_text(), tmp_path, "notebooks/toy.ipynb")
+    cells = json.loads(rendered)["cells"]
+    assert cells[0] == code  # only Markdown is rendered
+    text = "".join(cells[1]["source"])
+    assert "| DGT-Map | 17/18 |" in text
+    assert f"[{path.name}](../docs/runs/studies/{path.name})" in text  # from notebooks/
+    assert documents.render_notebook(rendered, tmp_path, "notebooks/toy.ipynb") == rendered

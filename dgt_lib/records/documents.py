@@ -12,7 +12,8 @@ docs rest on) and from every published run (the cross-machine table). ``check`` 
 without writing and lists the files whose committed text differs: a test runs it, so a
 hand-edited number inside a block fails the suite, and so does a stale one. A page of
 docs/ may also quote a study's table in a block named ``study:<record>/<table>``
-(:mod:`dgt_lib.records.study`); every page that does is rendered too.
+(:mod:`dgt_lib.records.study`); every page that does is rendered too, and so is every
+Markdown cell of a notebook that does (the notebook's JSON is otherwise left as it is).
 """
 
 from __future__ import annotations
@@ -152,19 +153,40 @@ def render_text(text: str, renderers: dict[str, Renderer], cited, every, root: P
 
 
 def pages(root: Path = ROOT) -> list[str]:
-    """The files ``make docs`` renders: those of :data:`BLOCKS` and every page of docs/
-    that quotes a study (``<!-- generated: study:…``)."""
-    quoting = sorted(p.relative_to(root).as_posix() for p in (root / "docs").rglob("*.md")
-                     if f"<!-- generated: {study.BLOCK_PREFIX}" in p.read_text())
+    """The files ``make docs`` renders: those of :data:`BLOCKS`, every page of docs/ and
+    every notebook that quotes a study (``<!-- generated: study:…``)."""
+    marker = f"<!-- generated: {study.BLOCK_PREFIX}"
+    quoting = sorted(p.relative_to(root).as_posix()
+                     for p in [*(root / "docs").rglob("*.md"),
+                               *(root / "notebooks").glob("*.ipynb")]
+                     if marker in p.read_text())
     return list(BLOCKS) + [p for p in quoting if p not in BLOCKS]
+
+
+def render_notebook(text: str, root: Path, path: str) -> str:
+    """A notebook's JSON ``text`` with the study blocks of its Markdown cells rendered
+    (:func:`render_text`), written back as Jupyter writes it (one-space indent)."""
+    notebook = json.loads(text)
+    for cell in notebook["cells"]:
+        if cell["cell_type"] != "markdown":
+            continue
+        source = cell["source"]
+        old = "".join(source) if isinstance(source, list) else source
+        new = render_text(old, {}, (), (), root, path)
+        if new != old:
+            cell["source"] = new.splitlines(keepends=True) if isinstance(source, list) else new
+    return json.dumps(notebook, indent=1, ensure_ascii=False) + "\n"
 
 
 def render_all(root: Path = ROOT) -> dict[Path, str]:
     """{file: its text with every generated block rendered} for :func:`pages`."""
     cited, every = load_runs(root)
-    return {root / rel: render_text((root / rel).read_text(), BLOCKS.get(rel, {}), cited,
-                                    every, root, rel)
-            for rel in pages(root)}
+    out = {}
+    for rel in pages(root):
+        text = (root / rel).read_text()
+        out[root / rel] = (render_notebook(text, root, rel) if rel.endswith(".ipynb") else
+                           render_text(text, BLOCKS.get(rel, {}), cited, every, root, rel))
+    return out
 
 
 def stale(root: Path = ROOT) -> list[Path]:
