@@ -150,3 +150,21 @@ def test_every_seed_record_pooled_by_the_readme_keeps_its_processor():
         assert all((ROOT / "docs" / "runs" / run.name / f"seed-{s}.json").stat().st_size
                    <= MAX_RECORD_BYTES for s in run.seeds)
 
+
+
+def test_the_bottom_line_says_which_claims_reproduce_in_every_run_in_one_and_in_none():
+    hill = {"dgt": (3, 3), "iso": (0, 3), "binary": (0, 3)}
+    demo = tables.Run("demo_x", (_record(0, hill), _record(1, hill)))
+    paper = tables.Run("paper_x", (_record(0, hill, profile="paper"),
+                                   _record(1, hill, ascents_a=(2, 3), profile="paper")))
+    gentle = next(c.short for c in claims.CLAIMS if c.text.startswith("Exp. 1: DGT-Map plans"))
+    one = tables.bottom_line([demo])
+    assert one.startswith("Of the paper's claims checked here, ") and "on `demo` (2 seeds" in one
+    assert f"Reproduced: {gentle}" in one
+    both = tables.bottom_line([demo, paper])
+    assert "on `demo` (2 seeds (0, 1)" in both and "on `paper` (2 seeds (0, 1)" in both
+    assert f"Only on `demo`: {gentle}." in both  # a route claim holds only in every seed
+    assert "Reproduced in every run" not in both.split(f"Only on `demo`: {gentle}.")[1]
+    for claim in claims.CLAIMS:  # every claim checked is named once, in one group
+        if not claim.ours:
+            assert both.count(claim.short) <= 1

@@ -59,7 +59,7 @@ def _claims(cited: Sequence[Run], _every, _root: Path) -> str:
 
 
 def _bottom_line(cited: Sequence[Run], _every, _root: Path) -> str:
-    return "\n".join(tables.bottom_line(r) for r in cited) + "\n"
+    return tables.bottom_line(cited)
 
 
 FIGURE_FACTS = "docs/figures/figures.json"

@@ -145,17 +145,28 @@ def verdicts_by_key(run: Run) -> dict[str, Verdict]:
     return {key: route_claim(key)(run.records) for key in seeds.CLAIMS}
 
 
-def bottom_line(run: Run) -> str:
-    """Two sentences: which of the paper's claims ``run`` reproduces and which not."""
-    paper = [(s, v) for s, v, ours in verdicts(run) if not ours and v.reproduced is not None]
-    yes = [s for s, v in paper if v.reproduced]
-    no = [s for s, v in paper if not v.reproduced]
-    text = (f"On `{run.profile}` ({seed_text(run.seeds)}, {run.processor}) "
-            f"{len(yes)} of the {len(paper)} claims of the paper checked here reproduce: "
-            + "; ".join(yes) + ".")
-    if no:
-        text += " Not reproduced: " + "; ".join(no) + "."
-    return text
+def bottom_line(runs: Sequence[Run]) -> str:
+    """Two sentences over the cited runs: how many of the paper's claims checked here each
+    reproduces, then which (in every run, in some, in none)."""
+    checked = [{s: v.reproduced for s, v, ours in verdicts(r)
+                if not ours and v.reproduced is not None} for r in runs]
+    names = list(dict.fromkeys(s for c in checked for s in c))
+    where = [f"{sum(c.values())} of {len(c)} on `{r.profile}` ({seed_text(r.seeds)}, "
+             f"{r.processor})" for r, c in zip(runs, checked)]
+    text = ("Of the paper's claims checked here, " + " and ".join(where) + " reproduce.")
+    if len(runs) == 1:
+        groups = [("Reproduced", lambda yes: all(yes)), ("Not reproduced", lambda yes: not any(yes))]
+    else:
+        groups = [("Reproduced in every run", all)]
+        groups += [(f"Only on `{r.profile}`",
+                    lambda yes, i=i: yes[i] and not all(yes)) for i, r in enumerate(runs)]
+        groups += [("In none", lambda yes: not any(yes))]
+    parts = []
+    for label, keep in groups:
+        these = [s for s in names if keep([c.get(s, False) for c in checked])]
+        if these:
+            parts.append(f"{label}: " + "; ".join(these) + ".")
+    return text + " " + " ".join(parts) + "\n"
 
 
 def provenance_table(run: Run) -> str:
