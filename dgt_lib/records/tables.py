@@ -153,9 +153,9 @@ def bottom_line(runs: Sequence[Run]) -> str:
     names = list(dict.fromkeys(s for c in checked for s in c))
     where = [f"{sum(c.values())} of {len(c)} on `{r.profile}` ({seed_text(r.seeds)}, "
              f"{r.processor})" for r, c in zip(runs, checked)]
-    text = ("Of the paper's claims checked here, " + " and ".join(where) + " reproduce.")
+    text = "Of the paper's claims checked here, " + " and ".join(where) + " reproduce."
     if len(runs) == 1:
-        groups = [("Reproduced", lambda yes: all(yes)), ("Not reproduced", lambda yes: not any(yes))]
+        groups = [("Reproduced", all), ("Not reproduced", lambda yes: not any(yes))]
     else:
         groups = [("Reproduced in every run", all)]
         groups += [(f"Only on `{r.profile}`",
