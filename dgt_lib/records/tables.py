@@ -152,7 +152,7 @@ def bottom_line(runs: Sequence[Run]) -> str:
                 if not ours and v.reproduced is not None} for r in runs]
     names = list(dict.fromkeys(s for c in checked for s in c))
     where = [f"{sum(c.values())} of {len(c)} on `{r.profile}` ({seed_text(r.seeds)}, "
-             f"{r.processor})" for r, c in zip(runs, checked)]
+             f"{r.processor})" for r, c in zip(runs, checked, strict=True)]
     text = "Of the paper's claims checked here, " + " and ".join(where) + " reproduce."
     if len(runs) == 1:
         groups = [("Reproduced", all), ("Not reproduced", lambda yes: not any(yes))]
