@@ -120,7 +120,7 @@ def test_multi_task_and_single_task_are_compared_on_the_same_samples_with_a_pair
     assert multitask_comparisons(swapped)[0]["closer"] == "single-task"
     over = multitask_over_seeds({0: [jeep, vw_van], 1: [{**jeep, "closer": "neither"}]})
     assert "| jeep |" in over and over.splitlines()[2].endswith("| 1 of 2 seeds |")
-    assert over.splitlines()[3].endswith("| — | 0 of 1 seeds |")
+    assert over.splitlines()[3].endswith("| — | 0 of 1 seed |")
 
 
 def test_tables_of_every_method_per_seed_and_over_seeds():

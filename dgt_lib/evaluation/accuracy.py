@@ -27,6 +27,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from dgt_lib.core.geometry import GridSpec
+from dgt_lib.evaluation.statistics import n_seeds
 from dgt_lib.mapping.methods import METHOD_LABELS
 
 CONTRAST_THRESHOLD = 0.3
@@ -221,7 +222,7 @@ def multitask_over_seeds(per_seed: Mapping[int, Sequence[Mapping]]) -> str:
             n += 1
             wins += c["closer"] == "multi-task"
             cells.append(f"{_f(c['mae_a'], 3)} / {_f(c['mae_b'], 3)} ({c['closer']})")
-        cells.append(f"{wins} of {n} seeds")
+        cells.append(f"{wins} of {n_seeds(n)}")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

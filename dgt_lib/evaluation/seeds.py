@@ -20,7 +20,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 from dgt_lib.evaluation.experiments import ExperimentResult
 from dgt_lib.evaluation.paper import PaperResult
-from dgt_lib.evaluation.statistics import wilson_interval
+from dgt_lib.evaluation.statistics import n_seeds, wilson_interval
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 
 Summary = dict
@@ -156,7 +156,7 @@ def claims_table(summaries: Sequence[Summary]) -> str:
             ok = claim_holds(name, k, n)
             held += ok
             cells.append(f"{k}/{n} {'✓' if ok else '✗'}" if n else "—")
-        cells.append(f"{held} of {len(summaries)} seeds")
+        cells.append(f"{held} of {n_seeds(len(summaries))}")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

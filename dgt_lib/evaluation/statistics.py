@@ -13,6 +13,11 @@ from dgt_lib.mapping.methods import METHOD_LABELS
 from dgt_lib.navigation.outcome import REASONS, TrialOutcome
 
 
+def n_seeds(n: int) -> str:
+    """``1 seed``, ``8 seeds``: how many seeds a pooled figure rests on."""
+    return f"{n} seed{'s' if n != 1 else ''}"
+
+
 def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
     """Wilson score interval for a binomial proportion k/n::
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from dgt_lib.evaluation.statistics import wilson_interval
+from dgt_lib.evaluation.statistics import n_seeds, wilson_interval
 from dgt_lib.mapping.methods import METHOD_LABELS
 
 Record = dict
@@ -68,8 +68,9 @@ def route_claim(claim: str) -> Callable[[Sequence[Record]], Verdict]:
             return Verdict("not measured", None)
         held = sum(bool(c[2]) for c in checks)
         plans = f"{sum(c[0] for c in checks)}/{sum(c[1] for c in checks)} plans"
-        note = "" if held == len(checks) else f"in {held} of {len(checks)} seeds"
-        return Verdict(f"{held} of {len(checks)} seeds ({plans})", held == len(checks), note)
+        of = f"{held} of {n_seeds(len(checks))}"
+        note = "" if held == len(checks) else f"in {of}"
+        return Verdict(f"{of} ({plans})", held == len(checks), note)
     return check
 
 
@@ -115,8 +116,9 @@ def closer_claim(vehicle: str | None) -> Callable[[Sequence[Record]], Verdict]:
             mine = [c for c in comparisons if vehicle is None or c["vehicle"] == vehicle]
             return bool(mine) and all(c["closer"] == "multi-task" for c in mine)
         held = sum(holds(c) for c in scored)
-        note = "" if held == len(scored) else f"in {held} of {len(scored)} seeds"
-        return Verdict(f"{held} of {len(scored)} seeds", held == len(scored), note)
+        of = f"{held} of {n_seeds(len(scored))}"
+        note = "" if held == len(scored) else f"in {of}"
+        return Verdict(of, held == len(scored), note)
     return check
 
 

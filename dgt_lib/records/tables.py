@@ -16,6 +16,7 @@ from pathlib import Path
 from dgt_lib.evaluation import accuracy, seeds
 from dgt_lib.evaluation.experiments import EXPERIMENT_TITLES, EXPERIMENTS
 from dgt_lib.evaluation.paper import PAPER
+from dgt_lib.evaluation.statistics import n_seeds
 from dgt_lib.mapping.methods import METHOD_LABELS, METHODS
 from dgt_lib.records.claims import CLAIMS, Verdict, pooled, route_claim
 from dgt_lib.records.provenance import processor_label
@@ -71,11 +72,6 @@ def seed_text(ids: Sequence[int]) -> str:
     else:
         span = ", ".join(map(str, ids))
     return f"{n_seeds(len(ids))} ({span})"
-
-
-def n_seeds(n: int) -> str:
-    """``1 seed``, ``8 seeds``."""
-    return f"{n} seed{'s' if n != 1 else ''}"
 
 
 def caption(run: Run, link_prefix: str = "docs/") -> str:
