@@ -164,7 +164,7 @@ def test_the_bottom_line_says_which_claims_reproduce_in_every_run_in_one_and_in_
     both = tables.bottom_line([demo, paper])
     assert "on `demo` (2 seeds (0, 1)" in both and "on `paper` (2 seeds (0, 1)" in both
     assert f"Only on `demo`: {gentle}." in both  # a route claim holds only in every seed
-    assert "Reproduced in every run" not in both.split(f"Only on `demo`: {gentle}.")[1]
+    assert "Reproduced in both runs" not in both.split(f"Only on `demo`: {gentle}.")[1]
     for claim in claims.CLAIMS:  # every claim checked is named once, in one group
         if not claim.ours:
             assert both.count(claim.short) <= 1

@@ -153,10 +153,11 @@ def bottom_line(runs: Sequence[Run]) -> str:
     if len(runs) == 1:
         groups = [("Reproduced", all), ("Not reproduced", lambda yes: not any(yes))]
     else:
-        groups = [("Reproduced in every run", all)]
+        two = len(runs) == 2
+        groups = [(f"Reproduced in {'both runs' if two else 'every run'}", all)]
         groups += [(f"Only on `{r.profile}`",
                     lambda yes, i=i: yes[i] and not all(yes)) for i, r in enumerate(runs)]
-        groups += [("In none", lambda yes: not any(yes))]
+        groups += [("In neither" if two else "In none", lambda yes: not any(yes))]
     parts = []
     for label, keep in groups:
         these = [s for s in names if keep([c.get(s, False) for c in checked])]
