@@ -18,14 +18,55 @@ jeep hazards, the terrain its costmap learns from.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from runner import Study
 
 from dgt_lib.core.config import get_profile
 from dgt_lib.evaluation.experiments import EXPERIMENTS
-from dgt_lib.evaluation.hazards import HazardMap, hazard_map, line_stats, vehicle_hazards
+from dgt_lib.evaluation.hazards import HazardMap, hazard_map, vehicle_hazards
 from dgt_lib.records.study import table
 from dgt_lib.world.terrain import get_world
+
+
+@dataclass(frozen=True)
+class LineStats:
+    """What Experiment 3's query rule sees on a world, from straight lines drawn as
+    :func:`~dgt_lib.evaluation.queries.draw_random_queries` draws candidates (footprints
+    and feasibility not checked): ``lengths`` (N,) metres of each on-map candidate's line
+    on the rule's hazard cells, ``kept`` (N,) whether the rule keeps it, ``crosses`` (N,)
+    whether it crosses a cell of ``mask`` (any hazard map given, e.g. one vehicle's)."""
+
+    lengths: np.ndarray
+    kept: np.ndarray
+    crosses: np.ndarray
+
+    @property
+    def kept_crossing(self) -> float:
+        """Share of the kept lines that cross a cell of the given mask."""
+        return float(self.crosses[self.kept].mean()) if self.kept.any() else float("nan")
+
+
+def line_stats(rule: HazardMap, mask: HazardMap, distance_m: tuple[float, float],
+               min_hazard_m: float, seed: int, candidates: int = 5000,
+               margin_m: float = 10.0) -> LineStats:
+    """:class:`LineStats` of ``candidates`` lines: start uniform ``margin_m`` inside the
+    map, a distance uniform in ``distance_m``, a uniform direction, the goal ``margin_m``
+    inside the map (others dropped); kept when ``rule`` finds ≥ ``min_hazard_m`` on it."""
+    rng = np.random.default_rng(seed)
+    x0, x1, y0, y1 = rule.grid.extent
+    rows = []
+    for _ in range(candidates):
+        sx, sy = rng.uniform(x0 + margin_m, x1 - margin_m), rng.uniform(y0 + margin_m,
+                                                                         y1 - margin_m)
+        ang, dist = rng.uniform(0, 2 * np.pi), rng.uniform(*distance_m)
+        gx, gy = sx + dist * np.cos(ang), sy + dist * np.sin(ang)
+        if x0 + margin_m < gx < x1 - margin_m and y0 + margin_m < gy < y1 - margin_m:
+            rows.append((rule.length_m((sx, sy), (gx, gy)),
+                         mask.length_m((sx, sy), (gx, gy)) > 0.0))
+    lengths = np.array([r[0] for r in rows], float)
+    return LineStats(lengths, lengths >= min_hazard_m, np.array([r[1] for r in rows], bool))
 
 
 def pct(x: float) -> str:

@@ -14,7 +14,7 @@ vehicle never driven could otherwise get, and its own:
   vehicle out costs;
 * ``own head``: its own head of the multi-task model (method ``dgt``: it was driven);
 * ``nearest head``: the multi-task head of the seen vehicle nearest in normalised spec
-  (:func:`~dgt_lib.beyond.conditioned.nearest_vehicle`; that model saw the left-out
+  (:func:`nearest_vehicle`; that model saw the left-out
   vehicle's data too, through the shared backbone);
 * ``nearest conditioned``: the network trained without it, for the nearest vehicle's spec;
 * ``slope climb``: Slope-Based from its torque-limited climb alone, nothing fitted
@@ -28,11 +28,14 @@ many more samples than the ground truth's cells, of the training world's terrain
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from planned import PLANNED, planned_routes, planning_profile
 
-from dgt_lib.beyond.conditioned import nearest_vehicle
+from dgt_lib.beyond.conditioned import spec_statistics, spec_vector
 from dgt_lib.core.config import VEHICLES, Profile, as_profile
+from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.core.vehicles import get_vehicle
 from dgt_lib.mapping.baselines import SlopePredictor, climb_slope_model, slope_costmap
 from dgt_lib.mapping.world_maps import WorldMaps
@@ -50,6 +53,22 @@ from dgt_lib.stages.train import ensure_model
 ZERO_SHOT_METHODS: tuple[str, ...] = ("zero-shot", "conditioned seen", "own head",
                                       "nearest head", "nearest conditioned", "slope climb")
 """The maps compared for a left-out vehicle (module docstring), in table order."""
+
+
+def nearest_vehicle(spec: VehicleSpec | str, candidates: Sequence[VehicleSpec | str]
+                    ) -> tuple[str, float]:
+    """The candidate nearest to ``spec`` and its distance: Euclidean between spec vectors
+    normalised by the candidates' :func:`spec_statistics` (the space a network trained on
+    them conditions in). The vehicle itself is skipped when among the candidates."""
+    v = get_vehicle(spec)
+    others = [get_vehicle(c) for c in candidates if get_vehicle(c).name != v.name]
+    if not others:
+        raise ValueError(f"no candidate other than {v.name}")
+    mean, std = spec_statistics(others)
+    c = (spec_vector(v) - mean) / std
+    dist = [float(np.linalg.norm((spec_vector(o) - mean) / std - c)) for o in others]
+    best = int(np.argmin(dist))
+    return others[best].name, dist[best]
 
 
 def scored_worlds(vehicle: str) -> tuple[str, ...]:

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from dgt_lib.beyond.conditioned import nearest_vehicle
 from dgt_lib.core.config import VEHICLES
 from dgt_lib.evaluation.ground_truth import GroundTruth
 from tests import test_conditioned_stage as stage_tests
@@ -20,6 +19,7 @@ STUDIES = str(Path(__file__).resolve().parents[1] / "studies")
 if STUDIES not in sys.path:  # the study's scoring lives beside its script
     sys.path.append(STUDIES)
 zero_shot = importlib.import_module("zero_shot_scores")
+nearest_vehicle = zero_shot.nearest_vehicle
 
 
 def _ground_truth(vehicle: str, bev) -> GroundTruth:

@@ -210,22 +210,6 @@ class VehicleHeads(nn.Module):
         return self.net._conditioned(self.net.embed(x), self.spec_raw)
 
 
-def nearest_vehicle(spec: VehicleSpec | str, candidates: Sequence[VehicleSpec | str]
-                    ) -> tuple[str, float]:
-    """The candidate nearest to ``spec`` and its distance: Euclidean between spec vectors
-    normalised by the candidates' :func:`spec_statistics` (the space a network trained on
-    them conditions in). The vehicle itself is skipped when among the candidates."""
-    v = get_vehicle(spec)
-    others = [get_vehicle(c) for c in candidates if get_vehicle(c).name != v.name]
-    if not others:
-        raise ValueError(f"no candidate other than {v.name}")
-    mean, std = spec_statistics(others)
-    c = (spec_vector(v) - mean) / std
-    dist = [float(np.linalg.norm((spec_vector(o) - mean) / std - c)) for o in others]
-    best = int(np.argmin(dist))
-    return others[best].name, dist[best]
-
-
 def conditioned_from_architecture(arch: dict[str, Any]) -> ConditionedNet:
     """An untrained ConditionedNet of a checkpoint's architecture (its heads are named
     vehicles; the spec statistics come with the weights): what

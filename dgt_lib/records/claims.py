@@ -68,10 +68,14 @@ def route_claim(claim: str) -> Callable[[Sequence[Record]], Verdict]:
             return Verdict("not measured", None)
         held = sum(bool(c[2]) for c in checks)
         plans = f"{sum(c[0] for c in checks)}/{sum(c[1] for c in checks)} plans"
-        of = f"{held} of {n_seeds(len(checks))}"
-        note = "" if held == len(checks) else f"in {of}"
-        return Verdict(f"{of} ({plans})", held == len(checks), note)
+        return in_every_seed(held, len(checks), f" ({plans})")
     return check
+
+
+def in_every_seed(held: int, seeds: int, detail: str = "") -> Verdict:
+    """A claim that holds only when it held in every one of ``seeds``: ``held`` of them."""
+    of = f"{held} of {n_seeds(seeds)}"
+    return Verdict(of + detail, held == seeds, "" if held == seeds else f"in {of}")
 
 
 def more_claim(experiment: str, vehicle: str, method: str, others: Sequence[str]
@@ -115,10 +119,7 @@ def closer_claim(vehicle: str | None) -> Callable[[Sequence[Record]], Verdict]:
         def holds(comparisons) -> bool:
             mine = [c for c in comparisons if vehicle is None or c["vehicle"] == vehicle]
             return bool(mine) and all(c["closer"] == "multi-task" for c in mine)
-        held = sum(holds(c) for c in scored)
-        of = f"{held} of {n_seeds(len(scored))}"
-        note = "" if held == len(scored) else f"in {of}"
-        return Verdict(of, held == len(scored), note)
+        return in_every_seed(sum(holds(c) for c in scored), len(scored))
     return check
 
 
