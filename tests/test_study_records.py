@@ -163,3 +163,13 @@ def test_a_notebook_quoting_a_study_is_rendered_in_its_markdown_cell_alone(tmp_p
     assert "| DGT-Map | 17/18 |" in text
     assert f"[{path.name}](../docs/runs/studies/{path.name})" in text  # from notebooks/
     assert documents.render_notebook(rendered, tmp_path, "notebooks/toy.ipynb") == rendered
+
+
+def test_a_record_of_several_controllers_is_quoted_by_its_name(tmp_path):
+    # `--controller paper --controller robust` names its record "…-paper+robust_…"
+    path = study.publish_study(_record(variant="paper+robust"),
+                               tmp_path / "docs" / "runs" / "studies")
+    assert "+" in path.stem
+    page = _page(tmp_path, f"study:{path.stem}/arrivals")
+    text = documents.render_text(page.read_text(), {}, [], [], tmp_path, "docs/toy.md")
+    assert "| DGT-Map | 17/18 |" in text

@@ -128,7 +128,7 @@ BLOCKS: dict[str, dict[str, Renderer]] = {
 }
 """Each file's generated blocks and the function that renders each."""
 
-_BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w:./-]+) -->\n)(?P<body>.*?)"
+_BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w:./+-]+) -->\n)(?P<body>.*?)"
                     r"(<!-- end generated: (?P=name) -->)", re.S)
 
 
