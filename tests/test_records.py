@@ -159,12 +159,13 @@ def test_the_bottom_line_says_which_claims_reproduce_in_every_run_in_one_and_in_
                                    _record(1, hill, ascents_a=(2, 3), profile="paper")))
     gentle = next(c.short for c in claims.CLAIMS if c.text.startswith("Exp. 1: DGT-Map plans"))
     one = tables.bottom_line([demo])
-    assert one.startswith("Of the paper's claims checked here, ") and "on `demo` (2 seeds" in one
-    assert f"Reproduced: {gentle}" in one
+    assert one.startswith("Of the paper's claims checked here, `demo` (2 seeds")
+    assert f"reproduces 1 of 1 — {gentle}." in one
     both = tables.bottom_line([demo, paper])
-    assert "on `demo` (2 seeds (0, 1)" in both and "on `paper` (2 seeds (0, 1)" in both
-    assert f"Only on `demo`: {gentle}." in both  # a route claim holds only in every seed
-    assert "Reproduced in both runs" not in both.split(f"Only on `demo`: {gentle}.")[1]
+    assert "`demo` (2 seeds (0, 1)" in both and "`paper` (2 seeds (0, 1)" in both
+    assert f"only on `demo`: {gentle}." in both  # a route claim holds only in every seed
+    assert "in both runs" not in both.split(f"only on `demo`: {gentle}.")[1]
+    assert both.count(". ") <= 1, "the bottom line is at most two sentences"
     for claim in claims.CLAIMS:  # every claim checked is named once, in one group
         if not claim.ours:
             assert both.count(claim.short) <= 1

@@ -142,28 +142,32 @@ def verdicts_by_key(run: Run) -> dict[str, Verdict]:
 
 
 def bottom_line(runs: Sequence[Run]) -> str:
-    """Two sentences over the cited runs: how many of the paper's claims checked here each
-    reproduces, then which (in every run, in some, in none)."""
+    """At most two sentences over the cited runs: how many of the paper's claims checked
+    here each reproduces and which (in every run, in one only), then which in none."""
     checked = [{s: v.reproduced for s, v, ours in verdicts(r)
                 if not ours and v.reproduced is not None} for r in runs]
     names = list(dict.fromkeys(s for c in checked for s in c))
-    where = [f"{sum(c.values())} of {len(c)} on `{r.profile}` ({seed_text(r.seeds)}, "
-             f"{r.processor})" for r, c in zip(runs, checked, strict=True)]
-    text = "Of the paper's claims checked here, " + " and ".join(where) + " reproduce."
-    if len(runs) == 1:
-        groups = [("Reproduced", all), ("Not reproduced", lambda yes: not any(yes))]
-    else:
-        two = len(runs) == 2
-        groups = [(f"Reproduced in {'both runs' if two else 'every run'}", all)]
-        groups += [(f"Only on `{r.profile}`",
-                    lambda yes, i=i: yes[i] and not all(yes)) for i, r in enumerate(runs)]
-        groups += [("In neither" if two else "In none", lambda yes: not any(yes))]
-    parts = []
-    for label, keep in groups:
+
+    def which(keep) -> str:
         these = [s for s in names if keep([c.get(s, False) for c in checked])]
-        if these:
-            parts.append(f"{label}: " + "; ".join(these) + ".")
-    return text + " " + " ".join(parts) + "\n"
+        return ", ".join(these[:-1]) + " and " + these[-1] if len(these) > 1 else "".join(these)
+
+    where = [f"`{r.profile}` ({seed_text(r.seeds)}, {r.processor}) reproduces "
+             f"{sum(c.values())} of {len(c)}" for r, c in zip(runs, checked, strict=True)]
+    if len(runs) == 1:
+        groups = [("", all)]
+    else:
+        groups = [(f"in {'both runs' if len(runs) == 2 else 'every run'}: ", all)]
+        groups += [(f"only on `{r.profile}`: ", lambda yes, i=i: yes[i] and not all(yes))
+                   for i, r in enumerate(runs)]
+    found = [label + which(keep) for label, keep in groups if which(keep)]
+    text = "Of the paper's claims checked here, " + " and ".join(where)
+    text += (" — " + "; ".join(found) if found else "") + "."
+    none = which(lambda yes: not any(yes))
+    if none:
+        text += (" Not reproduced: " if len(runs) == 1 else
+                 f" Reproduced in {'neither' if len(runs) == 2 else 'none'}: ") + none + "."
+    return text + "\n"
 
 
 def provenance_table(run: Run) -> str:
