@@ -154,12 +154,10 @@ def bottom_line(runs: Sequence[Run]) -> str:
 
     where = [f"`{r.profile}` ({seed_text(r.seeds)}, {r.processor}) reproduces "
              f"{sum(c.values())} of {len(c)}" for r, c in zip(runs, checked, strict=True)]
-    if len(runs) == 1:
-        groups = [("", all)]
-    else:
-        groups = [(f"in {'both runs' if len(runs) == 2 else 'every run'}: ", all)]
-        groups += [(f"only on `{r.profile}`: ", lambda yes, i=i: yes[i] and not all(yes))
-                   for i, r in enumerate(runs)]
+    groups = [("", all)] if len(runs) == 1 else [
+        (f"in {'both runs' if len(runs) == 2 else 'every run'}: ", all),
+        *[(f"only on `{r.profile}`: ", lambda yes, i=i: yes[i] and not all(yes))
+          for i, r in enumerate(runs)]]
     found = [label + which(keep) for label, keep in groups if which(keep)]
     text = "Of the paper's claims checked here, " + " and ".join(where)
     text += (" — " + "; ".join(found) if found else "") + "."
