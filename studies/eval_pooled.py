@@ -12,10 +12,12 @@ poses, labels and train/val/test split); then report
   by dense evaluation;
 - the dense costmap's time per world (all 8 headings, 4 vehicles).
 
-Nothing of the profile is rebuilt (it stops if an artifact is not cached fresh). Results go
-to ``data/pooled/``.
+Nothing of the profile is rebuilt (it stops if an artifact is not cached fresh). Each
+seed's results go to ``data/pooled/``; ``--stored`` prints (and ``--publish`` publishes)
+the tables from those alone, ``--tag _d4`` keeps a variant's files and record apart.
 
-    DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3
+    DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3 --publish
+    DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3 --depth 4 --tag _d4
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from dgt_lib.evaluation import accuracy  # noqa: E402
 from dgt_lib.learning.checkpoints import load_checkpoint  # noqa: E402
 from dgt_lib.learning.training import evaluate  # noqa: E402
 from dgt_lib.perception.dataset import TEST, TRAIN  # noqa: E402
+from dgt_lib.records.study import table  # noqa: E402
 from dgt_lib.stages.collect import ensure_bev  # noqa: E402
 from dgt_lib.stages.costmaps import EXPERIMENT_VEHICLES, ensure_world_costmaps  # noqa: E402
 from dgt_lib.stages.dataset import ensure_dataset  # noqa: E402
@@ -139,77 +142,97 @@ def _mean(values) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
-def test_lines(records: list[dict], key: str, name: str) -> list[str]:
-    """A markdown table of test MSE per seed and mean Spearman ρ per vehicle, the network
-    ``records[i]["test"][key]`` beside DGTNet (``["dgt"]``)."""
-    lines = [f"| vehicle | test MSE {name} (seeds) | test MSE DGTNet (seeds) | ρ {name} | "
-             "ρ DGTNet |", "|---|---|---|---|---|"]
+def _percent(share: float | None) -> str:
+    """A share as whole percent; "—" where it is undefined (no cell of the world has a
+    harder direction in the truth)."""
+    return "—" if share is None or not np.isfinite(share) else f"{100 * share:.0f}"
+
+
+def _test_table(records: list[dict]) -> dict:
+    """Test MSE per seed and mean Spearman ρ per vehicle, PooledNet beside DGTNet."""
+    rows = []
     for v in VEHICLES:
-        c = [r["test"][key][v] for r in records if v in r["test"][key]]
+        c = [r["test"]["pooled"][v] for r in records if v in r["test"]["pooled"]]
         d = [r["test"]["dgt"][v] for r in records if v in r["test"]["dgt"]]
-        mse_c = ", ".join(f"{m['mse']:.4f}" for m in c)
-        mse_d = ", ".join(f"{m['mse']:.4f}" for m in d)
-        lines.append(f"| {v} | {mse_c} | {mse_d} | {_mean(m['spearman'] for m in c):.2f} | "
-                     f"{_mean(m['spearman'] for m in d):.2f} |")
-    return lines
+        rows.append([v, ", ".join(f"{m['mse']:.4f}" for m in c),
+                     ", ".join(f"{m['mse']:.4f}" for m in d),
+                     f"{_mean(m['spearman'] for m in c):.2f}",
+                     f"{_mean(m['spearman'] for m in d):.2f}"])
+    return table("The test split: MSE of L̂ seed by seed, Spearman ρ mean over the seeds",
+                 ["vehicle", "test MSE, PooledNet", "test MSE, DGTNet", "ρ, PooledNet",
+                  "ρ, DGTNet"], rows)
 
 
-def accuracy_lines(records: list[dict]) -> list[str]:
-    """A markdown table of the seeds' ground-truth accuracy rows, means over the seeds."""
-    lines = ["| world, vehicle | method | MAE (mean over seeds) | ρ | contrast: truth / "
-             "method | same sign |", "|---|---|---|---|---|---|"]
-    keys = list(dict.fromkeys((a["world"], a["vehicle"], a["method"])
-                              for a in records[0]["accuracy"]))
-    for w, v, m in keys:
-        rows = [a for r in records for a in r["accuracy"]
-                if (a["world"], a["vehicle"], a["method"]) == (w, v, m)]
-        lines.append(f"| {w}, {v} | {m} | {_mean(a['mae'] for a in rows):.3f} | "
-                     f"{_mean(a['spearman'] for a in rows):.2f} | "
-                     f"{_mean(a['contrast_true'] for a in rows):.2f} / "
-                     f"{_mean(a['contrast'] for a in rows):.2f} | "
-                     f"{100 * _mean(a['sign_agreement'] for a in rows):.0f} % |")
-    return lines
+def _accuracy_table(records: list[dict]) -> dict:
+    """Per world and vehicle: each network's MAE against the measured ground truth (means
+    over the seeds) and in how many seeds PooledNet's is the lower."""
+    pairs = list(dict.fromkeys((a["world"], a["vehicle"]) for a in records[0]["accuracy"]))
+    rows = []
+    for w, v in pairs:
+        mae = [{a["method"]: a["mae"] for a in r["accuracy"] if (a["world"], a["vehicle"])
+                == (w, v)} for r in records]
+        rho = {m: _mean(a["spearman"] for r in records for a in r["accuracy"]
+                        if (a["world"], a["vehicle"], a["method"]) == (w, v, m))
+               for m in ("dgt", "pooled")}
+        sign = {m: " / ".join(_percent(a["sign_agreement"]) for r in records
+                              for a in r["accuracy"]
+                              if (a["world"], a["vehicle"], a["method"]) == (w, v, m))
+                for m in ("dgt", "pooled")}
+        lower = sum(m["pooled"] < m["dgt"] for m in mae)
+        rows.append([f"{w}, {v}", f"{_mean(m['dgt'] for m in mae):.3f}",
+                     f"{_mean(m['pooled'] for m in mae):.3f}", f"{lower} of {len(mae)}",
+                     f"{rho['dgt']:.2f}", f"{rho['pooled']:.2f}",
+                     f"{sign['dgt']} · {sign['pooled']} (%)"])
+    return table("Against the measured ground truth (lower MAE is closer), means over the "
+                 "seeds", ["world, vehicle", "MAE, DGT-Map (DGTNet)", "MAE, PooledNet (dense)",
+                           "seeds where PooledNet's is lower", "ρ, DGTNet", "ρ, PooledNet",
+                           "harder direction on the right side, seed by seed: DGTNet · "
+                           "PooledNet"], rows)
 
 
-def report(records: list[dict]) -> str:
-    """Markdown tables over the seeds' records: test MSE, ground-truth accuracy, times."""
-    lines = [f"Seeds {[r['seed'] for r in records]}; {records[0]['architecture']}; "
-             f"{records[0]['params']:,} parameters; trained "
-             + ", ".join(f"{r['train_s']:.0f} s" for r in records) + ".", "",
-             *test_lines(records, "pooled", "PooledNet"), "", *accuracy_lines(records), "",
-             "Dense costmap (8 headings, 4 vehicles) wall / CPU [s]: "
-             + "; ".join(f"{w} {a['shape'][0]}×{a['shape'][1]}: {a['dense_s']:.1f} / "
-                         f"{a['dense_cpu_s']:.1f}"
-                         for w, a in {a["world"]: a for a in records[0]["accuracy"]
-                                      if "dense_s" in a}.items()),
-             "load average at the end of each seed: "
-             + "; ".join(" ".join(r["uptime"]) for r in records)]
-    return "\n".join(lines) + "\n"
+def _times_table(records: list[dict]) -> dict:
+    """Each seed's training time and its dense costmaps' wall / CPU time per world, with
+    the load average when the seed ended."""
+    worlds = [a["world"] for a in {a["world"]: a for a in records[0]["accuracy"]
+                                   if "dense_s" in a}.values()]
+    rows = []
+    for r in records:
+        dense = {a["world"]: a for a in r["accuracy"] if "dense_s" in a}
+        rows.append([r["seed"], f"{r['params']:,}", f"{r['train_s']:.0f}",
+                     *(f"{dense[w]['dense_s']:.1f} / {dense[w]['dense_cpu_s']:.1f}"
+                       for w in worlds), " ".join(r["uptime"])])
+    a = records[0]["architecture"]
+    return table(f"Time [s]: training, then the dense costmap (8 headings, 4 vehicles) per "
+                 f"world, wall / CPU; PooledNet width {a['width']}, depth {a['depth']}, fully "
+                 f"connected {a['fc_hidden']}",
+                 ["seed", "parameters", "training", *(f"{w} dense" for w in worlds),
+                  "load at the end"], rows)
 
 
 def main() -> None:
-    study = Study("eval_pooled", __doc__, profile="demo", seeds=1, publishes=False)
+    study = Study("eval_pooled", __doc__, profile="demo", seeds=1, stores=True)
     parser = study.parser
     parser.add_argument("--width", type=int, default=32)
     parser.add_argument("--depth", type=int, default=6)
     parser.add_argument("--fc-hidden", type=int, default=64)
     parser.add_argument("--reuse", action="store_true",
                         help="evaluate the networks a previous run saved, without training")
-    parser.add_argument("--tag", default="", help="suffix of the output files (variants)")
-    parser.add_argument("--report", action="store_true",
-                        help="only print the tables of the saved results of the run seeds")
+    parser.add_argument("--tag", default="", help="suffix of the output files and the "
+                                                  "record (variants, e.g. _d4)")
     args = study.parse()
-    run_seeds(args, study.seeds, "pooled", run_seed, report)
+    records = run_seeds(args, study.seeds, "pooled", run_seed)
+    study.finish({"test": _test_table(records), "accuracy": _accuracy_table(records),
+                  "times": _times_table(records)}, variant=args.tag.strip("_"))
 
 
-def run_seeds(args, seeds: list[int], subdir: str, run_seed, report) -> None:
-    """The seeds loop of an evaluation script: ``--report`` prints ``report`` of the saved
-    records of run seeds ``seeds``; otherwise each seed's ``run_seed(profile, args)`` record
-    (with the load average) is saved under ``data/<subdir>/`` (only reading the profile's
-    cache) and the report of all of them printed at the end."""
+def run_seeds(args, seeds: list[int], subdir: str, run_seed) -> list[dict]:
+    """The seeds loop of an evaluation script: each seed's ``run_seed(profile, args)``
+    record (with the load average) is saved under ``data/<subdir>/`` (only reading the
+    profile's cache); with ``--stored`` the saved records of run seeds ``seeds`` are read
+    instead. Returns the seeds' records."""
     out_dir = artifacts.data_root() / subdir
     paths = [out_dir / f"results{args.tag}_{args.profile}_seed{s}.json" for s in seeds]
-    if not args.report:
+    if not args.stored:
         artifacts.ensure = _load_only
         torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
         base = as_profile(args.profile)
@@ -218,7 +241,7 @@ def run_seeds(args, seeds: list[int], subdir: str, run_seed, report) -> None:
             record["uptime"] = open("/proc/loadavg").read().split()[:3]
             path.write_text(json.dumps(record, indent=1))
             print(f"wrote {path}", flush=True)
-    print(report([json.loads(path.read_text()) for path in paths]))
+    return [json.loads(path.read_text()) for path in paths]
 
 
 if __name__ == "__main__":
