@@ -32,7 +32,7 @@ from pathlib import Path
 
 from dgt_lib.core.artifacts import DATA_ENV_VAR
 from dgt_lib.core.config import PROFILE_NAMES, get_profile
-from dgt_lib.core.faults import sigterm_as_interrupt
+from dgt_lib.core.faults import Terminated, sigterm_as_interrupt
 from dgt_lib.records.study import publish_study, render_table, study_record
 
 _HELD = contextlib.ExitStack()
@@ -51,6 +51,7 @@ class Study:
         each evaluation as it finishes, and ``--stored`` prints (and publishes) from those
         alone."""
         self.name = name
+        self.stores = stores
         self.several_profiles = several_profiles
         self.parser = argparse.ArgumentParser(
             prog=f"studies/{name}.py", description=(doc or name).strip(),
@@ -84,6 +85,7 @@ class Study:
         here on SIGTERM (``kill``, a scheduler) stops the study as Ctrl-C does: training
         snapshots are written, temporary folders removed, stored scores kept."""
         _HELD.enter_context(sigterm_as_interrupt())  # for the life of the process
+        sys.excepthook = _one_line_when_stopped(self.name, self.stores, sys.excepthook)
         self.argv = list(sys.argv[1:] if argv is None else argv)
         self.args = self.parser.parse_args(self.argv)
         if self.several_profiles and not self.args.profile:
@@ -121,6 +123,19 @@ class Study:
             print(f"published {path}: quote its tables with <!-- generated: "
                   f"study:{path.stem}/<table> --> blocks and run `make docs`")
         return record
+
+
+def _one_line_when_stopped(name: str, stores: bool, previous):
+    """An exception hook that ends a study stopped by Ctrl-C or SIGTERM with one line, as
+    ``dgt`` does, instead of a traceback; any other exception goes to ``previous``."""
+    def hook(kind, value, traceback) -> None:
+        if not issubclass(kind, KeyboardInterrupt):
+            return previous(kind, value, traceback)
+        how = "terminated" if isinstance(value, Terminated) else "interrupted"
+        kept = ("every evaluation stored so far; the same command resumes from them" if stores
+                else "nothing of this study; the profile's cached artifacts are untouched")
+        print(f"studies/{name}.py: {how}. Kept: {kept}.", file=sys.stderr)
+    return hook
 
 
 def link(target: Path, link_path: Path) -> None:

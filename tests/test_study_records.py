@@ -138,9 +138,11 @@ def test_a_study_stopped_by_sigterm_cleans_up_as_on_ctrl_c(tmp_path):
     assert proc.stdout.readline().strip() == "ready"
     assert len(list(tmp_path.iterdir())) == 1
     proc.send_signal(signal.SIGTERM)
-    proc.communicate(timeout=30)
+    _, err = proc.communicate(timeout=30)
     assert proc.returncode != 0
     assert list(tmp_path.iterdir()) == []  # the finally block ran
+    assert err.strip() == ("studies/toy.py: terminated. Kept: nothing of this study; the "
+                           "profile's cached artifacts are untouched.")  # one line, no traceback
 
 
 def test_a_notebook_quoting_a_study_is_rendered_in_its_markdown_cell_alone(tmp_path):
