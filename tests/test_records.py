@@ -12,6 +12,7 @@ from dgt_lib.core.config import get_profile
 from dgt_lib.records import claims, documents, tables
 from dgt_lib.records.publish import MAX_RECORD_BYTES, publish, run_name
 from dgt_lib.records.record import seed_record, write_seed_record
+from dgt_lib.stages.timings import record_stage_time
 from tests.test_report import _experiment3
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -67,9 +68,14 @@ def test_publish_copies_every_seed_with_its_stage_times(tmp_path, monkeypatch):
     prof = get_profile("smoke").with_(seeds=2)
     for p in prof.seed_profiles():
         write_seed_record([_experiment3()], p)
+    seed0 = prof.seed_profiles()[0]
+    record_stage_time(seed0, "experiments", 30.0, run="a", started_unix_s=0, load_before=1.0)
+    robust = seed0.with_overrides({"experiments.controller": "robust"})  # a variant, not the run
+    record_stage_time(robust, "experiments", 99.0, run="b", started_unix_s=9, load_before=1.0)
     folder = publish(prof, dest=tmp_path / "runs")
     run = tables.Run.load(folder)
     assert run.seeds == [0, 1] and run.profile == "smoke"
+    assert [t["seconds"] for t in run.records[0]["stage_times"]] == [30.0]
     assert all(len(p.read_bytes()) <= MAX_RECORD_BYTES for p in folder.glob("seed-*.json"))
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.records.provenance import ROOT, processor_slug
 from dgt_lib.records.record import seed_summaries
-from dgt_lib.stages.timings import stage_times_path
+from dgt_lib.stages.timings import read_stage_times
 
 RUNS = ROOT / "docs" / "runs"
 """Where published runs live in the checkout."""
@@ -26,15 +26,11 @@ MAX_RECORD_BYTES = 50_000
 
 
 def stage_times(profile: str, seed: int) -> list[dict]:
-    """The stage-time entries of one seed (every invocation), oldest first, trimmed to
-    stage, seconds, load and start."""
-    path = stage_times_path(profile)
-    if not path.exists():
-        return []
+    """The stage-time entries of one seed (every invocation of the profile's own settings:
+    not those run with ``--set``), oldest first, trimmed to stage, seconds, load and start."""
     keep = ("stage", "seconds", "load_1min_before", "started_utc")
-    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    return [{k: r.get(k) for k in keep} for r in rows
-            if r.get("seed") == seed and r.get("profile") == profile]
+    return [{k: r.get(k) for k in keep} for r in read_stage_times(profile)
+            if r.get("seed") == seed and r.get("profile") == profile and not r.get("overrides")]
 
 
 def run_name(records: list[dict]) -> str:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.core.faults import is_storage_error
+from dgt_lib.core.overrides import format_setting
 from dgt_lib.stages.paths import profile_root
 
 STAGE_TIMES_NAME = "stage_times.jsonl"
@@ -57,7 +58,8 @@ def record_stage_time(profile: Profile, stage: str, seconds: float, *, run: str,
     ``profile`` is the seed's profile (its ``seed`` is recorded); ``seconds`` the stage's
     wall time; ``run`` names the ``dgt reproduce`` invocation (:func:`new_run_id`);
     ``started_unix_s`` when the stage started [s since the epoch]; ``load_before`` the
-    1-minute load average then (:func:`machine_load`)."""
+    1-minute load average then (:func:`machine_load`). A run with changed settings
+    (``--set``) records them, so its times are kept apart from the profile's own."""
     prof = as_profile(profile)
     record = {
         "run": run, "started_utc": utc_text(started_unix_s),
@@ -65,6 +67,7 @@ def record_stage_time(profile: Profile, stage: str, seconds: float, *, run: str,
         "seconds": round(float(seconds), 1), "load_1min_before": load_before,
         "cpus": os.cpu_count(), "workers": prof.workers,
         "executor": prof.execution.executor, "device": prof.execution.device,
+        "overrides": {k: format_setting(v) for k, v in prof.overrides},  # --set, if any
     }
     path = stage_times_path(prof)
     try:
