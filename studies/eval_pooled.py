@@ -228,8 +228,8 @@ def main() -> None:
 def run_seeds(args, seeds: list[int], subdir: str, run_seed) -> list[dict]:
     """The seeds loop of an evaluation script: each seed's ``run_seed(profile, args)``
     record (with the load average) is saved under ``data/<subdir>/`` (only reading the
-    profile's cache); with ``--stored`` the saved records of run seeds ``seeds`` are read
-    instead. Returns the seeds' records."""
+    profile's cache), a seed already saved there is not run again; with ``--stored`` the
+    saved records of run seeds ``seeds`` are read instead. Returns the seeds' records."""
     out_dir = artifacts.data_root() / subdir
     paths = [out_dir / f"results{args.tag}_{args.profile}_seed{s}.json" for s in seeds]
     if not args.stored:
@@ -237,6 +237,9 @@ def run_seeds(args, seeds: list[int], subdir: str, run_seed) -> list[dict]:
         torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
         base = as_profile(args.profile)
         for seed, path in zip(seeds, paths, strict=True):
+            if path.exists() and not args.reuse:  # a rerun resumes after the stored seeds
+                print(f"[seed {seed}] stored: {path}", flush=True)
+                continue
             record = run_seed(base.with_(seed=seed), args)
             record["uptime"] = open("/proc/loadavg").read().split()[:3]
             path.write_text(json.dumps(record, indent=1))
