@@ -16,7 +16,30 @@ from __future__ import annotations
 
 import argparse
 
-from dgt_lib.stages.timings import last_run, read_stage_times, stage_time_table, stage_times_path
+from dgt_lib.stages.timings import read_stage_times, stage_times_path
+
+
+def last_run(records: list[dict]) -> list[dict]:
+    """The records of the latest ``dgt reproduce`` invocation in ``records``."""
+    return [r for r in records if r.get("run") == records[-1].get("run")] if records else []
+
+
+def stage_time_table(records: list[dict]) -> str:
+    """A markdown table of ``records`` (one row each, in the order they ran) with each
+    seed's total wall time."""
+    if not records:
+        return "(no stage times recorded)"
+    lines = ["| seed | stage | wall [s] | load before | started (UTC) |",
+             "| --- | --- | --- | --- | --- |"]
+    totals: dict[int, float] = {}
+    for r in records:
+        load = "—" if r.get("load_1min_before") is None else f"{r['load_1min_before']:.2f}"
+        lines.append(f"| {r['seed']} | {r['stage']} | {r['seconds']:,.1f} | {load} | "
+                     f"{r['started_utc']} |")
+        totals[r["seed"]] = totals.get(r["seed"], 0.0) + r["seconds"]
+    for seed, total in totals.items():
+        lines.append(f"| {seed} | **total** | **{total:,.1f}** | | |")
+    return "\n".join(lines)
 
 
 def main() -> None:

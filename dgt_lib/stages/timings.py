@@ -6,8 +6,8 @@ when it started, the CPU count and how the jobs ran. Appending per stage keeps w
 finished when a run is interrupted or crashes later, and a stage that was already cached
 shows as a fraction of a second. On a data directory that cannot be written (read-only,
 full) the times are not recorded, with one note on stderr, and the run goes on. A run's
-per-stage breakdown (:func:`stage_time_table`,
-``benchmarks/stage_times.py``) can then be quoted from what the code wrote.
+per-stage breakdown (``benchmarks/stage_times.py``, a published run's records) can then be
+quoted from what the code wrote.
 """
 
 from __future__ import annotations
@@ -101,26 +101,3 @@ def read_stage_times(profile: Profile | str | None) -> list[dict]:
         except json.JSONDecodeError:
             continue
     return records
-
-
-def last_run(records: list[dict]) -> list[dict]:
-    """The records of the latest ``dgt reproduce`` invocation in ``records``."""
-    return [r for r in records if r.get("run") == records[-1].get("run")] if records else []
-
-
-def stage_time_table(records: list[dict]) -> str:
-    """A markdown table of ``records`` (one row each, in the order they ran) with each
-    seed's total wall time."""
-    if not records:
-        return "(no stage times recorded)"
-    lines = ["| seed | stage | wall [s] | load before | started (UTC) |",
-             "| --- | --- | --- | --- | --- |"]
-    totals: dict[int, float] = {}
-    for r in records:
-        load = "—" if r.get("load_1min_before") is None else f"{r['load_1min_before']:.2f}"
-        lines.append(f"| {r['seed']} | {r['stage']} | {r['seconds']:,.1f} | {load} | "
-                     f"{r['started_utc']} |")
-        totals[r["seed"]] = totals.get(r["seed"], 0.0) + r["seconds"]
-    for seed, total in totals.items():
-        lines.append(f"| {seed} | **total** | **{total:,.1f}** | | |")
-    return "\n".join(lines)
