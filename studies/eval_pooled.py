@@ -14,14 +14,18 @@ poses, labels and train/val/test split); then report
 
 Nothing of the profile is rebuilt (it stops if an artifact is not cached fresh). Each
 seed's results go to ``data/pooled/``; ``--stored`` prints (and ``--publish`` publishes)
-the tables from those alone, ``--tag _d4`` keeps a variant's files and record apart.
+the tables from those alone, ``--tag _d4`` keeps a variant's files and record apart, and
+``--sizes _d4 …`` adds a table of every stored size's error beside the record's own.
 
     DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3 --publish
     DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3 --depth 4 --tag _d4
+    DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3 --stored \
+        --sizes _d4 --publish
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import time
@@ -209,6 +213,33 @@ def _times_table(records: list[dict]) -> dict:
                   "load at the end"], rows)
 
 
+def _sizes_table(variants: list[list[dict]]) -> dict:
+    """Each network size's MAE against the measured ground truth per world and vehicle
+    (means over the seeds), DGTNet's first, and in how many vehicle-seeds its test MSE is
+    below DGTNet's; ``variants``: each size's seed records, smallest first."""
+    def label(records):
+        a = records[0]["architecture"]
+        return f"width {a['width']}, depth {a['depth']}"
+
+    def mae(records, w, v, method):
+        return _mean(a["mae"] for r in records for a in r["accuracy"]
+                     if (a["world"], a["vehicle"], a["method"]) == (w, v, method))
+
+    def below(records):
+        pairs = [(r["test"]["pooled"][v]["mse"], r["test"]["dgt"][v]["mse"])
+                 for r in records for v in r["test"]["pooled"]]
+        return f"{sum(c < d for c, d in pairs)} of {len(pairs)} vehicle-seeds"
+
+    first = variants[0]
+    pairs = list(dict.fromkeys((a["world"], a["vehicle"]) for a in first[0]["accuracy"]))
+    rows = [[f"{w}, {v}", f"{mae(first, w, v, 'dgt'):.3f}",
+             *(f"{mae(rs, w, v, 'pooled'):.3f}" for rs in variants)] for w, v in pairs]
+    rows.append(["test MSE below DGTNet's", "—", *(below(rs) for rs in variants)])
+    return table("MAE against the measured ground truth by PooledNet's size, means over the "
+                 "seeds", ["world, vehicle", "DGT-Map (DGTNet)",
+                           *(f"PooledNet {label(rs)}" for rs in variants)], rows)
+
+
 def main() -> None:
     study = Study("eval_pooled", __doc__, profile="demo", seeds=1, stores=True)
     parser = study.parser
@@ -219,10 +250,22 @@ def main() -> None:
                         help="evaluate the networks a previous run saved, without training")
     parser.add_argument("--tag", default="", help="suffix of the output files and the "
                                                   "record (variants, e.g. _d4)")
+    parser.add_argument("--sizes", nargs="+", default=[], metavar="TAG",
+                        help="with --stored: the stored variants to set beside this one in "
+                             "a table by size (e.g. _d4 _d8)")
     args = study.parse()
+    if args.sizes and not args.stored:
+        parser.error("--sizes reads stored variants: add --stored")
     records = run_seeds(args, study.seeds, "pooled", run_seed)
-    study.finish({"test": _test_table(records), "accuracy": _accuracy_table(records),
-                  "times": _times_table(records)}, variant=args.tag.strip("_"))
+    tables = {"test": _test_table(records), "accuracy": _accuracy_table(records),
+              "times": _times_table(records)}
+    if args.sizes:
+        variants = [records] + [run_seeds(argparse.Namespace(**{**vars(args), "tag": t}),
+                                          study.seeds, "pooled", run_seed) for t in args.sizes]
+        variants.sort(key=lambda rs: (rs[0]["architecture"]["width"],
+                                      rs[0]["architecture"]["depth"]))
+        tables["sizes"] = _sizes_table(variants)
+    study.finish(tables, variant=args.tag.strip("_"))
 
 
 def run_seeds(args, seeds: list[int], subdir: str, run_seed) -> list[dict]:

@@ -42,3 +42,20 @@ def test_the_times_table_has_one_row_per_seed_with_each_world_dense():
     assert [r[0] for r in tab["rows"]] == ["0", "4"]
     assert tab["columns"][3:5] == ["hill dense", "ridge dense"]
     assert tab["rows"][0][3] == "1.5 / 2.9" and "depth 6" in tab["title"]
+
+
+def test_the_sizes_table_sets_each_size_beside_dgtnet_and_counts_its_test_wins():
+    small = [_seed(0, 0.10), _seed(1, 0.30)]
+    large = [{**_seed(s, 0.12), "architecture": {"width": 64, "depth": 4, "fc_hidden": 64}}
+             for s in (0, 1)]
+    for r in large:  # the larger net beats DGTNet's test MSE for the jeep alone
+        r["test"] = {"pooled": {"jeep": {"mse": 0.005, "spearman": 0.4},
+                                "carla_cola": {"mse": 0.02, "spearman": 0.4}},
+                     "dgt": r["test"]["dgt"]}
+    tab = eval_pooled._sizes_table([small, large])
+    assert tab["columns"][1:] == ["DGT-Map (DGTNet)", "PooledNet width 32, depth 6",
+                                  "PooledNet width 64, depth 4"]
+    hill = tab["rows"][0]
+    assert hill == ["hill, carla_cola", "0.200", "0.200", "0.120"]
+    assert tab["rows"][-1] == ["test MSE below DGTNet's", "—", "0 of 4 vehicle-seeds",
+                               "2 of 4 vehicle-seeds"]
