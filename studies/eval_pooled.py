@@ -15,7 +15,7 @@ poses, labels and train/val/test split); then report
 Nothing of the profile is rebuilt (it stops if an artifact is not cached fresh). Each
 seed's results go to ``data/pooled/``; ``--stored`` prints (and ``--publish`` publishes)
 the tables from those alone, ``--tag _d4`` keeps a variant's files and record apart, and
-``--sizes _d4 …`` adds a table of every stored size's error beside the record's own.
+``--sizes _d4 …`` adds a table of those stored sizes' errors beside the record's own.
 
     DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3 --publish
     DGT_DATA_DIR=... python studies/eval_pooled.py --profile demo --seeds 3 --depth 4 --tag _d4
@@ -251,16 +251,15 @@ def main() -> None:
     parser.add_argument("--tag", default="", help="suffix of the output files and the "
                                                   "record (variants, e.g. _d4)")
     parser.add_argument("--sizes", nargs="+", default=[], metavar="TAG",
-                        help="with --stored: the stored variants to set beside this one in "
-                             "a table by size (e.g. _d4 _d8)")
+                        help="the stored variants (run before with --tag) to set beside this "
+                             "one in a table by size (e.g. _d4 _d8)")
     args = study.parse()
-    if args.sizes and not args.stored:
-        parser.error("--sizes reads stored variants: add --stored")
     records = run_seeds(args, study.seeds, "pooled", run_seed)
     tables = {"test": _test_table(records), "accuracy": _accuracy_table(records),
               "times": _times_table(records)}
     if args.sizes:
-        variants = [records] + [run_seeds(argparse.Namespace(**{**vars(args), "tag": t}),
+        stored = argparse.Namespace(**{**vars(args), "stored": True})
+        variants = [records] + [run_seeds(argparse.Namespace(**{**vars(stored), "tag": t}),
                                           study.seeds, "pooled", run_seed) for t in args.sizes]
         variants.sort(key=lambda rs: (rs[0]["architecture"]["width"],
                                       rs[0]["architecture"]["depth"]))
@@ -287,6 +286,10 @@ def run_seeds(args, seeds: list[int], subdir: str, run_seed) -> list[dict]:
             record["uptime"] = open("/proc/loadavg").read().split()[:3]
             path.write_text(json.dumps(record, indent=1))
             print(f"wrote {path}", flush=True)
+    missing = [str(path) for path in paths if not path.exists()]
+    if missing:
+        raise SystemExit(f"not stored: {', '.join(missing)} (run the seeds first"
+                         + (f", with --tag {args.tag})" if args.tag else ")"))
     return [json.loads(path.read_text()) for path in paths]
 
 
