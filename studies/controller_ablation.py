@@ -95,11 +95,33 @@ def experiment_table(name: str, by_controller: dict[str, list[tuple[int, Experim
                   "flipped", "other", "driven cost"], rows)
 
 
+def by_seed(name: str, by_controller: dict[str, list[tuple[int, ExperimentResult]]]) -> dict:
+    """Arrivals k/n seed by seed: one row per (vehicle, method, controller), one column per
+    run seed (what a table pooled over the seeds hides)."""
+    seeds = [seed for seed, _ in next(iter(by_controller.values()))]
+    first = [res for _, res in next(iter(by_controller.values()))]
+    rows = []
+    for vehicle in sorted({r.task.vehicle for res in first for r in res.results}):
+        for method in METHODS:
+            for controller, runs in by_controller.items():
+                cells = []
+                for _, res in runs:
+                    rs = [r for r in res.results
+                          if r.task.vehicle == vehicle and r.task.method == method]
+                    cells.append(f"{sum(r.outcome.success for r in rs)}/{len(rs)}")
+                if any(not c.endswith("/0") for c in cells):
+                    rows.append([vehicle, METHOD_LABELS[method], controller, *cells])
+    return table(f"{name} ({first[0].world}), arrivals k/n seed by seed",
+                 ["vehicle", "method", "controller", *(f"seed {s}" for s in seeds)], rows)
+
+
 def arrivals_by_controller(tables: dict[str, dict], controllers: list[str]) -> dict:
     """The experiments' arrivals side by side: one row per (experiment, vehicle, method),
     one column per controller, k/n pooled over the seeds."""
     rows = []
-    for tab in tables.values():
+    for key, tab in tables.items():
+        if key.endswith("_seeds"):
+            continue
         cells: dict[tuple[str, str], dict[str, str]] = {}
         for vehicle, method, controller, arrived, *_ in tab["rows"]:
             cells.setdefault((vehicle, method), {})[controller] = arrived.split(" ")[0]
@@ -167,6 +189,8 @@ def main() -> None:
             print(f"{name}: not every controller has every seed; skipped")
             continue
         tables[name] = experiment_table(name, seeded, args.profile)
+        if len(study.seeds) > 1:
+            tables[f"{name}_seeds"] = by_seed(name, seeded)
         if name == "experiment1":
             lists["experiment1_failures"] = failures(seeded)
             routes = by_route(seeded)
