@@ -258,8 +258,8 @@ def main() -> None:
     tables = {"test": _test_table(records), "accuracy": _accuracy_table(records),
               "times": _times_table(records)}
     if args.sizes:
-        stored = argparse.Namespace(**{**vars(args), "stored": True})
-        variants = [records] + [run_seeds(argparse.Namespace(**{**vars(stored), "tag": t}),
+        variants = [records] + [run_seeds(argparse.Namespace(**{**vars(args), "stored": True,
+                                                                 "tag": t}),
                                           study.seeds, "pooled", run_seed) for t in args.sizes]
         variants.sort(key=lambda rs: (rs[0]["architecture"]["width"],
                                       rs[0]["architecture"]["depth"]))
