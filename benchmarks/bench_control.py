@@ -13,7 +13,8 @@ and prints the ratio: ``python benchmarks/bench_control.py --terrain-weight 0.05
 (``experiments.controller``: ``robust`` adds the breakaway model, the first-step critic and
 the roll limit): ``python benchmarks/bench_control.py --terrain-weight 0.05 --controller robust``.
 ``--cpu-time`` times each call by this thread's CPU time instead of the wall clock: on
-cores shared with other work, the compute without the waits for a core.
+cores shared with other work, the compute without the waits for a core. ``--publish``
+writes the per-call table's record (``benchmarks/publish.py``) for docs/speed.md.
 """
 
 import os
@@ -27,6 +28,7 @@ import math  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from publish import Benchmark  # noqa: E402
 
 from dgt_lib.core.controller import CONTROLLERS, MPPIConfig, controller_settings  # noqa: E402
 from dgt_lib.core.geometry import GridSpec  # noqa: E402
@@ -39,6 +41,7 @@ from dgt_lib.navigation.control.bicycle import (  # noqa: E402
 from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E402
 from dgt_lib.navigation.control.mppi_config import vehicle_footprint  # noqa: E402
 from dgt_lib.navigation.control.sampling import draw_noise  # noqa: E402
+from dgt_lib.records.study import table  # noqa: E402
 
 WHEELBASE_M, MAX_STEER_RAD = 2.46, math.radians(35.0)  # the jeep
 CLOCK = {"now": time.perf_counter}  # ``--cpu-time``: time.thread_time
@@ -117,6 +120,7 @@ def main() -> None:
                     help="the terrain case's controller (its critic is the --terrain-weight)")
     ap.add_argument("--cpu-time", action="store_true",
                     help="time calls by the thread's CPU time (on busy cores)")
+    bench = Benchmark("bench_control", ap)
     args = ap.parse_args()
     if args.cpu_time:
         CLOCK["now"] = time.thread_time
@@ -135,13 +139,17 @@ def main() -> None:
              ("occupancy 200×400 grid, 1 circle", cfg, occ, grid),
              (f"occupancy, {len(van.footprint_offsets_m)} circles (trials)", van, occ, grid),
              ("batch 300 (tests)", MPPIConfig(batch_size=300), None, None)]
+    rows = []
     for label, c, o, g in cases:
         runs = {b: time_compute(c, o, g, backend=b) for b in BACKENDS}
         for b, (t, _) in runs.items():
             report(f"{b:<8} {label}", t)
         same = np.array_equal(runs["compiled"][1], runs["numpy"][1])
-        ratio = np.median(runs["numpy"][0]) / np.median(runs["compiled"][0])
-        print(f"{'':<9}compiled {ratio:.1f}× faster; the same commands: {same}")
+        compiled, numpy_ = (float(np.median(runs[b][0])) for b in ("compiled", "numpy"))
+        print(f"{'':<9}compiled {numpy_ / compiled:.1f}× faster; the same commands: {same}")
+        rows.append([label, f"{1e3 * compiled:.2f} ms", f"**{1 / compiled:.0f} Hz**",
+                     f"{1e3 * numpy_:.2f} ms", f"{numpy_ / compiled:.1f}×",
+                     "yes" if same else "**no**"])
 
     if args.terrain_weight is not None:
         terrain_case(dataclasses.replace(van, **controller_settings(args.controller)), occ,
@@ -151,6 +159,14 @@ def main() -> None:
     print(f"{'':<9}of which the noise draw (numpy's float32 normals, 2 × "
           f"{van.time_steps} × {van.batch_size}): {noise_ms:.2f} ms a call — a fixed cost: "
           "another generator would change every trial's samples")
+    rows.append(["of which the noise draw (2 × 56 × 1,000 normals, numpy's generator)",
+                 f"{noise_ms:.2f} ms", "", "", "", ""])
+    clock = "this thread's CPU time" if args.cpu_time else "wall clock"
+    bench.finish({"mppi": table(
+        f"MPPI per `compute` call, {cfg.batch_size} samples × {cfg.time_steps} steps, one "
+        f"thread, {clock} (median of 190 calls along an S-curve)",
+        ["case", "compiled (default)", "rate", "numpy reference", "speed-up",
+         "the same commands"], rows)}, args.publish)
 
     path = s_curve()
     ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)

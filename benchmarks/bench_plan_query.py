@@ -13,19 +13,23 @@ planner's own time as the command printed it; then the same query ``--repeats`` 
 through ``dgt_lib.plan_query`` in this process, as a notebook calls it (imports paid
 once). The commands run outside any checkout (in the temporary directory) with
 ``PYTHONPATH`` as given, so one script times two checkouts (give the other one this data
-directory with ``DGT_DATA_DIR``).
+directory with ``DGT_DATA_DIR``). ``--publish`` writes the table's record
+(``benchmarks/publish.py``) for docs/speed.md.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+
+from publish import Benchmark
+
+from dgt_lib.records.study import table
 
 QUERY = ["--world", "hill", "--vehicle", "carla_cola", "--start", "30,14,0.8",
          "--goal", "30,96", "--method", "dgt"]
@@ -50,11 +54,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--profile", default="demo")
     ap.add_argument("--repeats", type=int, default=5)
+    bench = Benchmark("bench_plan_query", ap)
     args = ap.parse_args()
     cmd = [sys.executable, "-m", "dgt_lib", "plan", *QUERY, "--profile", args.profile]
     _, where = timed([sys.executable, "-c", "import dgt_lib; print(dgt_lib.__file__)"])
-    print(f"dgt_lib from {where.strip()}, load average "
-          f"{os.getloadavg()[0]:.1f}; dgt plan {' '.join(QUERY)} --profile {args.profile}")
+    print(f"dgt_lib from {where.strip()}; dgt plan {' '.join(QUERY)} --profile {args.profile}")
     timed(cmd)  # fills the cache (and numba's) if needed
     walls, searches, imports = [], [], []
     for _ in range(args.repeats):
@@ -63,10 +67,6 @@ def main() -> None:
         found = re.search(r"expansions, ([0-9.]+) s", out)
         searches.append(float(found.group(1)) if found else float("nan"))
         imports.append(import_seconds())
-    print(f"dgt plan, whole command: median {statistics.median(walls):.2f} s "
-          f"(runs {', '.join(f'{w:.2f}' for w in walls)})")
-    print(f"  import dgt_lib.app.plan_one: median {statistics.median(imports):.2f} s; "
-          f"Hybrid A* search: median {statistics.median(searches):.2f} s")
     from dgt_lib.app.plan_one import plan_query
 
     start, goal = (30.0, 14.0, 0.8), (30.0, 96.0)
@@ -75,10 +75,18 @@ def main() -> None:
         t0 = time.perf_counter()
         plan_query("hill", "carla_cola", start, goal, method="dgt", profile=args.profile)
         calls.append(time.perf_counter() - t0)
-    print(f"plan_query in one process: first call {calls[0]:.2f} s, later calls median "
-          f"{statistics.median(calls[1:]):.2f} s")
-    print(f"load average at the end {os.getloadavg()[0]:.1f}")
-
+    med = statistics.median
+    rows = [["`dgt plan`, the whole command in a fresh process", f"**{med(walls):.2f} s**",
+             ", ".join(f"{w:.2f}" for w in walls)],
+            ["of which `import dgt_lib.app.plan_one`", f"{med(imports):.2f} s",
+             ", ".join(f"{w:.2f}" for w in imports)],
+            ["of which the Hybrid A* search", f"{med(searches):.2f} s",
+             ", ".join(f"{w:.2f}" for w in searches)],
+            ["`plan_query` again in one process (a notebook)", f"{med(calls[1:]):.2f} s",
+             f"first call {calls[0]:.2f}, then " + ", ".join(f"{w:.2f}" for w in calls[1:])]]
+    bench.finish({"plan": table(
+        f"`dgt plan {' '.join(QUERY)}`, maps cached (median of {args.repeats})",
+        ["what", "median", "each run [s]"], rows)}, args.publish, profile=args.profile)
 
 if __name__ == "__main__":
     main()

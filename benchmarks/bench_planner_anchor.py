@@ -48,10 +48,18 @@ import time
 from pathlib import Path
 
 import numpy as np
+from publish import Benchmark  # benchmarks/publish.py
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.planner import HybridAStar
+from dgt_lib.records.study import table
+
+SCENARIO_NAMES = {"main": "its own `main()`: 60 m box, two walls",
+                  "trees40": "40 trees, 120 m box",
+                  "wall_gap": "a wall with a 10 m gap at one end, 80 m box",
+                  "trees150": "150 trees, 120 m box"}
+"""How the table names each scenario."""
 
 RES_M, K = 0.4, 8
 WHEELBASE_M, MAX_STEER_RAD = 3.0, 0.6  # the anchor's car.py: WB, MAX_STEER
@@ -220,12 +228,12 @@ def main() -> None:
     parser.add_argument("--backends", default="compiled",
                         help="our search backends to time: compiled, python (comma-separated)")
     parser.add_argument("--seed", type=int, default=0, help="tree placement")
+    bench = Benchmark("bench_planner_anchor", parser)
     args = parser.parse_args()
     anchor = load_anchor(args.pythonrobotics)
     backends = args.backends.split(",")
     if "compiled" in backends:
         warm_up()
-    print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     all_sc = scenarios(args.seed)
     rows = []
     for name in args.scenarios.split(","):
@@ -236,39 +244,33 @@ def main() -> None:
             for side in (order if r % 2 == 0 else order[::-1]):
                 runs[side].append(run_anchor(anchor, sc) if side == "anchor"
                                   else run_ours(sc, side))
-        rows.append((sc, runs))
-        print_row(sc, runs, backends)
-    print(f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
-    print("\n| scenario | PythonRobotics | " + " | ".join(
-        f"ours ({b}) | plan only | expansions | speed-up" for b in backends) + " |")
-    print("| --- | --- | " + " | ".join("--- | --- | --- | ---" for _ in backends) + " |")
-    for sc, runs in rows:
-        print(markdown_row(sc, runs, backends))
+        rows.append(table_row(sc, runs, backends))
+        print(" | ".join(rows[-1]), flush=True)
+    columns = ["scenario", "PythonRobotics"]
+    for b in backends:
+        columns += [f"ours ({b})", "search only", "expansions", "speed-up"]
+    columns += ["path: PythonRobotics / ours"]
+    bench.finish({"anchor": table(
+        f"PythonRobotics' Hybrid A* against ours, set-up included (median of {args.repeats} "
+        f"run{'s' * (args.repeats > 1)} each, interleaved)", columns, rows)}, args.publish)
 
 
 def _median(runs, key):
     return float(np.median([r[key] for r in runs]))
 
 
-def print_row(sc: Scenario, runs: dict, backends) -> None:
+def table_row(sc: Scenario, runs: dict, backends) -> list[str]:
+    """One scenario's cells: the anchor's time, then per backend ours, the search alone,
+    expansions and the speed-up, then both paths' lengths."""
     a = _median(runs["anchor"], "time")
-    line = (f"{sc.name:9s} anchor {a:7.3f} s (path {runs['anchor'][0]['length']:6.1f} m"
-            f"{'' if runs['anchor'][0]['success'] else ', FAILED'})")
-    for b in backends:
-        r0 = runs[b][0]
-        t, p = _median(runs[b], "time"), _median(runs[b], "plan")
-        line += (f" | {b}: {t:7.3f} s (plan only {p:6.3f} s), {r0['expansions']:6d} exp,"
-                 f" cost {r0['cost']:7.2f}, {a / t:5.1f}×")
-    print(line, flush=True)
-
-
-def markdown_row(sc: Scenario, runs: dict, backends) -> str:
-    a = _median(runs["anchor"], "time")
-    cells = [sc.name, f"{a:.2f} s"]
+    cells = [SCENARIO_NAMES[sc.name],
+             f"{a:.2f} s" if runs["anchor"][0]["success"] else f"{a:.2f} s (no path)"]
     for b in backends:
         t, p = _median(runs[b], "time"), _median(runs[b], "plan")
-        cells += [f"{t:.3f} s", f"{p:.3f} s", f"{runs[b][0]['expansions']:,}", f"{a / t:.1f}×"]
-    return "| " + " | ".join(cells) + " |"
+        cells += [f"{t:.3f} s", f"{p:.3f} s", f"{runs[b][0]['expansions']:,}",
+                  f"**{a / t:.1f}×**"]
+    ours = runs[backends[0]][0]["length"]
+    return cells + [f"{runs['anchor'][0]['length']:.1f} / {ours:.1f} m"]
 
 
 if __name__ == "__main__":

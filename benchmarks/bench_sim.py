@@ -10,7 +10,8 @@ seconds spent inside ``mujoco.mj_step``: the kit's step runs at that fraction of
 speed of MuJoCo's own stepping of the same model with the same collisions (the rest
 is the kit's control, the underside gate, the checks and the state read-out).
 RGB-D frames/s at the onboard camera's resolution (``sim.CAMERA``), RGB and depth
-each rendered, on the training, hill and ridge worlds.
+each rendered, on the training, hill and ridge worlds. ``--publish`` writes both tables'
+record (``benchmarks/publish.py``) for docs/speed.md.
 """
 
 from __future__ import annotations
@@ -24,8 +25,10 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
+from publish import Benchmark  # noqa: E402
 
 from dgt_lib.core.config import VEHICLES, get_profile
+from dgt_lib.records.study import table
 from dgt_lib.world.mujoco_model import CAMERA
 from dgt_lib.world.simulator import CONTROL_DT_S, Simulator
 from dgt_lib.world.terrain import get_world
@@ -103,30 +106,39 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--profile", default=None, help="smoke | demo | paper (default $DGT_PROFILE)")
     ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds per vehicle")
+    bench = Benchmark("bench_sim", ap)
     args = ap.parse_args()
     profile = get_profile(args.profile)
     world = get_world("training", profile)
     print(f"profile {profile.name}: training world {world.grid.shape[1]}×{world.grid.shape[0]} "
           f"cells at {world.resolution} m, {len(world.trees)} trees")
-    print(f"physics, control at {1 / CONTROL_DT_S:.0f} Hz (PID speed controller):")
-    print("  (per wall second; per CPU second in brackets — the same on an idle machine;")
-    print("   physics share: the part of the wall time inside mujoco.mj_step)")
     physics_rtf(world, VEHICLES[0], 2.0)  # warm-up: the compiled gate loads once
+    physics = []
     for name in VEHICLES:
         with PhysicsClock() as clock:
             rtf, rtf_cpu, build_s = physics_rtf(world, name, args.seconds, clock)
-        share = clock.seconds / clock.driving_s
-        print(f"  {name:13s} {rtf:5.0f}× real time ({rtf_cpu:4.0f}×)   physics share "
-              f"{share:.2f}   model build {build_s:.2f} s")
-    print(f"RGB-D frames/s at {CAMERA.width}×{CAMERA.height} (RGB + depth), while driving:")
+        physics.append([name, f"**{rtf:.0f}×**", f"{rtf_cpu:.0f}×",
+                        f"{clock.seconds / clock.driving_s:.2f}", f"{build_s:.2f} s"])
+        print(" | ".join(physics[-1]), flush=True)
+    frames = []
     for name in ("training", "hill", "ridge"):
         w = get_world(name, profile)
         fps, fps_cpu = render_fps(w)
-        print(f"  {name:9s} ({w.grid.shape[1]}×{w.grid.shape[0]} cells) {fps:5.1f} fps "
-              f"({fps_cpu:5.1f})")
-    print(f"load average: {', '.join(f'{x:.1f}' for x in os.getloadavg())} "
-          f"on {os.cpu_count()} CPUs")
-
+        frames.append([name, f"{w.grid.shape[1]}×{w.grid.shape[0]}", f"**{fps:.1f}**",
+                       f"{fps_cpu:.1f}"])
+        print(" | ".join(frames[-1]), flush=True)
+    bench.finish({
+        "physics": table(
+            f"Physics on the training world ({world.grid.shape[1]}×{world.grid.shape[0]} cells), "
+            f"{args.seconds:g} simulated s per vehicle at 5 m/s, PID at "
+            f"{1 / CONTROL_DT_S:.0f} Hz; physics share: the part of the wall time inside "
+            "`mujoco.mj_step`",
+            ["vehicle", "real time per wall second", "per CPU second", "physics share",
+             "model build"], physics),
+        "frames": table(
+            f"RGB-D frames at {CAMERA.width}×{CAMERA.height} (RGB + depth) while driving the jeep",
+            ["world", "cells", "frames per wall second", "per CPU second"], frames)},
+        args.publish, profile=profile.name)
 
 if __name__ == "__main__":
     main()

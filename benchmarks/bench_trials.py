@@ -9,6 +9,7 @@ thread, with MPPI's ``compiled`` backend (the default) and its ``numpy`` referen
 prints wall seconds per simulated second, the share of ``MPPIController.compute`` in it,
 and whether each rerun gives the recorded trial again (plan, trajectory, outcome: the
 simulator is deterministic on one machine, so it should on the machine that recorded it).
+``--publish`` writes the table's record (``benchmarks/publish.py``) for docs/speed.md.
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from publish import Benchmark  # noqa: E402
 
 import dgt_lib.navigation.drive as drive_module  # noqa: E402
 from dgt_lib.core.config import get_profile  # noqa: E402
 from dgt_lib.evaluation.experiments import EXPERIMENTS  # noqa: E402
 from dgt_lib.evaluation.trials import TrialResult, _planner, run_trial  # noqa: E402
 from dgt_lib.navigation.control.mppi import BACKENDS, MPPIController  # noqa: E402
+from dgt_lib.records.study import table  # noqa: E402
 from dgt_lib.stages.experiments import (  # noqa: E402
     ensure_experiment,
     experiment_path,
@@ -64,6 +67,7 @@ def main() -> None:
     ap.add_argument("--profile", default="demo")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--every", type=int, default=20, help="rerun every n-th recorded trial")
+    bench = Benchmark("bench_trials", ap)
     args = ap.parse_args()
     prof = get_profile(args.profile).with_(seed=args.seed)
     drive_module.MPPIController = TimedMPPI
@@ -77,8 +81,8 @@ def main() -> None:
         _planner(*t, trial_maps)  # every costmap and planner loaded outside the timing
     run_trial(recorded[0].task, trial_maps)  # and the compiled code
     print(f"{args.profile} seed {args.seed}: {len(recorded)} recorded trials (every "
-          f"{args.every}-th), one thread, load average {os.getloadavg()[0]:.1f}")
-    wall = {}
+          f"{args.every}-th), one thread")
+    wall, rows = {}, []
     for backend in BACKENDS:
         TimedMPPI.backend_choice, TimedMPPI.seconds = backend, 0.0
         simulated, same, t0 = 0.0, 0, time.perf_counter()
@@ -87,12 +91,17 @@ def main() -> None:
             simulated += new.trajectory[-1, 0] if len(new.trajectory) else 0.0
             same += same_trial(new, old)
         wall[backend] = time.perf_counter() - t0
-        print(f"MPPI {backend:<8}: {wall[backend]:6.1f} s for {simulated:.0f} simulated s "
-              f"({wall[backend] / simulated:.3f} s per simulated s, MPPI "
-              f"{100 * TimedMPPI.seconds / wall[backend]:.0f} % of it); "
-              f"{same}/{len(recorded)} trials as recorded")
-    print(f"trials {wall['numpy'] / wall['compiled']:.2f}× faster with the compiled MPPI")
-
+        rows.append([f"`{backend}`", f"{wall[backend]:.1f} s", f"{simulated:.0f} s",
+                     f"{wall[backend] / simulated:.3f} s",
+                     f"{100 * TimedMPPI.seconds / wall[backend]:.0f} %",
+                     f"{same}/{len(recorded)}"])
+        print(" | ".join(rows[-1]), flush=True)
+    rows[0][0] += f" (**{wall['numpy'] / wall['compiled']:.2f}×** faster)"
+    bench.finish({"trials": table(
+        f"{len(recorded)} recorded trials of seed {args.seed} (every {args.every}-th of each "
+        "experiment) rerun in one thread with each MPPI backend",
+        ["MPPI backend", "wall", "simulated", "wall per simulated second", "in MPPI",
+         "trials as recorded"], rows)}, args.publish, profile=args.profile)
 
 if __name__ == "__main__":
     main()

@@ -96,6 +96,36 @@ def test_the_study_runner_reads_seeds_and_data_dir_and_publishes(tmp_path, monke
     sys.modules.pop("runner", None)
 
 
+def test_a_benchmark_s_record_names_the_load_it_was_timed_under(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    import argparse
+
+    from publish import Benchmark
+
+    monkeypatch.setattr(study, "STUDIES", tmp_path / "docs" / "runs" / "studies")
+    loads = iter([(0.4, 0.3, 0.2), (1.7, 0.9, 0.5)])  # at the start, at the end
+    monkeypatch.setattr("os.getloadavg", lambda: next(loads))
+    monkeypatch.setattr(sys, "argv", ["bench_toy.py", "--repeats", "3", "--publish"])
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--repeats", type=int)
+    bench = Benchmark("bench_toy", parser)
+    args = parser.parse_args()
+    record = bench.finish({"rate": study.table("rate", ["case", "ms"], [["one", "1.5"]])},
+                          args.publish)
+    assert record["load"] == [0.4, 1.7] and record["profile"] == "" and record["seeds"] == []
+    assert record["command"] == "python benchmarks/bench_toy.py --repeats 3 --publish"
+    path = next((tmp_path / "docs" / "runs" / "studies").glob("bench_toy_*.json"))
+    assert path.name.startswith("bench_toy_") and "__" not in path.name  # no profile part
+    page = _page(tmp_path, f"study:{path.stem}/rate")
+    text = documents.render_text(page.read_text(), {}, [], [], tmp_path, "docs/toy.md")
+    assert "| one | 1.5 |" in text
+    assert ", load average 0.4 → 1.7, commit `" in text and "no run's artifacts" not in text
+    # a benchmark timing a profile's cache names the profile, not seeds it did not choose
+    on_demo = study.caption({**record, "profile": "demo"}, "x.json")
+    assert on_demo.startswith("*`demo`, ") and "seed" not in on_demo
+    sys.modules.pop("publish", None)
+
+
 def test_a_study_that_only_prints_has_no_publish_and_may_take_the_profile_s_seeds(
         monkeypatch, capsys):
     monkeypatch.syspath_prepend(str(ROOT / "studies"))

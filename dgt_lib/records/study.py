@@ -58,24 +58,29 @@ def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[object]]) 
 def study_record(study: str, profile: str, seeds: Sequence[int], tables: dict[str, dict],
                  lists: dict[str, list[str]] | None = None,
                  argv: Sequence[str] | None = None, variant: str = "",
-                 script: str | None = None) -> dict:
+                 script: str | None = None,
+                 load: tuple[float, float] | None = None) -> dict:
     """The record of one run of ``studies/<study>.py`` (or of ``script``, a path in the
     checkout): provenance, profile, seeds, the command that made it, its tables
     (:func:`table`) and lists of lines; ``variant`` names one of a study's several records
-    (``hazard``), kept apart in the file name."""
+    (``hazard``), kept apart in the file name. A benchmark also gives ``load``: the
+    1-minute load average when it started and when it ended (its times are only as good
+    as the machine was idle); its profile is "" when it times no profile's artifacts."""
     args = sys.argv[1:] if argv is None else argv
+    extra = {} if load is None else {"load": [round(float(v), 2) for v in load]}
     return {"schema": SCHEMA, **provenance(), "study": study, "variant": variant,
             "profile": profile, "seeds": [int(s) for s in seeds],
             "command": shlex.join(["python", script or f"studies/{study}.py", *args]),
-            "tables": tables, "lists": lists or {}}
+            **extra, "tables": tables, "lists": lists or {}}
 
 
 def record_name(record: dict) -> str:
-    """``<study>[-<variant>]_<profile>_<processor slug>_<date>``: the record's file stem."""
+    """``<study>[-<variant>]_<profile>_<processor slug>_<date>`` (no profile part for a
+    benchmark of none): the record's file stem."""
     study = record["study"] + (f"-{record['variant']}" if record.get("variant") else "")
     profile = re.sub(r"[^\w.]+", "-", record["profile"])  # "smoke, demo" → smoke-demo
-    return (f"{study}_{profile}_{processor_slug(record['processor'])}"
-            f"_{record['date_utc'][:10]}")
+    return "_".join(part for part in (study, profile, processor_slug(record["processor"]),
+                                      record["date_utc"][:10]) if part)
 
 
 def publish_study(record: dict, dest: Path | None = None) -> Path:
@@ -103,10 +108,17 @@ def _seeds(seeds: Sequence[int]) -> str:
 
 
 def caption(record: dict, link: str) -> str:
-    """What a study's table rests on: profile, seeds, processor, commit, command, record."""
-    return (f"*`{record['profile']}`, {_seeds(record['seeds'])}, "
-            f"{processor_label(record['processor'])}, commit `{record['commit'][:7]}`: "
-            f"`{record['command']}`; record: [{Path(link).name}]({link})*")
+    """What a study's table rests on: profile, seeds, processor (and a benchmark's load
+    average), commit, command, record."""
+    run = ""
+    if record["profile"]:  # a benchmark timing a profile's cache names no seeds
+        seeds = record["seeds"] or "load" not in record
+        run = f"`{record['profile']}`, " + (f"{_seeds(record['seeds'])}, " if seeds else "")
+    load = ("" if "load" not in record else
+            ", load average {:.1f} → {:.1f}".format(*record["load"]))
+    return (f"*{run}{processor_label(record['processor'])}{load}, "
+            f"commit `{record['commit'][:7]}`: `{record['command']}`; "
+            f"record: [{Path(link).name}]({link})*")
 
 
 def render_table(tab: dict) -> str:
