@@ -147,7 +147,7 @@ def main() -> None:
         same = np.array_equal(runs["compiled"][1], runs["numpy"][1])
         compiled, numpy_ = (float(np.median(runs[b][0])) for b in ("compiled", "numpy"))
         print(f"{'':<9}compiled {numpy_ / compiled:.1f}× faster; the same commands: {same}")
-        rows.append([label, f"{1e3 * compiled:.2f} ms", f"**{1 / compiled:.0f} Hz**",
+        rows.append([label, f"{1e3 * compiled:.2f} ms", f"**{1 / compiled:,.0f} Hz**",
                      f"{1e3 * numpy_:.2f} ms", f"{numpy_ / compiled:.1f}×",
                      "yes" if same else "**no**"])
 

@@ -43,6 +43,7 @@ import importlib
 import io
 import math
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -169,6 +170,16 @@ def load_anchor(root: str):
     return module
 
 
+def anchor_commit(root: str) -> str:
+    """The checkout's commit, short (its ``COMMIT`` file where it is no git checkout)."""
+    try:
+        return subprocess.run(["git", "-C", root, "rev-parse", "--short=7", "HEAD"], check=True,
+                              capture_output=True, text=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = Path(root).expanduser() / "COMMIT"
+        return commit.read_text().strip()[:7] if commit.exists() else "unknown"
+
+
 def run_anchor(anchor, sc: Scenario) -> dict:
     ox, oy = sc.anchor_points()
     t = time.perf_counter()
@@ -231,6 +242,9 @@ def main() -> None:
     bench = Benchmark("bench_planner_anchor", parser)
     args = parser.parse_args()
     anchor = load_anchor(args.pythonrobotics)
+    # the record names the anchor's commit, not where this machine keeps its checkout
+    bench.argv = ["PATH" if a == args.pythonrobotics else a for a in bench.argv]
+    version = anchor_commit(args.pythonrobotics)
     backends = args.backends.split(",")
     if "compiled" in backends:
         warm_up()
@@ -251,7 +265,8 @@ def main() -> None:
         columns += [f"ours ({b})", "search only", "expansions", "speed-up"]
     columns += ["path: PythonRobotics / ours"]
     bench.finish({"anchor": table(
-        f"PythonRobotics' Hybrid A* against ours, set-up included (median of {args.repeats} "
+        f"PythonRobotics' Hybrid A* (commit {version}) against ours, set-up included "
+        f"(median of {args.repeats} "
         f"run{'s' * (args.repeats > 1)} each, interleaved)", columns, rows)}, args.publish)
 
 

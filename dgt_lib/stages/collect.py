@@ -254,7 +254,7 @@ def build_world_bev(world: World, config: CollectConfig | None = None,
 
 UNOBSERVED_WARN_FRACTION = 0.10
 """Warn when more than this fraction of a world's interior is unobserved in its BEV map
-(the kit's worlds: at most 1.7 %, docs/speed.md)."""
+(the kit's own worlds leave a few percent at most: ``bev_quality``'s coverage)."""
 
 
 class UnobservedMapWarning(UserWarning):
