@@ -16,14 +16,11 @@ from pathlib import Path
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.records.provenance import ROOT, processor_slug
 from dgt_lib.records.record import seed_summaries
+from dgt_lib.records.study import MAX_RECORD_BYTES, write_record  # noqa: F401 (tests read it)
 from dgt_lib.stages.timings import read_stage_times
 
 RUNS = ROOT / "docs" / "runs"
 """Where published runs live in the checkout."""
-
-MAX_RECORD_BYTES = 50_000
-"""The largest record the repository takes [bytes]."""
-
 
 def stage_times(profile: str, seed: int) -> list[dict]:
     """The stage-time entries of one seed (every invocation of the profile's own settings:
@@ -57,14 +54,8 @@ def publish(profile: Profile | str, dest: Path = RUNS) -> Path:
                          f"`dgt reproduce --profile {prof.name} --seed S --stages experiments`"
                          " to write the profile's own record first")
     folder = dest / run_name(records)
-    folder.mkdir(parents=True, exist_ok=True)
     for record in records:
-        record = {**record, "stage_times": stage_times(prof.name, record["seed"])}
-        text = json.dumps(record, indent=1, ensure_ascii=False) + "\n"
-        if len(text.encode()) > MAX_RECORD_BYTES:
-            raise ValueError(f"seed {record['seed']}'s record is {len(text.encode())} bytes, "
-                             f"over {MAX_RECORD_BYTES}: trim what it keeps")
-        tmp = folder / f".seed-{record['seed']}.json.tmp"
-        tmp.write_text(text)
-        tmp.replace(folder / f"seed-{record['seed']}.json")
+        write_record(folder / f"seed-{record['seed']}.json",
+                     {**record, "stage_times": stage_times(prof.name, record["seed"])},
+                     f"seed {record['seed']}'s record")
     return folder

@@ -58,8 +58,7 @@ def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[object]]) 
 def study_record(study: str, profile: str, seeds: Sequence[int], tables: dict[str, dict],
                  lists: dict[str, list[str]] | None = None,
                  argv: Sequence[str] | None = None, variant: str = "",
-                 script: str | None = None,
-                 load: tuple[float, float] | None = None) -> dict:
+                 script: str | None = None, load: tuple[float, float] | None = None) -> dict:
     """The record of one run of ``studies/<study>.py`` (or of ``script``, a path in the
     checkout): provenance, profile, seeds, the command that made it, its tables
     (:func:`table`) and lists of lines; ``variant`` names one of a study's several records
@@ -67,11 +66,11 @@ def study_record(study: str, profile: str, seeds: Sequence[int], tables: dict[st
     1-minute load average when it started and when it ended (its times are only as good
     as the machine was idle); its profile is "" when it times no profile's artifacts."""
     args = sys.argv[1:] if argv is None else argv
-    extra = {} if load is None else {"load": [round(float(v), 2) for v in load]}
     return {"schema": SCHEMA, **provenance(), "study": study, "variant": variant,
             "profile": profile, "seeds": [int(s) for s in seeds],
             "command": shlex.join(["python", script or f"studies/{study}.py", *args]),
-            **extra, "tables": tables, "lists": lists or {}}
+            **({"load": [round(v, 2) for v in load]} if load else {}),
+            "tables": tables, "lists": lists or {}}
 
 
 def record_name(record: dict) -> str:
@@ -86,17 +85,22 @@ def record_name(record: dict) -> str:
 def publish_study(record: dict, dest: Path | None = None) -> Path:
     """Write ``record`` to ``dest/<record_name>.json`` (default :data:`STUDIES`) whole or
     not at all; its path. ValueError for a record over :data:`MAX_RECORD_BYTES`."""
-    dest = STUDIES if dest is None else dest
+    path = (STUDIES if dest is None else dest) / f"{record_name(record)}.json"
+    return write_record(path, record, f"the {record['study']} record")
+
+
+def write_record(path: Path, record: dict, what: str) -> Path:
+    """Write a run's or a study's ``record`` as JSON to ``path``, whole or not at all (a
+    temporary file renamed over it); ValueError, naming ``what``, for one over
+    :data:`MAX_RECORD_BYTES`."""
     text = json.dumps(record, indent=1, ensure_ascii=False) + "\n"
     if len(text.encode()) > MAX_RECORD_BYTES:
-        raise ValueError(f"the {record['study']} record is {len(text.encode())} bytes, over "
-                         f"{MAX_RECORD_BYTES}: publish fewer tables")
-    dest.mkdir(parents=True, exist_ok=True)
-    path = dest / f"{record_name(record)}.json"
-    tmp = dest / f".{path.name}.tmp"
+        raise ValueError(f"{what} is {len(text.encode())} bytes, over {MAX_RECORD_BYTES}: "
+                         "keep fewer tables or rows")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(text)
-    tmp.replace(path)
-    return path
+    return tmp.replace(path)
 
 
 def _seeds(seeds: Sequence[int]) -> str:
@@ -110,15 +114,12 @@ def _seeds(seeds: Sequence[int]) -> str:
 def caption(record: dict, link: str) -> str:
     """What a study's table rests on: profile, seeds, processor (and a benchmark's load
     average), commit, command, record."""
-    run = ""
-    if record["profile"]:  # a benchmark timing a profile's cache names no seeds
-        seeds = record["seeds"] or "load" not in record
-        run = f"`{record['profile']}`, " + (f"{_seeds(record['seeds'])}, " if seeds else "")
-    load = ("" if "load" not in record else
-            ", load average {:.1f} → {:.1f}".format(*record["load"]))
-    return (f"*{run}{processor_label(record['processor'])}{load}, "
-            f"commit `{record['commit'][:7]}`: `{record['command']}`; "
-            f"record: [{Path(link).name}]({link})*")
+    load, seeds = record.get("load"), record["seeds"]  # a benchmark may time a cache: no seeds
+    run = "" if not record["profile"] else f"`{record['profile']}`, " + (
+        "" if load and not seeds else f"{_seeds(seeds)}, ")
+    load = ", load average {:.1f} → {:.1f}".format(*load) if load else ""
+    return (f"*{run}{processor_label(record['processor'])}{load}, commit `{record['commit'][:7]}`"
+            f": `{record['command']}`; record: [{Path(link).name}]({link})*")
 
 
 def render_table(tab: dict) -> str:
