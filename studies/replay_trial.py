@@ -7,7 +7,7 @@ A trial of a cached experiment (``data/<profile>/seed-<S>/experiments/<name>.pkl
 driven again from its stored plan with :func:`dgt_lib.navigation.drive.drive`, the way
 :func:`dgt_lib.evaluation.trials.run_trial` drove it (same occupancy map, time limit, MPPI
 batch and seed), so on the machine that recorded it the replay ends where the trial ended
-(the script checks it and says so). Every ``--every-s`` seconds from ``--from-s`` it prints
+(the script checks it and says so). Every ``--every-s`` seconds from ``--from-s`` it tables
 the pose, the height of the chassis origin above the terrain, pitch and roll, the speed,
 MPPI's speed command and steering (a fraction of the lock, + left), the wheels in contact
 and how long the vehicle has been immobile: what a person wants to see to tell a physical
@@ -21,6 +21,7 @@ the fast ones (mean speed over the horizon ≥ ``--fast-mps``), the mean speed o
 sequence, and how much more the cheapest fast one costs (∞: every fast one collides) — to
 tell a crawl chosen because every fast sequence collides from one chosen for other critics.
 Watching changes nothing: the sequences, costs and commands are those of the trial.
+``--publish`` writes the table to a record that a docs page quotes.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from dgt_lib.evaluation.trials import method_costmap, trial_controller, trial_ti
 from dgt_lib.navigation.control.mppi import MPPIController
 from dgt_lib.navigation.control.mppi_config import parse_mppi_settings
 from dgt_lib.navigation.drive import drive
+from dgt_lib.records.study import table
 from dgt_lib.stages.experiments import (
     experiment_path,
     reproduce_command,
@@ -59,9 +61,9 @@ def mppi_settings(text: str) -> dict[str, object]:
 
 
 @contextmanager
-def watching_sampled_costs(fast_mps: float) -> Iterator[Callable[[], str]]:
+def watching_sampled_costs(fast_mps: float) -> Iterator[Callable[[], list[str]]]:
     """Within the block, MPPI's sampled-cost step (compiled backend) keeps statistics of
-    each call's sampled sequences; yields a function that formats the latest call's (share
+    each call's sampled sequences; yields a function that gives the latest call's cells (share
     colliding [%], share of the fast ones colliding [%], the cheapest sequence's mean speed
     [m/s], the cheapest collision-free fast one's extra cost). The wrapper returns what it
     was given, so the trial is unchanged; the method is restored on leaving."""
@@ -81,11 +83,11 @@ def watching_sampled_costs(fast_mps: float) -> Iterator[Callable[[], str]]:
                                 if (fast & ~hit).any() else math.inf))
         return v, w, cost
 
-    def latest() -> str:
+    def latest() -> list[str]:
         if not last:
-            return ""
-        return (f"  {100 * last['collide']:5.1f} {100 * last['fast_collide']:5.1f} "
-                f"{last['best_v']:5.2f} {last['fast_extra']:7.2f}")
+            return ["", "", "", ""]
+        return [f"{100 * last['collide']:.1f}", f"{100 * last['fast_collide']:.1f}",
+                f"{last['best_v']:.2f}", f"{last['fast_extra']:.2f}"]
 
     MPPIController._sampled_costs_compiled = wrapped
     try:
@@ -95,7 +97,7 @@ def watching_sampled_costs(fast_mps: float) -> Iterator[Callable[[], str]]:
 
 
 def main() -> None:
-    study = Study("replay_trial", __doc__, profile="demo", seeds=1, publishes=False)
+    study = Study("replay_trial", __doc__, profile="demo", seeds=1)
     ap = study.parser
     ap.add_argument("--experiment", default="experiment1")
     ap.add_argument("--method", default="dgt")
@@ -103,8 +105,8 @@ def main() -> None:
     ap.add_argument("--vehicle", default=None, help="default: any")
     ap.add_argument("--index", type=int, default=0,
                     help="which of the matching trials, in the recorded order")
-    ap.add_argument("--from-s", type=float, default=0.0, help="print from this time [s]")
-    ap.add_argument("--every-s", type=float, default=0.5, help="print interval [s]")
+    ap.add_argument("--from-s", type=float, default=0.0, help="table from this time [s]")
+    ap.add_argument("--every-s", type=float, default=0.5, help="table interval [s]")
     ap.add_argument("--mppi", default=None, type=mppi_settings, metavar="FIELD=VALUE[,…]",
                     help="drive with these MPPIConfig settings instead of the recorded ones")
     ap.add_argument("--controller", choices=CONTROLLERS, default="paper",
@@ -113,7 +115,7 @@ def main() -> None:
     ap.add_argument("--hazard", action="store_true",
                     help="the experiment run with experiments.eval_hazard_world=true")
     ap.add_argument("--critics", action="store_true",
-                    help="also print what MPPI's sampled sequences cost (see above)")
+                    help="also table what MPPI's sampled sequences cost (see above)")
     ap.add_argument("--fast-mps", type=float, default=1.5,
                     help="--critics: a sequence is fast from this mean speed [m/s]")
     args = study.parse()
@@ -139,10 +141,11 @@ def main() -> None:
         raise SystemExit(f"--index must be in 0..{len(trials) - 1}")
     rec = trials[args.index]
     task = rec.task
-    print(f"{args.experiment} seed {seed}: {task.method} {task.vehicle} "
-          f"{task.query.label} #{args.index} (route {rec.route or '-'}), recorded: "
-          f"{rec.outcome.reason} after {rec.outcome.duration_s:.1f} s at "
-          f"({rec.trajectory[-1, 1]:.1f}, {rec.trajectory[-1, 2]:.1f}) m")
+    title = (f"{args.experiment} seed {seed}, {args.controller} controller: {task.method} "
+             f"{task.vehicle} {task.query.label} #{args.index} (route {rec.route or '-'}), "
+             f"recorded: {rec.outcome.reason} after {rec.outcome.duration_s:.1f} s at "
+             f"({rec.trajectory[-1, 1]:.1f}, {rec.trajectory[-1, 2]:.1f}) m")
+    print(title)
     if len(rec.path) == 0:
         raise SystemExit("the trial has no plan to drive")
     world = get_world(task.world, prof)
@@ -151,28 +154,22 @@ def main() -> None:
     if args.mppi:
         control["mppi"] = replace(control["mppi"], **args.mppi)
     length_m = float(np.hypot(*np.diff(rec.path[:, :2], axis=0).T).sum())
-    next_print = [args.from_s]
-    print(f"{'t [s]':>6} {'x [m]':>6} {'y [m]':>6} {'z-h':>5} {'yaw':>4} {'pitch':>6} "
-          f"{'roll':>6} {'v':>5} {'v_cmd':>5} {'steer':>6} wheels  chassis  immobile [s]"
-          + ("  hit % fast% best_v fast+ΔS" if args.critics else ""))
-    print("(z-h: chassis origin above the terrain [m]; yaw, pitch (+ nose up), roll (+ left "
-          "side up) [°]; v, v_cmd [m/s]; steer: fraction of the lock, + left; wheels fl fr rl rr "
-          "touching)")
-
+    next_row, rows = [args.from_s], []
     watching = (watching_sampled_costs(args.fast_mps) if args.critics
-                else nullcontext(lambda: ""))
+                else nullcontext(lambda: []))
 
     def show(state: VehicleState, speed_cmd: float, steer: float) -> None:
-        if state.time_s + 1e-9 < next_print[0]:
+        if state.time_s + 1e-9 < next_row[0]:
             return
-        next_print[0] += args.every_s
+        next_row[0] += args.every_s
         x, y, z = state.position
-        print(f"{state.time_s:6.2f} {x:6.1f} {y:6.1f} {z - world.height_at(x, y):5.2f} "
-              f"{math.degrees(state.yaw):4.0f} {math.degrees(state.pitch):6.1f} "
-              f"{math.degrees(state.roll):6.1f} {state.speed_mps:5.2f} {speed_cmd:5.2f} "
-              f"{steer:+6.2f} {''.join(str(int(c)) for c in state.wheel_contacts)}"
-              f"    {int(state.chassis_contact)}        {state.immobilized_s:4.1f}"
-              + critics())
+        deg = math.degrees
+        rows.append([f"{state.time_s:.2f}", f"{x:.1f}", f"{y:.1f}",
+                     f"{z - world.height_at(x, y):.2f}", f"{deg(state.yaw):.0f}",
+                     f"{deg(state.pitch):.1f}", f"{deg(state.roll):.1f}",
+                     f"{state.speed_mps:.2f}", f"{speed_cmd:.2f}", f"{steer:+.2f}",
+                     "".join(str(int(c)) for c in state.wheel_contacts),
+                     str(int(state.chassis_contact)), f"{state.immobilized_s:.1f}", *critics()])
 
     with watching as critics:
         outcome, traj, _ = drive(world, task.vehicle, rec.path, task.query.goal,
@@ -183,9 +180,18 @@ def main() -> None:
             and np.allclose(traj[-1, 1:3], rec.trajectory[-1, 1:3], atol=0.05))
     verdict = ("as recorded" if same else "otherwise than recorded" if args.mppi
                else "NOT as recorded (another machine or code?)")
-    print(f"replay{' with ' + str(args.mppi) if args.mppi else ''}: {outcome.reason} after "
-          f"{outcome.duration_s:.1f} s at ({traj[-1, 1]:.1f}, {traj[-1, 2]:.1f}) m — {verdict}")
-
+    ending = (f"replay{' with ' + str(args.mppi) if args.mppi else ''}: {outcome.reason} after "
+              f"{outcome.duration_s:.1f} s at ({traj[-1, 1]:.1f}, {traj[-1, 2]:.1f}) m — {verdict}")
+    columns = ["t [s]", "x [m]", "y [m]", "chassis above terrain [m]", "yaw [°]",
+               "pitch [°, + nose up]", "roll [°, + left up]", "v [m/s]", "v_cmd [m/s]",
+               "steer [of the lock, + left]", "wheels touching (fl fr rl rr)", "chassis touching",
+               "immobile [s]"]
+    if args.critics:
+        columns += ["sequences colliding [%]", f"those ≥ {args.fast_mps:g} m/s colliding [%]",
+                    "cheapest's mean v [m/s]", "cheapest collision-free fast one: extra cost"]
+    study.finish({"replay": table(title, columns, rows)}, lists={"ending": [ending]},
+                 seeds=[seed],
+                 variant=f"{args.experiment}-{task.query.label}{args.index}-{args.controller}")
 
 if __name__ == "__main__":
     main()

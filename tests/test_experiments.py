@@ -169,7 +169,7 @@ def test_watching_mppis_sampled_costs_does_not_change_the_trial(monkeypatch):
     plain = drive(world, "jeep", path, (60.0, 20.0), **kwargs)
     np.testing.assert_array_equal(watched[1], plain[1])
     assert watched[0] == plain[0]
-    numbers = np.array([[float(x) for x in r.split()] for r in reports])
+    numbers = np.array([[float(x) for x in r] for r in reports])  # the table's cells
     hit, fast_hit, best_v = numbers[:, 0], numbers[:, 1], numbers[:, 2]
     assert ((0 <= hit) & (hit <= 100)).all() and hit.max() > 0  # near the wall some collide
     assert np.nanmax(fast_hit) <= 100
