@@ -16,7 +16,8 @@ Run: ``.venv/bin/python benchmarks/bench_executors.py [--profile smoke] [--worke
 
 Every executor's episodes (all stored arrays, BEV statistics included) and trial results
 (outcome, plan, trajectory) are compared with the process pool's. Timings on the shared
-2-core machine vary with its load; the load average is printed.
+2-core machine vary with its load; the load average is printed, and ``--publish`` writes the
+table's record (``benchmarks/publish.py``) with it for docs/scale-out.md.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from publish import Benchmark
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import EXECUTORS, ExecutionConfig, get_profile
@@ -37,12 +39,15 @@ from dgt_lib.core.executors import make_executor, run_jobs, use_executor
 from dgt_lib.evaluation.queries import hill_queries
 from dgt_lib.evaluation.trials import run_trials, trial_tasks
 from dgt_lib.perception.episodes import load_episode
+from dgt_lib.records.study import table
 from dgt_lib.stages.collect import collect_episodes
 from dgt_lib.stages.experiments import trial_maps
 from dgt_lib.stages.paths import data_dir
 from dgt_lib.world.terrain import get_world
 
 PACKAGES = {"dask": "distributed"}
+EXECUTOR_NAMES = {"process": "process pool (default)",
+                  "dask": "Dask `LocalCluster`, {workers} workers"}
 
 
 def _noop(i: int) -> int:
@@ -83,6 +88,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=None, metavar="N",
                         help="episodes per vehicle (default: the profile's)")
     parser.add_argument("--trials", type=int, default=4)
+    bench = Benchmark("bench_executors", parser)
     args = parser.parse_args()
     kinds = [k for k in args.executors
              if k == "process" or importlib.util.find_spec(PACKAGES[k]) is not None]
@@ -92,9 +98,9 @@ def main() -> None:
     if args.episodes is not None:
         prof = prof.with_(collect=replace(prof.collect, episodes=(args.episodes,) * 4))
     n_eps = sum(prof.collect.episodes)
-    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; profile "
-          f"{prof.name}, {args.workers} workers; {n_eps} episodes of "
+    print(f"profile {prof.name}, {args.workers} workers; {n_eps} episodes of "
           f"{prof.collect.episode_duration_s:.0f} s, {args.trials} trials")
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
         ref_eps = ref_trials = None
         maps_dir = Path(tmp) / "maps"
@@ -102,9 +108,8 @@ def main() -> None:
         queries = hill_queries(get_world("hill", prof), args.trials, prof.experiments, prof.seed)
         tasks = trial_tasks("experiment1", "hill", "carla_cola", queries, ["binary"], prof)
         trial_maps("hill", "binary", "carla_cola", prof)
-        print(f"{'executor':9s} {'start-up':>9s} {'episodes':>9s} {'trials':>8s}  identical")
         for kind in kinds:
-            start = startup_s(kind, args.workers) if kind != "process" else 0.0
+            start = startup_s(kind, args.workers) if kind != "process" else None
             os.environ[artifacts.DATA_ENV_VAR] = str(Path(tmp) / kind)
             run = prof.with_(execution=ExecutionConfig(kind))
             t0 = time.perf_counter()
@@ -117,13 +122,21 @@ def main() -> None:
                 results = run_trials(tasks, trial_maps, workers=args.workers, progress=False)
             trials_s = time.perf_counter() - t0
             if ref_eps is None:
-                ref_eps, ref_trials, same = episodes, results, "(reference)"
+                ref_eps, ref_trials, same = episodes, results, "reference"
             else:
-                same = ("yes" if same_arrays(ref_eps, episodes) and same_trials(ref_trials, results)
-                        else "NO")
-            print(f"{kind:9s} {start:8.1f}s {eps_s:8.1f}s {trials_s:7.1f}s  {same}")
-    print(f"load average {os.getloadavg()[0]:.2f} after")
-
+                same = ("identical (every stored array, every trial)"
+                        if same_arrays(ref_eps, episodes) and same_trials(ref_trials, results)
+                        else "**different**")
+            rows.append([EXECUTOR_NAMES[kind].format(workers=args.workers),
+                         "—" if start is None else f"{start:.1f} s", f"{eps_s:.1f} s",
+                         f"{trials_s:.1f} s", same])
+            print(" | ".join(rows[-1]), flush=True)
+    bench.finish({"executors": table(
+        f"`{prof.name}`: {n_eps} collection episodes of {prof.collect.episode_duration_s:.0f} s "
+        f"and {args.trials} trials of Experiment 1 (carla_cola, Binary) on {args.workers} "
+        "workers, each call starting and stopping its executor",
+        ["executor", "start-up", f"{n_eps} episodes", f"{args.trials} trials",
+         "results against the process pool"], rows)}, args.publish, profile=prof.name)
 
 if __name__ == "__main__":
     main()
