@@ -2,6 +2,7 @@
 docs' generated tables comes from committed records, and the verdicts follow stated rules."""
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -114,6 +115,27 @@ def test_the_committed_docs_are_what_the_committed_records_render():
     """`make docs` on a clean checkout changes nothing: no result in a generated block
     was typed by hand or left stale."""
     assert documents.stale(ROOT) == []
+
+
+RESULT_CELL = re.compile(r"\b\d+/\d+\b|\b\d+ of \d+\b|\d ± \d|\[[+−-]?\d\.\d+, [+−-]?\d\.\d+\]")
+"""What a hand-typed result looks like in a table row: arrivals k/n, a mean ± spread, an
+interval."""
+
+
+def test_no_table_of_the_readme_or_docs_types_a_result_outside_a_generated_block():
+    """Arrivals, means ± spreads and intervals reach a table of the README or docs only
+    through `make docs`, from a record: a table typed from some machine's run drifts."""
+    typed = []
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        inside = False
+        for n, line in enumerate(page.read_text().splitlines(), 1):
+            if line.startswith("<!-- generated:"):
+                inside = True
+            elif line.startswith("<!-- end generated"):
+                inside = False
+            elif line.startswith("|") and not inside and RESULT_CELL.search(line):
+                typed.append(f"{page.relative_to(ROOT)}:{n}")
+    assert typed == [], "typed result tables (quote a record instead): " + ", ".join(typed)
 
 
 def _copy_docs(tmp_path: Path) -> Path:
