@@ -11,8 +11,9 @@ import pytest
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import get_profile
 from dgt_lib.records import claims, documents, tables
-from dgt_lib.records.publish import MAX_RECORD_BYTES, publish, run_name
+from dgt_lib.records.publish import publish, run_name
 from dgt_lib.records.record import seed_record, write_seed_record
+from dgt_lib.records.study import MAX_RECORD_BYTES
 from dgt_lib.stages.timings import record_stage_time
 from tests.test_report import _experiment3
 

@@ -16,11 +16,12 @@ from pathlib import Path
 from dgt_lib.core.config import Profile, as_profile
 from dgt_lib.records.provenance import ROOT, processor_slug
 from dgt_lib.records.record import seed_summaries
-from dgt_lib.records.study import MAX_RECORD_BYTES, write_record  # noqa: F401 (tests read it)
+from dgt_lib.records.study import write_record
 from dgt_lib.stages.timings import read_stage_times
 
 RUNS = ROOT / "docs" / "runs"
 """Where published runs live in the checkout."""
+
 
 def stage_times(profile: str, seed: int) -> list[dict]:
     """The stage-time entries of one seed (every invocation of the profile's own settings:
