@@ -26,20 +26,20 @@ from dgt_lib.records.study import publish_study, render_table, study_record
 class Benchmark:
     """One benchmark script's ``--publish`` and its record."""
 
-    def __init__(self, name: str, parser: argparse.ArgumentParser, profile: str = "") -> None:
-        """``profile``: the profile whose cached artifacts it times ("" for none)."""
-        self.name, self.profile = name, profile
+    def __init__(self, name: str, parser: argparse.ArgumentParser) -> None:
+        self.name = name
         self.argv = list(sys.argv[1:])
         parser.add_argument("--publish", action="store_true",
                             help="also write the figures' record to docs/runs/studies/")
         self.load_start = os.getloadavg()[0]
 
-    def finish(self, tables: dict[str, dict], publish: bool, profile: str | None = None) -> dict:
-        """Print every table; with ``publish`` write the record (and say where)."""
+    def finish(self, tables: dict[str, dict], publish: bool, profile: str = "") -> dict:
+        """Print every table; with ``publish`` write the record (and say where).
+        ``profile``: the profile whose cached artifacts it timed ("" for none)."""
         load = (self.load_start, os.getloadavg()[0])
         rerun = [a for a in self.argv if a != "--publish"] + ["--publish"]
-        record = study_record(self.name, self.profile if profile is None else profile, [],
-                              tables, argv=rerun, script=f"benchmarks/{self.name}.py", load=load)
+        record = study_record(self.name, profile, [], tables, argv=rerun,
+                              script=f"benchmarks/{self.name}.py", load=load)
         print(f"load average (1 min): {load[0]:.2f} at the start, {load[1]:.2f} at the end\n")
         for tab in tables.values():
             print(render_table(tab))
