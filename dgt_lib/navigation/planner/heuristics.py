@@ -53,7 +53,7 @@ class CostToGo:
     """The 2D cost-to-go lower bound of one map, per goal (the last few goals cached).
 
     Two direction-aware 2D relaxations on the 8-connected grid, solved once per goal by
-    Dijkstra (scipy's, or ``compiled``: :func:`.compiled_dijkstra.grid_dijkstra`, the same
+    Dijkstra (scipy's, or ``compiled``: :class:`DijkstraRuns`, the same
     distances): D prices a grid move by its length times (1 + the least amplified cost
     C' = C(1 + βC) near the cell in the layers the move may read), D_c by the terrain part
     alone; with φ = s/O (O the longest octile cell jump of one step) the bound is
@@ -79,8 +79,8 @@ class CostToGo:
         self.substep_m = substep_m
         self.compiled = compiled  # grid Dijkstra compiled by numba, else scipy's on CSR graphs
         self.impassable: np.ndarray | None = None
-        self._moves: _Moves | None = None
-        self._weights: tuple | None = None  # the compiled Dijkstra's edge weights
+        self._moves: Moves | None = None
+        self._prices: CompiledPrices | None = None  # what the compiled runs read
         self._graphs: tuple[csr_matrix, csr_matrix] | None = None
         self.cache: OrderedDict = OrderedDict()
 
@@ -124,8 +124,8 @@ class CostToGo:
         source = np.flatnonzero(source & ~self.impassable)
         phi = self.cfg.step_m / step_cell_bounds(self.cfg.step_m, res)[0]
         if self.compiled:
-            entry = [None, None, DijkstraRuns(self._compiled_weights(moves), moves.steps,
-                                              self.grid.shape, source, phi)]
+            entry = [None, None, DijkstraRuns(moves, self._compiled_prices(moves), source,
+                                              phi)]
         else:
             if len(source) == 0:
                 dists = [np.full(self.grid.shape, np.inf)] * 2
@@ -140,9 +140,9 @@ class CostToGo:
             self.cache.popitem(last=False)
         return entry
 
-    def _relaxation_moves(self) -> _Moves:
+    def _relaxation_moves(self) -> Moves:
         """The per-map part of both relaxations (built once): which cells are passable
-        and, per grid move m, the terrain price min_{k ∈ S_m} F_k of entering each cell."""
+        and the terrain price F_k of entering each cell per distinct layer."""
         if self._moves is not None:
             return self._moves
         cfg, res = self.cfg, self.grid.resolution
@@ -152,42 +152,60 @@ class CostToGo:
         d = np.arange(-half, half + 1)
         disk = np.hypot(d[:, None], d[None, :]) <= rho
         # F_k: min of C'_k over the unblocked cells within ρ (a pose's cell is unblocked)
-        least, done = [], []
+        layers, distinct = [], []  # distinct[k]: the index in layers of layer k's F
         for layer in self.costmap:
-            same = next((i for i, prev in enumerate(done) if np.array_equal(prev, layer)), None)
-            if same is not None:  # equal layers (an isotropic or zero costmap): filter once
-                least.append(least[same])
-            else:
-                least.append(disk_minimum(
-                    np.where(self.blocked, np.inf, amplified_cost(layer, cfg.beta)), disk))
-            done.append(layer)
-        least = np.stack(least)
+            same = next((i for i, prev in enumerate(layers) if np.array_equal(prev, layer)),
+                        None)
+            if same is None:  # equal layers (an isotropic or zero costmap): filter once
+                same = len(layers)
+                layers.append(layer)
+            distinct.append(same)
+        least = np.stack([disk_minimum(np.where(self.blocked, np.inf,
+                                                amplified_cost(layer, cfg.beta)), disk)
+                          for layer in layers])
         sagitta = s * s / (8 * self.min_turn_radius_m)
         slack = res / 2 + math.sqrt(2) * res + sagitta + self.substep_m / 2
         self.impassable = self.occupied_distance < self.clearance_m - slack
         n_headings = len(self.costmap)
         theta_k = TWO_PI * np.arange(n_headings) / n_headings
-        steps, lengths, terrain = [], [], []
+        steps, lengths, near = [], [], np.zeros((8, len(layers)), dtype=bool)
         spread = math.pi / 4 + math.pi / n_headings + 1e-9
         for m in range(8):
             psi = m * math.pi / 4
             dr, dc = round(math.sin(psi)), round(math.cos(psi))
-            near = np.abs(angle_diff(theta_k, psi)) <= spread
             steps.append((dr, dc))
             lengths.append(res * math.hypot(dr, dc))
-            terrain.append(least[near].min(axis=0))
-        self._moves = _Moves(~self.impassable, np.asarray(steps, dtype=np.int64),
-                             np.asarray(lengths), np.stack(terrain))
+            for k in np.flatnonzero(np.abs(angle_diff(theta_k, psi)) <= spread):
+                near[m, distinct[k]] = True
+        self._moves = Moves(~self.impassable, np.asarray(steps, dtype=np.int64),
+                            np.asarray(lengths), least, near)
         return self._moves
+
+    def _compiled_prices(self, moves: Moves) -> CompiledPrices:
+        """The terrain prices T_m(v) the compiled runs read (built once per map)."""
+        if self._prices is None:
+            from dgt_lib.navigation.planner.compiled_dijkstra import move_prices
+
+            layers = moves.layers.reshape(len(moves.layers), -1)
+            finite = layers[np.isfinite(layers)]
+            near_m, near = np.nonzero(moves.near)
+            one_layer = len(layers) == 1
+            self._prices = CompiledPrices(
+                one_layer, layers[0], np.zeros((1, 8)) if one_layer else
+                move_prices(layers, near.astype(np.int64), np.searchsorted(near_m, np.arange(9))),
+                not np.any(finite), float(finite.max()) if finite.size else 0.0)
+        return self._prices
 
     def _relaxation_graphs(self) -> tuple[csr_matrix, csr_matrix]:
         """The reversed 8-connected graphs (edge v → u carries the cost of the move
         u → v), for D and D_c, as CSR matrices over flat cell indices."""
-        passable, steps, lengths, least = self._relaxation_moves()
+        moves = self._relaxation_moves()
+        passable, steps, lengths = moves.passable, moves.steps, moves.lengths
         H, W = self.grid.shape
         index = np.arange(H * W).reshape(H, W)
         rows, cols, terrain, edge_lengths = [], [], [], []
-        for (dr, dc), length, least_m in zip(steps, lengths, least, strict=True):
+        for m, ((dr, dc), length) in enumerate(zip(steps, lengths, strict=True)):
+            least_m = moves.least(m)
             # moves u -> v = u + (dr, dc) with both cells passable, charged at v
             u = (slice(max(0, -dr), H - max(0, dr)), slice(max(0, -dc), W - max(0, dc)))
             v = (slice(max(0, dr), H - max(0, -dr)), slice(max(0, dc), W - max(0, -dc)))
@@ -202,23 +220,6 @@ class CostToGo:
         return (csr_matrix((edge_lengths + terrain, index_pairs), shape=shape),
                 csr_matrix((terrain, index_pairs), shape=shape))
 
-    def _compiled_weights(self, moves: _Moves) -> tuple:
-        """(passable (H·W,), full (H·W, 8), terrain (H·W, 8) or None): the edge weights of
-        the compiled runs, weights[v, m] = the cost of entering v by move m as in
-        :meth:`_relaxation_graphs` (∞: no edge). None where every terrain price is 0 (a
-        zero costmap): D_c is then 0 wherever D is finite — what its run would return."""
-        if self._weights is None:
-            least = moves.least.reshape(8, -1).T  # (H·W, 8)
-            lengths = moves.lengths[None, :]
-            no_edge = ~moves.passable.ravel()[:, None] | ~np.isfinite(least)
-            terrain = np.where(no_edge, np.inf, lengths * np.where(no_edge, 0.0, least))
-            full = np.where(no_edge, np.inf, lengths + terrain)
-            zero = not np.any(terrain[~no_edge])
-            self._weights = (np.ascontiguousarray(moves.passable.ravel()),
-                             np.ascontiguousarray(full),
-                             None if zero else np.ascontiguousarray(terrain))
-        return self._weights
-
 
 class DijkstraRuns:
     """One goal's two relaxations D and D_c as compiled Dijkstra runs that go only as far
@@ -226,62 +227,71 @@ class DijkstraRuns:
     prices, :meth:`finish` every cell. Either way a settled cell holds the distance scipy's
     dijkstra gives it.
 
-    weights: :meth:`CostToGo._compiled_weights`; steps: (8, 2) the grid moves; shape:
-    (H, W); source: the goal's flat cells; phi: φ (the bound is φ·D). ``relaxations`` is
-    what the compiled search reads (:class:`.compiled_dijkstra.Relaxations`)."""
+    moves: the map's :class:`Moves`; prices: its :class:`CompiledPrices`; source: the
+    goal's flat cells; phi: φ (the bound is φ·D). ``relaxations`` is what the compiled search reads
+    (:class:`.compiled_dijkstra.Relaxations`)."""
 
-    def __init__(self, weights: tuple, steps: np.ndarray, shape: tuple[int, int],
-                 source: np.ndarray, phi: float):
+    def __init__(self, moves: Moves, prices: CompiledPrices, source: np.ndarray, phi: float):
         from dgt_lib.navigation.planner.compiled_dijkstra import (
             Relaxations,
-            dijkstra_seed,
-            new_run,
+            bucket_run,
+            heap_run,
         )
 
-        passable, full, terrain = weights
-        self.shape, self.phi = shape, phi
-        self.zero_terrain = terrain is None
-        n = shape[0] * shape[1]
-        full_run = new_run(n)
-        terrain_run = new_run(1) if self.zero_terrain else new_run(n)
-        dijkstra_seed(source, *full_run)
-        if not self.zero_terrain:
-            dijkstra_seed(source, *terrain_run)
-        self.relaxations = Relaxations(passable, steps, full,
-                                       full if terrain is None else terrain, full_run,
-                                       terrain_run, self.zero_terrain, float(phi),
-                                       int(shape[0]), int(shape[1]))
-
-    def at(self, flat: int) -> tuple[float, float]:
-        """(φ·D, φ·D_c) of flat cell ``flat``."""
-        from dgt_lib.navigation.planner.compiled_dijkstra import bounds_at
-
-        return bounds_at(flat, self.relaxations)
+        self.shape, self.phi = moves.passable.shape, phi
+        self.zero_terrain = prices.zero
+        n = moves.passable.size
+        full = bucket_run(n, source, float(moves.lengths.min()),
+                          float(moves.lengths.max()) * (1.0 + prices.most))
+        terrain = heap_run(1, source[:0]) if prices.zero else heap_run(n, source)
+        self.relaxations = Relaxations(moves.passable.ravel(), moves.steps, moves.lengths,
+                                       *prices[:3], full, terrain, prices.zero, float(phi),
+                                       int(self.shape[0]), int(self.shape[1]))
 
     def finish(self) -> tuple[np.ndarray, np.ndarray]:
         """(φ·D, φ·D_c), each (H, W): both runs taken to the end."""
-        from dgt_lib.navigation.planner.compiled_dijkstra import settle
+        from dgt_lib.navigation.planner.compiled_dijkstra import settle_buckets, settle_heap
 
         r = self.relaxations
-        settle(-1, *self.shape, r.passable, r.w_full, r.moves, *r.full)
+        settle_buckets(-1, r, r.full)
         full = r.full.dist
         if self.zero_terrain:
             terrain = np.where(np.isfinite(full), 0.0, np.inf)
         else:
-            settle(-1, *self.shape, r.passable, r.w_terrain, r.moves, *r.terrain)
+            settle_heap(-1, r, r.terrain)
             terrain = r.terrain.dist
         return tuple(self.phi * d.reshape(self.shape) for d in (full, terrain))
 
 
-class _Moves(NamedTuple):
+class Moves(NamedTuple):
     """The 8 grid moves of the 2D relaxations: passable (H, W) bool; steps (8, 2) (Δrow,
-    Δcol) of move m (direction m·45°); lengths (8,) [m]; least (8, H, W) the terrain price
-    min_{k ∈ S_m} F_k of entering each cell by move m (∞: no unblocked cell within ρ)."""
+    Δcol) of move m (direction m·45°); lengths (8,) [m]; layers (U, H, W) the terrain price
+    F of entering each cell, one per distinct costmap layer (∞: no unblocked cell within
+    ρ); near (8, U) bool, the layers move m may read (S_m)."""
 
     passable: np.ndarray
     steps: np.ndarray
     lengths: np.ndarray
-    least: np.ndarray
+    layers: np.ndarray
+    near: np.ndarray
+
+    def least(self, m: int) -> np.ndarray:
+        """(H, W) the terrain price min_{k ∈ S_m} F_k of entering each cell by move m."""
+        return self.layers[self.near[m]].min(axis=0)
+
+
+class CompiledPrices(NamedTuple):
+    """What the compiled runs read of a map's terrain prices: ``one_layer`` (all costmap
+    layers equal: T_m(v) = ``first_layer[v]`` (H·W,) for every m), else ``prices`` (H·W, 8)
+    T_m(v) (:func:`.compiled_dijkstra.move_prices`); ``zero`` whether every finite price
+    is 0 (a zero costmap: D_c = 0 wherever D is finite, its run skipped), ``most`` the
+    largest finite price."""
+
+    one_layer: bool
+    first_layer: np.ndarray
+    prices: np.ndarray
+    zero: bool
+    most: float
 
 
 def disk_minimum(values: np.ndarray, disk: np.ndarray) -> np.ndarray:
