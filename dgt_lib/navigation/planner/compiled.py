@@ -34,8 +34,7 @@ from dgt_lib.navigation.planner.compiled_kernels import (
 )
 from dgt_lib.navigation.planner.compiled_shots import (
     dubins,
-    poses_collide,
-    sample_segments,
+    sample_free,
     shot_cost,
     turn_then_straight,
 )
@@ -237,10 +236,9 @@ def search(p, maps, h, tables, nodes, open_list, closed, progress, stop_at):
                             needed += max(1, math.ceil(lengths[i] / substep))
                     if needed > shot_buf.shape[0]:
                         shot_buf = np.empty((2 * needed, 3))
-                    n_poses = sample_segments(x, y, th, kinds, lengths, n_seg, radius,
-                                               substep, shot_buf)
-                    if n_poses > 0 and not poses_collide(shot_buf, n_poses, p, offsets,
-                                                          blocked):
+                    n_poses = sample_free(x, y, th, kinds, lengths, n_seg, radius,
+                                          substep, shot_buf, p, offsets, blocked)
+                    if n_poses > 0:
                         g_goal = g + shot_cost(x, y, th, shot_buf, n_poses, p, cost_flat)
                         if g_goal < best_goal:
                             best_goal = g_goal

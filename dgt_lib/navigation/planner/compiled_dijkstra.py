@@ -248,7 +248,7 @@ def _sift_up(keys, cells, where, i, key, cell):
     where[cell] = i
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def bounds_at(flat, r):
     """(φ·D, φ·D_c) at cell ``flat`` of :class:`Relaxations` ``r``, settling both runs as
     far as needed; with ``r.zero_terrain`` D_c is 0 wherever D is finite."""

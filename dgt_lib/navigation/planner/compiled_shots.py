@@ -1,6 +1,6 @@
 """The analytic shots and their checks, compiled with numba for :mod:`.compiled`: Dubins and
-turn-then-straight paths (:mod:`.shots`), their sampling, the footprint check of the sampled
-poses (``BlockedMap.collides``) and their price (``shots.shot_cost``), each with the same
+turn-then-straight paths (:mod:`.shots`), their sampling with the footprint check of each
+pose (``BlockedMap.collides``) and their price (``shots.shot_cost``), each with the same
 floating-point operations in the same order as its Python reference. ``p`` is the query's
 :class:`.compiled.SearchParams`."""
 
@@ -112,8 +112,13 @@ def turn_then_straight(x, y, th, gx, gy, radius, kinds, lengths):
 
 
 @njit(cache=True)
-def sample_segments(x, y, th, kinds, lengths, n_seg, radius, spacing, out):
-    """shots.sample_segments into ``out`` (rows x, y, θ); returns the number of poses."""
+def sample_free(x, y, th, kinds, lengths, n_seg, radius, spacing, out, p, offsets, blocked):
+    """shots.sample_segments into ``out`` (rows x, y, θ), each pose checked as it is
+    sampled (``BlockedMap.collides``: floor((c − origin)/res) + pad, clipped): the number
+    of poses, or −1 at the first whose footprint collides (the rest is not sampled)."""
+    x0, y0, res = p.x0, p.y0, p.res
+    pad, width = p.pad, p.pad_width
+    height = blocked.shape[0] // width
     n_out = 0
     for s in range(n_seg):
         length = lengths[s]
@@ -126,35 +131,20 @@ def sample_segments(x, y, th, kinds, lengths, n_seg, radius, spacing, out):
         for i in range(1, n + 1):
             t = length * i / n
             if kappa == 0.0:
-                out[n_out, 0] = x + t * cos_th
-                out[n_out, 1] = y + t * sin_th
-                out[n_out, 2] = th
+                px, py, pth, cos_t, sin_t = x + t * cos_th, y + t * sin_th, th, cos_th, sin_th
             else:
-                th_t = th + kappa * t
-                out[n_out, 0] = x + (math.sin(th_t) - sin_th) / kappa
-                out[n_out, 1] = y - (math.cos(th_t) - cos_th) / kappa
-                out[n_out, 2] = th_t
+                pth = th + kappa * t
+                cos_t, sin_t = math.cos(pth), math.sin(pth)
+                px, py = x + (sin_t - sin_th) / kappa, y - (cos_t - cos_th) / kappa
+            for c in range(offsets.shape[0]):
+                col = np.int64(math.floor((px + offsets[c] * cos_t - x0) / res)) + pad
+                row = np.int64(math.floor((py + offsets[c] * sin_t - y0) / res)) + pad
+                if blocked[min(max(row, 0), height - 1) * width + min(max(col, 0), width - 1)]:
+                    return -1
+            out[n_out, 0], out[n_out, 1], out[n_out, 2] = px, py, pth
             n_out += 1
         x, y, th = out[n_out - 1, 0], out[n_out - 1, 1], out[n_out - 1, 2]
     return n_out
-
-
-@njit(cache=True)
-def poses_collide(poses, n, p, offsets, blocked):
-    """BlockedMap.collides(poses[:n]).any(): floor((c − origin)/res) + pad, clipped."""
-    x0, y0, res = p.x0, p.y0, p.res
-    pad, width = p.pad, p.pad_width
-    height = blocked.shape[0] // width
-    for i in range(n):
-        cos_t, sin_t = math.cos(poses[i, 2]), math.sin(poses[i, 2])
-        for c in range(offsets.shape[0]):
-            col = np.int64(math.floor((poses[i, 0] + offsets[c] * cos_t - x0) / res)) + pad
-            row = np.int64(math.floor((poses[i, 1] + offsets[c] * sin_t - y0) / res)) + pad
-            row = min(max(row, 0), height - 1)
-            col = min(max(col, 0), width - 1)
-            if blocked[row * width + col]:
-                return True
-    return False
 
 
 @njit(cache=True)
