@@ -326,3 +326,23 @@ def test_world_hill_ascends_route_a_and_descends_route_b():
     assert np.hypot(*(up.path[:, :2] - corner).T).min() < 10.0  # round Route A's corner
     assert np.hypot(*(down.path[:, :2] - steep).T).min() < 5.0  # straight down Route B
     assert down.length_m < 100.0 < 200.0 < up.length_m
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, -0.1, 1.1])
+def test_a_costmap_value_outside_zero_to_one_is_a_clear_error(bad):
+    costmap, occupancy, grid = empty_map()
+    costmap[3, 10, 20] = bad
+    with pytest.raises(ValueError, match="finite and in"):
+        HybridAStar(costmap, occupancy, grid, min_turn_radius_m=R_MIN, footprint=FOOTPRINT)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int64, np.float64])
+def test_an_occupancy_value_other_than_0_1_2_is_a_clear_error(dtype):
+    costmap, occupancy, grid = empty_map()
+    occupancy = occupancy.astype(dtype)
+    occupancy[10, 20] = 2
+    HybridAStar(costmap, occupancy, grid, min_turn_radius_m=R_MIN, footprint=FOOTPRINT)
+    for bad in {np.uint8: (3, 255), np.int64: (3, -1), np.float64: (3, -1, 0.5)}[dtype]:
+        occupancy[10, 20] = bad
+        with pytest.raises(ValueError, match="occupancy values must be 0"):
+            HybridAStar(costmap, occupancy, grid, min_turn_radius_m=R_MIN, footprint=FOOTPRINT)

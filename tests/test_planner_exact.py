@@ -19,7 +19,9 @@ import pytest
 from scipy import ndimage
 
 from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.planner import BUDGET, NO_PATH, HybridAStar, PlanResult
+from dgt_lib.navigation.planner.compiled_kernels import squared_distances
 from dgt_lib.navigation.planner.heuristics import disk_minimum
 from tests import planner_cases
 
@@ -207,3 +209,43 @@ def test_disk_minimum_is_scipys_minimum_filter():
         expected = ndimage.minimum_filter(values, footprint=disk, mode="constant",
                                           cval=np.inf)
         np.testing.assert_array_equal(disk_minimum(values, disk), expected)
+
+
+def test_the_goal_s_cells_are_every_passable_cell_within_reach_of_it():
+    """The runs start from the passable cells whose centre is within tolerance + res·√2/2
+    of the goal, measured on a window around it: the same cells as over the whole map,
+    at the map's corners and edges too."""
+    planner = _hill_planners()[1]
+    cost_to_go, grid = planner.maps.cost_to_go, planner.grid
+    cost_to_go._relaxation_moves()
+    reach = cost_to_go.cfg.goal_tolerance_m + grid.resolution * math.sqrt(2) / 2
+    X, Y = grid.cell_centers()
+    x0, x1, y0, y1 = grid.extent
+    rng = np.random.default_rng(0)
+    goals = [(x0, y0), (x1 - 1e-9, y1 - 1e-9), (x0 + 0.3, y1 - 0.2), *rng.uniform(
+        (x0, y0), (x1, y1), (20, 2))]
+    for gx, gy in goals:
+        expected = np.flatnonzero((np.hypot(X - gx, Y - gy) <= reach)
+                                  & ~cost_to_go.impassable)
+        np.testing.assert_array_equal(cost_to_go._goal_cells(gx, gy), expected)
+
+
+def test_the_compiled_distance_transform_is_scipys():
+    rng = np.random.default_rng(5)
+    for _ in range(60):
+        shape = rng.integers(1, 50, 2)
+        occupied = rng.random(shape) < rng.choice([0.002, 0.05, 0.5, 0.95])
+        occupied.flat[rng.integers(occupied.size)] = True
+        np.testing.assert_array_equal(np.sqrt(squared_distances(occupied)),
+                                      ndimage.distance_transform_edt(~occupied))
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_a_map_without_obstacles_blocks_no_cell(backend):
+    """No cell is near an obstacle where there is none (scipy's transform, given no
+    obstacle, measures from a point beyond the map's corner)."""
+    grid = GridSpec((0.0, 0.0), 0.5, (40, 60))
+    planner = HybridAStar(np.zeros((8, *grid.shape)), np.zeros(grid.shape, np.uint8), grid,
+                          min_turn_radius_m=4.0, footprint=(4.0, 2.0), backend=backend)
+    assert not planner.blocked.any()
+    assert planner.plan((2.5, 1.5, 0.0), (25.0, 1.5, 0.0)).success

@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from dgt_lib.navigation.planner.compiled_dijkstra import bounds_at
+from dgt_lib.navigation.planner.compiled_dijkstra import bound_of, settle_cell
 from dgt_lib.navigation.planner.compiled_kernels import (
     angle_diff,
     build_table,
@@ -185,6 +185,10 @@ def search(p, maps, h, tables, nodes, open_list, closed, progress, stop_at):
     hf, hc, hnode = open_list.f, open_list.count, open_list.node
     key_state, best_g, expanded = closed.state, closed.best_g, progress.expanded
     flat_base = (pad - 1) * (pad_w + 1)
+    # the cost-to-go's arrays, taken out of their tuples once (not per lookup)
+    full_where, full_dist = h.full.where, h.full.dist
+    terrain_where, terrain_dist = h.terrain.where, h.terrain.dist
+    zero_terrain, phi = h.zero_terrain, h.phi
     n_nodes, heap_size = progress.n_nodes[0], progress.heap_size[0]
     counter, n_exp = progress.counter[0], progress.n_expanded[0]
     best_goal = progress.best_goal[0]
@@ -297,7 +301,10 @@ def search(p, maps, h, tables, nodes, open_list, closed, progress, stop_at):
             else:
                 hn = distance(xn - gx, yn - gy)
                 if use_h:
-                    h_grid, h_terr = bounds_at(rn * W + cn, h)
+                    flat = rn * W + cn
+                    if full_where[flat] != -2 or not zero_terrain and terrain_where[flat] != -2:
+                        settle_cell(flat, h)
+                    h_grid, h_terr = bound_of(flat, full_dist, terrain_dist, zero_terrain, phi)
                     hn = max(h_grid, hn + h_terr)
                     if hn == np.inf:
                         continue

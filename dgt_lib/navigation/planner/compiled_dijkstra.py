@@ -9,12 +9,12 @@ graphs). A run's state lives in arrays so that it can stop and go on:
 the compiled search settles cells only as it needs their bound (:func:`bounds_at`),
 :meth:`~.heuristics.DijkstraRuns.finish` every cell.
 
-Every move of D costs at least δ = res, so D is a bucket queue (Dial's algorithm,
-:func:`settle_buckets`): cells are queued by ⌊dist/δ'⌋ with δ' just under δ, and a
-bucket's cells are all final when it is reached, in any order. D_c has moves of cost 0 and
-keeps a binary heap (:func:`settle_heap`). Both settle a cell at the distance scipy's
-dijkstra gives it, to the bit, however far a run went: each distance is the least sum
-dist[v] + w over the cell's settled neighbours, whatever the order they were settled in.
+Every move of D costs at least δ = res, so D's run is a bucket queue (Dial's algorithm):
+cells are queued by ⌊dist/δ'⌋ with δ' just under δ, and a bucket's cells are all final when
+it is reached, in any order. D_c has moves of cost 0 and keeps a binary heap. Both settle a
+cell at the distance scipy's dijkstra gives it, to the bit, however far a run went: each
+distance is the least sum dist[v] + w over the cell's settled neighbours, whatever the
+order they were settled in.
 """
 
 from __future__ import annotations
@@ -27,28 +27,20 @@ from numba import njit
 
 
 class DijkstraRun(NamedTuple):
-    """A run on a binary heap: ``dist`` (n,) distances, the heap's ``keys`` (n,) and
-    ``cells`` (n,), ``where`` (n,) each cell's heap slot (−1 never queued, −2 settled),
-    ``size`` (1,)."""
+    """One run's state: ``dist`` (n,) distances, ``where`` (n,) each cell's place in the
+    queue (−1 never queued, −2 settled), ``state`` (2,) the bucket being settled and the
+    number of cells queued. D's run is a bucket queue (``scale`` = 1/δ' [1/m]): each queued
+    cell in a doubly linked list (``next``, ``prev`` (n,)) of its bucket, whose slot in the
+    ring ``heads`` (R,) of list heads is its ``where``. D_c's is a binary heap (``scale`` =
+    0) of entries (``keys``, ``cells``) (n,), ``where`` each cell's slot."""
 
     dist: np.ndarray
-    keys: np.ndarray
-    cells: np.ndarray
     where: np.ndarray
-    size: np.ndarray
-
-
-class BucketRun(NamedTuple):
-    """A run on a bucket queue: ``dist`` (n,) distances, each queued cell in a doubly
-    linked list (``next``, ``prev`` (n,)) of its bucket, ``where`` (n,) its bucket's slot
-    in the ring ``heads`` (R,) of list heads (−1 never queued, −2 settled); ``state`` (2,)
-    the bucket being settled and the number of queued cells; ``scale`` 1/δ' [1/m]."""
-
-    dist: np.ndarray
     next: np.ndarray
     prev: np.ndarray
-    where: np.ndarray
     heads: np.ndarray
+    keys: np.ndarray
+    cells: np.ndarray
     state: np.ndarray
     scale: float
 
@@ -67,7 +59,7 @@ class Relaxations(NamedTuple):
     one_layer: bool
     first_layer: np.ndarray
     prices: np.ndarray
-    full: BucketRun
+    full: DijkstraRun
     terrain: DijkstraRun
     zero_terrain: bool
     phi: float
@@ -75,40 +67,47 @@ class Relaxations(NamedTuple):
     width: int
 
 
-def heap_run(n: int, sources: np.ndarray) -> DijkstraRun:
-    """A heap run over n cells from the flat cells ``sources`` (at distance 0)."""
-    run = DijkstraRun(np.full(n, np.inf), np.empty(n), np.empty(n, np.int64),
-                  np.full(n, -1, np.int64), np.zeros(1, np.int64))
+def new_run(n: int, sources: np.ndarray, bucket_m: float = 0.0,
+            most_move_m: float = 0.0) -> DijkstraRun:
+    """A run over n cells from the flat cells ``sources`` (at distance 0): D's bucket queue
+    for moves that cost bucket_m to most_move_m [m], or D_c's heap (bucket_m = 0)."""
     sources = np.unique(sources)
-    run.dist[sources], run.keys[:len(sources)], run.cells[:len(sources)] = 0.0, 0.0, sources
-    run.where[sources], run.size[0] = np.arange(len(sources)), len(sources)
-    return run
-
-
-def bucket_run(n: int, sources: np.ndarray, least_move_m: float,
-               most_move_m: float) -> BucketRun:
-    """A bucket run over n cells from the flat cells ``sources`` (at distance 0), for moves
-    that cost least_move_m to most_move_m [m]."""
-    width = least_move_m * (1.0 - 1e-6)  # δ': a move always reaches a later bucket
-    heads = np.full(math.ceil(most_move_m / width) + 3, -1, np.int64)
-    run = BucketRun(np.full(n, np.inf), np.empty(n, np.int64), np.empty(n, np.int64),
-                    np.full(n, -1, np.int64), heads, np.zeros(2, np.int64), 1.0 / width)
-    for cell in np.unique(sources):
-        _link(run, int(cell), 0)
-        run.dist[cell] = 0.0
-    run.state[1] = len(np.unique(sources))
+    k, bucketed = len(sources), bucket_m > 0
+    width = bucket_m * (1.0 - 1e-6)  # δ': a move always reaches a later bucket
+    lists, heap = (n, 1) if bucketed else (1, n)
+    run = DijkstraRun(np.full(n, np.inf), np.full(n, -1, np.int64),
+                      np.full(lists, -1, np.int64), np.full(lists, -1, np.int64),
+                      np.full(math.ceil(most_move_m / width) + 3 if bucketed else 1, -1,
+                              np.int64), np.zeros(heap), np.zeros(heap, np.int64),
+                      np.array([0, k]), 1.0 / width if bucketed else 0.0)
+    run.dist[sources] = 0.0
+    if bucketed and k:  # all in bucket 0, in one list
+        run.heads[0], run.where[sources] = sources[0], 0
+        run.next[sources[:-1]], run.prev[sources[1:]] = sources[1:], sources[:-1]
+    elif k:
+        run.cells[:k], run.where[sources] = sources, np.arange(k)
     return run
 
 
 @njit(cache=True, inline="always")
-def _link(run, cell, slot):
+def _unlink(nxt, prev, heads, cell, slot):
+    """Take ``cell`` out of bucket ``slot``'s list."""
+    if prev[cell] >= 0:
+        nxt[prev[cell]] = nxt[cell]
+    else:
+        heads[slot] = nxt[cell]
+    if nxt[cell] >= 0:
+        prev[nxt[cell]] = prev[cell]
+
+
+@njit(cache=True, inline="always")
+def _link(nxt, prev, heads, where, cell, slot):
     """Put ``cell`` at the head of bucket ``slot``'s list."""
-    head = run.heads[slot]
-    run.next[cell], run.prev[cell] = head, -1
-    if head >= 0:
-        run.prev[head] = cell
-    run.heads[slot] = cell
-    run.where[cell] = slot
+    nxt[cell], prev[cell] = heads[slot], -1
+    if heads[slot] >= 0:
+        prev[heads[slot]] = cell
+    heads[slot] = cell
+    where[cell] = slot
 
 
 @njit(cache=True)
@@ -126,26 +125,44 @@ def move_prices(layers, near, near_start):
 
 
 @njit(cache=True)
-def settle_buckets(target, r, run):
-    """Go on with D's bucket run until cell ``target`` is settled (−1: until every
-    reachable cell is) or nothing is left to settle; dist[target] is then final (∞:
-    unreachable)."""
+def settle(target, r, run):
+    """Go on with ``run`` (``r.full`` or ``r.terrain`` of :class:`Relaxations` ``r``) until
+    cell ``target`` is settled (−1: until every reachable cell is) or nothing is left to
+    settle; dist[target] is then final (∞: unreachable)."""
+    if run.scale > 0:  # each queue its own machine code
+        _settle(target, r, run, True)
+    else:
+        _settle(target, r, run, False)
+
+
+@njit(cache=True, inline="always")
+def _settle(target, r, run, full):
     height, width, passable, moves, lengths = r.height, r.width, r.passable, r.moves, r.lengths
     one_layer, first_layer, prices = r.one_layer, r.first_layer, r.prices
-    dist, nxt, prev, where, heads = run.dist, run.next, run.prev, run.where, run.heads
+    dist, where, heads, keys, cells = run.dist, run.where, run.heads, run.keys, run.cells
+    nxt, prev = run.next, run.prev
     n_slots, scale = heads.shape[0], run.scale
-    bucket, queued = run.state[0], run.state[1]
-    while queued > 0 and (target < 0 or where[target] != -2):
-        slot = bucket % n_slots
-        v = heads[slot]
-        if v < 0:
-            bucket += 1
-            continue
-        heads[slot] = nxt[v]  # settle the bucket's first cell
-        if nxt[v] >= 0:
-            prev[nxt[v]] = -1
+    bucket, n = run.state[0], run.state[1]
+    while n > 0 and (target < 0 or where[target] != -2):
+        if full:  # the first cell of the first bucket that has one
+            v = heads[bucket % n_slots]
+            if v < 0:
+                bucket += 1
+                continue
+            _unlink(nxt, prev, heads, v, bucket % n_slots)
+            n -= 1
+        else:  # the heap's root; the hole goes down along the lesser children to a leaf,
+            v, i = cells[0], 0  # then the last entry goes up from there
+            n -= 1
+            while 2 * i + 1 < n:
+                child = 2 * i + 1
+                child += np.int64(child + 1 < n and keys[child + 1] < keys[child])
+                keys[i], cells[i] = keys[child], cells[child]
+                where[cells[i]] = i
+                i = child
+            if n > 0:
+                _sift_up(keys, cells, where, i, keys[n], cells[n])
         where[v] = -2
-        queued -= 1
         dv = dist[v]
         row = v // width
         col = v - row * width
@@ -157,80 +174,27 @@ def settle_buckets(target, r, run):
             old = where[u]
             if old == -2 or not passable[u]:
                 continue
-            if one_layer:  # T_m(v), the terrain price of entering v by move m
+            if one_layer:  # T_m(v)
                 t = first_layer[v]
             else:
                 t = prices[v, m]
             if t == np.inf:
                 continue
-            alt = dv + (lengths[m] + lengths[m] * t)
-            if alt < dist[u]:
-                dist[u] = alt
-                new = np.int64(alt * scale) % n_slots
-                if old == new:
-                    continue
-                if old >= 0:  # unlink u from its old bucket
-                    if prev[u] >= 0:
-                        nxt[prev[u]] = nxt[u]
-                    else:
-                        heads[old] = nxt[u]
-                    if nxt[u] >= 0:
-                        prev[nxt[u]] = prev[u]
-                else:
-                    queued += 1
-                _link(run, u, new)
-    run.state[0], run.state[1] = bucket, queued
-
-
-@njit(cache=True)
-def settle_heap(target, r, run):
-    """Go on with D_c's heap run until cell ``target`` is settled (−1: until every
-    reachable cell is) or nothing is left to settle; dist[target] is then final (∞:
-    unreachable)."""
-    height, width, passable, moves, lengths = r.height, r.width, r.passable, r.moves, r.lengths
-    one_layer, first_layer, prices = r.one_layer, r.first_layer, r.prices
-    dist, keys, cells, where = run.dist, run.keys, run.cells, run.where
-    n = run.size[0]
-    while n > 0 and (target < 0 or where[target] != -2):
-        v, dv = cells[0], keys[0]
-        where[v] = -2
-        n -= 1
-        if n > 0:  # the hole at the root goes down along the lesser children to a leaf,
-            i = 0  # then the last entry goes up from there (fewer unpredictable branches)
-            while True:
-                child = 2 * i + 1
-                if child + 1 < n:
-                    child += np.int64(keys[child + 1] < keys[child])
-                elif child >= n:
-                    break
-                keys[i], cells[i] = keys[child], cells[child]
-                where[cells[i]] = i
-                i = child
-            _sift_up(keys, cells, where, i, keys[n], cells[n])
-        row = v // width
-        col = v - row * width
-        for m in range(8):
-            ur, uc = row - moves[m, 0], col - moves[m, 1]
-            if ur < 0 or ur >= height or uc < 0 or uc >= width:
-                continue
-            u = ur * width + uc
-            if where[u] == -2 or not passable[u]:
-                continue
-            if one_layer:  # T_m(v), the terrain price of entering v by move m
-                t = first_layer[v]
+            if full:
+                alt = dv + (lengths[m] + lengths[m] * t)
             else:
-                t = prices[v, m]
-            if t == np.inf:
-                continue
-            alt = dv + lengths[m] * t
+                alt = dv + lengths[m] * t
             if alt < dist[u]:
                 dist[u] = alt
-                i = where[u]
-                if i == -1:
-                    i = n
+                if old == -1:
                     n += 1
-                _sift_up(keys, cells, where, i, alt, u)
-    run.size[0] = n
+                if not full:
+                    _sift_up(keys, cells, where, n - 1 if old == -1 else old, alt, u)
+                elif old != np.int64(alt * scale) % n_slots:
+                    if old >= 0:
+                        _unlink(nxt, prev, heads, u, old)
+                    _link(nxt, prev, heads, where, u, np.int64(alt * scale) % n_slots)
+    run.state[0], run.state[1] = bucket, n
 
 
 @njit(cache=True, inline="always")
@@ -248,16 +212,28 @@ def _sift_up(keys, cells, where, i, key, cell):
     where[cell] = i
 
 
+@njit(cache=True)
+def settle_cell(flat, r):
+    """Settle cell ``flat`` in both runs of :class:`Relaxations` ``r`` (D_c's only where
+    it is run), going on with each as far as needed."""
+    if r.full.where[flat] != -2:
+        settle(flat, r, r.full)
+    if not r.zero_terrain and r.terrain.where[flat] != -2:
+        settle(flat, r, r.terrain)
+
+
 @njit(cache=True, inline="always")
+def bound_of(flat, full_dist, terrain_dist, zero_terrain, phi):
+    """(φ·D, φ·D_c) at a cell ``flat`` settled in both runs (their ``dist`` arrays); with
+    ``zero_terrain`` D_c is 0 wherever D is finite."""
+    if zero_terrain:
+        return phi * full_dist[flat], phi * (0.0 if full_dist[flat] != np.inf else np.inf)
+    return phi * full_dist[flat], phi * terrain_dist[flat]
+
+
+@njit(cache=True)
 def bounds_at(flat, r):
     """(φ·D, φ·D_c) at cell ``flat`` of :class:`Relaxations` ``r``, settling both runs as
-    far as needed; with ``r.zero_terrain`` D_c is 0 wherever D is finite."""
-    full, terrain = r.full, r.terrain
-    if full.where[flat] != -2:
-        settle_buckets(flat, r, full)
-    h_full = r.phi * full.dist[flat]
-    if r.zero_terrain:
-        return h_full, r.phi * (0.0 if full.dist[flat] != np.inf else np.inf)
-    if terrain.where[flat] != -2:
-        settle_heap(flat, r, terrain)
-    return h_full, r.phi * terrain.dist[flat]
+    far as needed (the search does the same with the arrays taken out of ``r`` once)."""
+    settle_cell(flat, r)
+    return bound_of(flat, r.full.dist, r.terrain.dist, r.zero_terrain, r.phi)

@@ -145,3 +145,51 @@ def heap_pop(hf, hc, hn, size):
         else:
             break
     return top, size
+
+
+# --- the blocked map's distance transform (BlockedMap) --------------------------------------
+
+
+@njit(cache=True)
+def squared_distances(occupied):
+    """(H, W) the squared distance [cells²] from each cell centre to the nearest
+    ``occupied`` one (∞ where none is): Felzenszwalb & Huttenlocher's exact transform, a
+    column scan, then per row the lower envelope of the parabolas (c − q)² + g(q)². Every
+    value is an integer held exactly, so its square root is scipy's
+    ``distance_transform_edt`` of ``~occupied``, to the bit."""
+    height, width = occupied.shape
+    g = np.empty((height, width))  # distance along the column to the nearest occupied
+    for r in range(height):
+        for c in range(width):
+            g[r, c] = 0.0 if occupied[r, c] else (g[r - 1, c] + 1.0 if r > 0 else np.inf)
+    for r in range(height - 2, -1, -1):
+        for c in range(width):
+            g[r, c] = min(g[r, c], g[r + 1, c] + 1.0)
+    out = np.empty((height, width))
+    f = np.empty(width)  # g² of the row
+    v = np.empty(width, np.int64)  # the envelope's parabolas (their columns) ...
+    z = np.empty(width + 1)  # ... and where each one starts
+    for r in range(height):
+        for q in range(width):
+            f[q] = g[r, q] * g[r, q]
+        k = -1
+        for q in range(width):
+            if f[q] == np.inf:
+                continue
+            s = -np.inf
+            while k >= 0:
+                s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2.0 * (q - v[k]))
+                if s > z[k]:
+                    break
+                k -= 1
+            k += 1
+            v[k], z[k], z[k + 1] = q, (s if k > 0 else -np.inf), np.inf
+        if k < 0:
+            out[r, :] = np.inf
+            continue
+        k = 0
+        for q in range(width):
+            while z[k + 1] < q:
+                k += 1
+            out[r, q] = (q - v[k]) * (q - v[k]) + f[v[k]]
+    return out

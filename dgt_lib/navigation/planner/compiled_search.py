@@ -76,16 +76,12 @@ class CompiledSearch:
         the cost-to-go heuristic."""
         if self.params.use_cost_to_go:
             return self.maps.cost_to_go.runs((self.query.gx, self.query.gy)).relaxations
-        from dgt_lib.navigation.planner.compiled_dijkstra import (
-            Relaxations,
-            bucket_run,
-            heap_run,
-        )
+        from dgt_lib.navigation.planner.compiled_dijkstra import Relaxations, new_run
 
         none = np.zeros(0, np.int64)
         return Relaxations(np.zeros(1, np.bool_), np.zeros((8, 2), np.int64), np.zeros(8), True,
-                           np.zeros(1), np.zeros((1, 8)), bucket_run(1, none, 1.0, 1.0),
-                           heap_run(1, none), True, 1.0, 1, 1)
+                           np.zeros(1), np.zeros((1, 8)), new_run(1, none, 1.0, 1.0),
+                           new_run(1, none), True, 1.0, 1, 1)
 
     def _start(self, h):
         """The start node, as :meth:`.search.Search.push_start` makes it: (its f, key,

@@ -23,65 +23,64 @@ def dubins(sx, sy, sth, gx, gy, gth, radius, kinds, lengths):
     a, b = mod2pi(sth - phi), mod2pi(gth - phi)
     sa, sb, ca, cb, cab = math.sin(a), math.sin(b), math.cos(a), math.cos(b), math.cos(a - b)
     best = np.inf
-    w = np.empty(3)
     p2 = 2 + d * d - 2 * cab + 2 * d * (sa - sb)  # LSL
     if p2 >= 0:
         tmp = math.atan2(cb - ca, d + sa - sb)
-        w[0], w[1], w[2] = mod2pi(-a + tmp), math.sqrt(p2), mod2pi(b - tmp)
-        total = w[0] + w[1] + w[2]
+        w0, w1, w2 = mod2pi(-a + tmp), math.sqrt(p2), mod2pi(b - tmp)
+        total = w0 + w1 + w2
         if total < best:
             best = total
             kinds[0], kinds[1], kinds[2] = 0, 1, 0
-            lengths[:] = w
+            lengths[0], lengths[1], lengths[2] = w0, w1, w2
     p2 = 2 + d * d - 2 * cab + 2 * d * (sb - sa)  # RSR
     if p2 >= 0:
         tmp = math.atan2(ca - cb, d - sa + sb)
-        w[0], w[1], w[2] = mod2pi(a - tmp), math.sqrt(p2), mod2pi(-b + tmp)
-        total = w[0] + w[1] + w[2]
+        w0, w1, w2 = mod2pi(a - tmp), math.sqrt(p2), mod2pi(-b + tmp)
+        total = w0 + w1 + w2
         if total < best:
             best = total
             kinds[0], kinds[1], kinds[2] = 2, 1, 2
-            lengths[:] = w
+            lengths[0], lengths[1], lengths[2] = w0, w1, w2
     p2 = -2 + d * d + 2 * cab + 2 * d * (sa + sb)  # LSR
     if p2 >= 0:
         p = math.sqrt(p2)
         tmp = math.atan2(-ca - cb, d + sa + sb) - math.atan2(-2.0, p)
-        w[0], w[1], w[2] = mod2pi(-a + tmp), p, mod2pi(-b + tmp)
-        total = w[0] + w[1] + w[2]
+        w0, w1, w2 = mod2pi(-a + tmp), p, mod2pi(-b + tmp)
+        total = w0 + w1 + w2
         if total < best:
             best = total
             kinds[0], kinds[1], kinds[2] = 0, 1, 2
-            lengths[:] = w
+            lengths[0], lengths[1], lengths[2] = w0, w1, w2
     p2 = -2 + d * d + 2 * cab - 2 * d * (sa + sb)  # RSL
     if p2 >= 0:
         p = math.sqrt(p2)
         tmp = math.atan2(ca + cb, d - sa - sb) - math.atan2(2.0, p)
-        w[0], w[1], w[2] = mod2pi(a - tmp), p, mod2pi(b - tmp)
-        total = w[0] + w[1] + w[2]
+        w0, w1, w2 = mod2pi(a - tmp), p, mod2pi(b - tmp)
+        total = w0 + w1 + w2
         if total < best:
             best = total
             kinds[0], kinds[1], kinds[2] = 2, 1, 0
-            lengths[:] = w
+            lengths[0], lengths[1], lengths[2] = w0, w1, w2
     c = (6 - d * d + 2 * cab + 2 * d * (sa - sb)) / 8  # RLR
     if abs(c) <= 1:
         p = mod2pi(TWO_PI - math.acos(c))
         t = mod2pi(a - math.atan2(ca - cb, d - sa + sb) + p / 2)
-        w[0], w[1], w[2] = t, p, mod2pi(a - b - t + p)
-        total = w[0] + w[1] + w[2]
+        w0, w1, w2 = t, p, mod2pi(a - b - t + p)
+        total = w0 + w1 + w2
         if total < best:
             best = total
             kinds[0], kinds[1], kinds[2] = 2, 0, 2
-            lengths[:] = w
+            lengths[0], lengths[1], lengths[2] = w0, w1, w2
     c = (6 - d * d + 2 * cab + 2 * d * (sb - sa)) / 8  # LRL
     if abs(c) <= 1:
         p = mod2pi(TWO_PI - math.acos(c))
         t = mod2pi(-a - math.atan2(ca - cb, d + sa - sb) + p / 2)
-        w[0], w[1], w[2] = t, p, mod2pi(b - a - t + p)
-        total = w[0] + w[1] + w[2]
+        w0, w1, w2 = t, p, mod2pi(b - a - t + p)
+        total = w0 + w1 + w2
         if total < best:
             best = total
             kinds[0], kinds[1], kinds[2] = 0, 2, 0
-            lengths[:] = w
+            lengths[0], lengths[1], lengths[2] = w0, w1, w2
     for i in range(3):
         lengths[i] = lengths[i] * radius
     return 3

@@ -119,9 +119,7 @@ class CostToGo:
             return self.cache[key]
         res = self.grid.resolution
         moves = self._relaxation_moves()
-        X, Y = self.grid.cell_centers()
-        source = np.hypot(X - gx, Y - gy) <= self.cfg.goal_tolerance_m + res * math.sqrt(2) / 2
-        source = np.flatnonzero(source & ~self.impassable)
+        source = self._goal_cells(gx, gy)
         phi = self.cfg.step_m / step_cell_bounds(self.cfg.step_m, res)[0]
         if self.compiled:
             entry = [None, None, DijkstraRuns(moves, self._compiled_prices(moves), source,
@@ -139,6 +137,22 @@ class CostToGo:
         while len(self.cache) > _CACHED_GOALS:
             self.cache.popitem(last=False)
         return entry
+
+    def _goal_cells(self, gx: float, gy: float) -> np.ndarray:
+        """The flat indices, ascending, of the passable cells whose centre lies within
+        tolerance + res·√2/2 of the goal (x, y) [m]: the runs' sources. Only the cells of
+        a window around the goal are measured (one cell wider than the disc)."""
+        grid, res = self.grid, self.grid.resolution
+        reach = self.cfg.goal_tolerance_m + res * math.sqrt(2) / 2
+        (r0, r1), (c0, c1) = (
+            np.clip(np.asarray(cells) + (-1, 1), 0, n - 1)
+            for cells, n in zip(grid.xy_to_cell((gx - reach, gx + reach),
+                                                (gy - reach, gy + reach)), grid.shape,
+                                strict=True))
+        rows, cols = np.mgrid[r0:r1 + 1, c0:c1 + 1]
+        X, Y = grid.cell_to_xy(rows, cols)
+        inside = (np.hypot(X - gx, Y - gy) <= reach) & ~self.impassable[rows, cols]
+        return (rows * grid.width + cols)[inside]
 
     def _relaxation_moves(self) -> Moves:
         """The per-map part of both relaxations (built once): which cells are passable
@@ -232,33 +246,29 @@ class DijkstraRuns:
     (:class:`.compiled_dijkstra.Relaxations`)."""
 
     def __init__(self, moves: Moves, prices: CompiledPrices, source: np.ndarray, phi: float):
-        from dgt_lib.navigation.planner.compiled_dijkstra import (
-            Relaxations,
-            bucket_run,
-            heap_run,
-        )
+        from dgt_lib.navigation.planner.compiled_dijkstra import Relaxations, new_run
 
         self.shape, self.phi = moves.passable.shape, phi
         self.zero_terrain = prices.zero
         n = moves.passable.size
-        full = bucket_run(n, source, float(moves.lengths.min()),
-                          float(moves.lengths.max()) * (1.0 + prices.most))
-        terrain = heap_run(1, source[:0]) if prices.zero else heap_run(n, source)
+        full = new_run(n, source, float(moves.lengths.min()),
+                       float(moves.lengths.max()) * (1.0 + prices.most))
+        terrain = new_run(1, source[:0]) if prices.zero else new_run(n, source)
         self.relaxations = Relaxations(moves.passable.ravel(), moves.steps, moves.lengths,
                                        *prices[:3], full, terrain, prices.zero, float(phi),
                                        int(self.shape[0]), int(self.shape[1]))
 
     def finish(self) -> tuple[np.ndarray, np.ndarray]:
         """(φ·D, φ·D_c), each (H, W): both runs taken to the end."""
-        from dgt_lib.navigation.planner.compiled_dijkstra import settle_buckets, settle_heap
+        from dgt_lib.navigation.planner.compiled_dijkstra import settle
 
         r = self.relaxations
-        settle_buckets(-1, r, r.full)
+        settle(-1, r, r.full)
         full = r.full.dist
         if self.zero_terrain:
             terrain = np.where(np.isfinite(full), 0.0, np.inf)
         else:
-            settle_heap(-1, r, r.terrain)
+            settle(-1, r, r.terrain)
             terrain = r.terrain.dist
         return tuple(self.phi * d.reshape(self.shape) for d in (full, terrain))
 

@@ -67,7 +67,7 @@ class PlannerMaps:
         self.blocked = BlockedMap(
             occupancy, grid, self.circle_offsets, self.circle_radius_m,
             reach_m=cfg.step_m + float(np.abs(self.circle_offsets).max()),
-            substeps=math.ceil(cfg.step_m / cfg.substep_m),
+            substeps=math.ceil(cfg.step_m / cfg.substep_m), compiled=compiled,
         )
         self.bin_table, self.bin_reach = travel_bin_table(
             cfg.step_m, grid.resolution, self.n_headings)

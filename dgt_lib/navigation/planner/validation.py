@@ -29,11 +29,12 @@ def check_maps(costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec) -> No
         raise ValueError(
             f"costmap must be (K, H, W) with (H, W) = {grid.shape}, got {costmap.shape}"
         )
-    if not np.all(np.isfinite(costmap)) or costmap.min() < 0 or costmap.max() > 1:
+    if not (costmap.min() >= 0 and costmap.max() <= 1):  # false for NaN and ±∞ too
         raise ValueError("costmap values must be finite and in [0, 1]")
     if occupancy.shape != grid.shape:
         raise ValueError(f"occupancy must be (H, W) = {grid.shape}, got {occupancy.shape}")
-    if not np.isin(occupancy, (0, 1, 2)).all():
+    if not (occupancy.dtype == np.uint8 and occupancy.max() <= 2
+            or np.isin(occupancy, (0, 1, 2)).all()):
         raise ValueError("occupancy values must be 0 (free), 1 (occupied) or 2 (unobserved)")
 
 
