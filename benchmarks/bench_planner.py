@@ -189,7 +189,7 @@ def _build_cost_field(planner, goal_xy, t: float) -> float:
     returns the time since ``t`` [s]."""
     if planner.cfg.heuristic == "cost_to_go":
         planner.cost_to_go(goal_xy)
-        planner._cost_to_go_cache.clear()
+        planner.maps.cost_to_go.cache.clear()
     return time.perf_counter() - t
 
 

@@ -209,7 +209,7 @@ def run_ours(sc: Scenario, backend: str) -> dict:
                           footprint=(LENGTH_M, WIDTH_M), cfg=OURS_CFG, backend=backend)
     result = planner.plan(start, goal)
     total = time.perf_counter() - t
-    planner._cost_to_go_cache.clear()  # the search alone needs the goal's 2D field built:
+    planner.maps.cost_to_go.cache.clear()  # the search alone needs the goal's 2D field built:
     planner.cost_to_go(goal[:2])
     t = time.perf_counter()
     again = planner.plan(start, goal)

@@ -4,10 +4,9 @@ relaxations, without building them, run only as far as the search needs.
 
 The move u → v = u + moves[m] (both cells passable) costs ℓ_m·(1 + T_m(v)) in D and
 ℓ_m·T_m(v) in D_c, T_m(v) the least terrain price of the layers move m may read (∞: no
-such move; :func:`move_prices`, as :meth:`~.heuristics.Moves.least` forms it for scipy's
-graphs). A run's state lives in arrays so that it can stop and go on:
-the compiled search settles cells only as it needs their bound (:func:`bounds_at`),
-:meth:`~.heuristics.DijkstraRuns.finish` every cell.
+such move). A run's state lives in arrays so that it can stop and go on: the compiled
+search settles cells only as it needs their bound (:func:`settle_cell`),
+:meth:`~.heuristics.CostToGo.bounds` every cell.
 
 Every move of D costs at least δ = res, so D's run is a bucket queue (Dial's algorithm):
 cells are queued by ⌊dist/δ'⌋ with δ' just under δ, and a bucket's cells are all final when
@@ -49,7 +48,7 @@ class Relaxations(NamedTuple):
     """One goal's two relaxations D and D_c: ``passable`` (H·W,) bool, ``moves`` (8, 2)
     (Δrow, Δcol) and ``lengths`` (8,) ℓ_m [m]; the terrain price T_m(v) of entering cell v
     by move m: ``first_layer[v]`` (H·W,) for every m where ``one_layer`` (all costmap
-    layers equal), else ``prices[v, m]`` (H·W, 8) (:func:`move_prices`); the runs ``full``
+    layers equal), else ``prices[v, m]`` (H·W, 8); the runs ``full``
     of D and ``terrain`` of D_c (a 1-cell dummy when ``zero_terrain``: D_c = 0 wherever D
     is finite), ``phi`` φ, ``height`` and ``width`` of the grid."""
 
@@ -69,9 +68,9 @@ class Relaxations(NamedTuple):
 
 def new_run(n: int, sources: np.ndarray, bucket_m: float = 0.0,
             most_move_m: float = 0.0) -> DijkstraRun:
-    """A run over n cells from the flat cells ``sources`` (at distance 0): D's bucket queue
-    for moves that cost bucket_m to most_move_m [m], or D_c's heap (bucket_m = 0)."""
-    sources = np.unique(sources)
+    """A run over n cells from the flat cells ``sources`` (distinct, at distance 0): D's
+    bucket queue for moves that cost bucket_m to most_move_m [m], or D_c's heap (bucket_m =
+    0)."""
     k, bucketed = len(sources), bucket_m > 0
     width = bucket_m * (1.0 - 1e-6)  # δ': a move always reaches a later bucket
     lists, heap = (n, 1) if bucketed else (1, n)
@@ -98,30 +97,6 @@ def _unlink(nxt, prev, heads, cell, slot):
         heads[slot] = nxt[cell]
     if nxt[cell] >= 0:
         prev[nxt[cell]] = prev[cell]
-
-
-@njit(cache=True, inline="always")
-def _link(nxt, prev, heads, where, cell, slot):
-    """Put ``cell`` at the head of bucket ``slot``'s list."""
-    nxt[cell], prev[cell] = heads[slot], -1
-    if heads[slot] >= 0:
-        prev[heads[slot]] = cell
-    heads[slot] = cell
-    where[cell] = slot
-
-
-@njit(cache=True)
-def move_prices(layers, near, near_start):
-    """(n, 8) T_m(v): the least terrain price over the layers move m reads
-    (``near[near_start[m]:near_start[m + 1]]`` of ``layers`` (U, n)) at each cell v."""
-    out = np.empty((layers.shape[1], 8))
-    for v in range(layers.shape[1]):
-        for m in range(8):
-            t = np.inf
-            for j in range(near_start[m], near_start[m + 1]):
-                t = min(t, layers[near[j], v])
-            out[v, m] = t
-    return out
 
 
 @njit(cache=True)
@@ -193,7 +168,11 @@ def _settle(target, r, run, full):
                 elif old != np.int64(alt * scale) % n_slots:
                     if old >= 0:
                         _unlink(nxt, prev, heads, u, old)
-                    _link(nxt, prev, heads, where, u, np.int64(alt * scale) % n_slots)
+                    slot = np.int64(alt * scale) % n_slots  # u to the head of its list
+                    nxt[u], prev[u], where[u] = heads[slot], -1, slot
+                    if heads[slot] >= 0:
+                        prev[heads[slot]] = u
+                    heads[slot] = u
     run.state[0], run.state[1] = bucket, n
 
 
@@ -229,11 +208,3 @@ def bound_of(flat, full_dist, terrain_dist, zero_terrain, phi):
     if zero_terrain:
         return phi * full_dist[flat], phi * (0.0 if full_dist[flat] != np.inf else np.inf)
     return phi * full_dist[flat], phi * terrain_dist[flat]
-
-
-@njit(cache=True)
-def bounds_at(flat, r):
-    """(φ·D, φ·D_c) at cell ``flat`` of :class:`Relaxations` ``r``, settling both runs as
-    far as needed (the search does the same with the arrays taken out of ``r`` once)."""
-    settle_cell(flat, r)
-    return bound_of(flat, r.full.dist, r.terrain.dist, r.zero_terrain, r.phi)

@@ -72,16 +72,11 @@ class CompiledSearch:
             max_expansions=int(cfg.max_expansions))
 
     def _relaxations(self):
-        """The goal's compiled Dijkstra runs, or 1-cell dummies of the same types without
-        the cost-to-go heuristic."""
+        """The goal's compiled Dijkstra runs, or (without the cost-to-go heuristic) the
+        map's part of them, which the search then never reads."""
         if self.params.use_cost_to_go:
-            return self.maps.cost_to_go.runs((self.query.gx, self.query.gy)).relaxations
-        from dgt_lib.navigation.planner.compiled_dijkstra import Relaxations, new_run
-
-        none = np.zeros(0, np.int64)
-        return Relaxations(np.zeros(1, np.bool_), np.zeros((8, 2), np.int64), np.zeros(8), True,
-                           np.zeros(1), np.zeros((1, 8)), new_run(1, none, 1.0, 1.0),
-                           new_run(1, none), True, 1.0, 1, 1)
+            return self.maps.cost_to_go.runs((self.query.gx, self.query.gy))
+        return self.maps.cost_to_go._runs_template()[0]
 
     def _start(self, h):
         """The start node, as :meth:`.search.Search.push_start` makes it: (its f, key,
@@ -90,9 +85,11 @@ class CompiledSearch:
         row, col = (int(v) for v in self.maps.grid.xy_to_cell(q.sx, q.sy))
         estimate = distance(q.sx - q.gx, q.sy - q.gy)
         if p.use_cost_to_go:
-            from dgt_lib.navigation.planner.compiled_dijkstra import bounds_at
+            from dgt_lib.navigation.planner.compiled_dijkstra import bound_of, settle_cell
 
-            h_full, h_terrain = bounds_at(row * p.W + col, h)
+            settle_cell(row * p.W + col, h)
+            h_full, h_terrain = bound_of(row * p.W + col, h.full.dist, h.terrain.dist,
+                                         h.zero_terrain, h.phi)
             if not math.isfinite(h_full):
                 return None
             estimate = max(h_full, estimate + h_terrain)
@@ -144,7 +141,7 @@ class CompiledSearch:
         if start is None:
             return no_path(UNREACHABLE_2D, [], t0)
         nodes, open_list, closed, progress, tables = self._arrays(start)
-        maps = self.maps.compiled_arrays()
+        maps = self.maps.compiled
         stop_at = 0  # max_time_s is checked first before the first expansion, as Search does
         t_limit = t0  # the clock of max_time_s
         while True:

@@ -13,8 +13,6 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy import ndimage
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from dgt_lib.core.config import PlannerConfig
 from dgt_lib.core.geometry import TWO_PI, GridSpec, angle_diff
@@ -52,13 +50,14 @@ def step_cell_bounds(step_m: float, resolution: float) -> tuple[float, float]:
 class CostToGo:
     """The 2D cost-to-go lower bound of one map, per goal (the last few goals cached).
 
-    Two direction-aware 2D relaxations on the 8-connected grid, solved once per goal by
-    Dijkstra (scipy's, or ``compiled``: :class:`DijkstraRuns`, the same
-    distances): D prices a grid move by its length times (1 + the least amplified cost
-    C' = C(1 + βC) near the cell in the layers the move may read), D_c by the terrain part
-    alone; with φ = s/O (O the longest octile cell jump of one step) the bound is
-    h = max(φ·D, max(d − tol, 0) + φ·D_c), d the distance to the goal point. The
-    definitions and the proof that it is a lower bound: docs/planner.md.
+    Two direction-aware 2D relaxations on the 8-connected grid, solved per goal by the
+    compiled Dijkstra runs of :mod:`.compiled_dijkstra` (scipy's distances on the same
+    graphs, to the bit: ``tests/test_planner_exact.py``), only as far as asked: D prices a
+    grid move by its length times (1 + the least amplified cost C' = C(1 + βC) near the
+    cell in the layers the move may read), D_c by the terrain part alone; with φ = s/O (O
+    the longest octile cell jump of one step) the bound is h = max(φ·D, max(d − tol, 0) +
+    φ·D_c), d the distance to the goal point. The definitions and the proof that it is a
+    lower bound: docs/planner.md.
 
     costmap: (K, H, W) in [0, 1]; blocked: (H, W) cells a footprint centre may
     not occupy; occupied_distance: (H, W) distance [m] from each cell centre to
@@ -68,7 +67,7 @@ class CostToGo:
 
     def __init__(self, costmap: np.ndarray, blocked: np.ndarray, occupied_distance: np.ndarray,
                  grid: GridSpec, cfg: PlannerConfig, *, clearance_m: float,
-                 min_turn_radius_m: float, substep_m: float, compiled: bool = False):
+                 min_turn_radius_m: float, substep_m: float):
         self.costmap = costmap
         self.blocked = blocked
         self.occupied_distance = occupied_distance
@@ -77,11 +76,9 @@ class CostToGo:
         self.clearance_m = clearance_m
         self.min_turn_radius_m = min_turn_radius_m
         self.substep_m = substep_m
-        self.compiled = compiled  # grid Dijkstra compiled by numba, else scipy's on CSR graphs
         self.impassable: np.ndarray | None = None
         self._moves: Moves | None = None
-        self._prices: CompiledPrices | None = None  # what the compiled runs read
-        self._graphs: tuple[csr_matrix, csr_matrix] | None = None
+        self._template: tuple | None = None  # the runs' per-map part, and the dearest move
         self.cache: OrderedDict = OrderedDict()
 
     def field(self, goal_xy) -> np.ndarray:
@@ -92,67 +89,76 @@ class CostToGo:
         d = np.hypot(X - float(goal_xy[0]), Y - float(goal_xy[1])) - half_diagonal
         return np.maximum(h_full, np.maximum(d - self.cfg.goal_tolerance_m, 0.0) + h_terrain)
 
-    def bounds(self, goal_xy, as_lists: bool = False) -> tuple:
-        """(φ·D, φ·D_c), each (H, W), for one goal (cached); with ``as_lists`` flat
-        Python lists (fast scalar lookups in the search loop)."""
+    def bounds(self, goal_xy) -> tuple[np.ndarray, np.ndarray]:
+        """(φ·D, φ·D_c), each (H, W), for one goal (cached)."""
         entry = self._entry(goal_xy)
-        if entry[0] is None:  # compiled runs the search stopped early: take them to the end
-            entry[0] = entry[2].finish()
-        if as_lists and entry[1] is None:
-            entry[1] = tuple(b.ravel().tolist() for b in entry[0])
-        return entry[1 if as_lists else 0]
+        if entry[0] is None:  # the runs go as far as the search asked: take them to the end
+            from dgt_lib.navigation.planner.compiled_dijkstra import settle
 
-    def runs(self, goal_xy) -> DijkstraRuns:
-        """The goal's two Dijkstra runs, settled as far as anyone asked (``compiled``
-        only): what the compiled search reads its bound from (cached like :meth:`bounds`)."""
-        entry = self._entry(goal_xy)
-        if entry[2] is None:
-            raise ValueError("CostToGo.runs needs compiled=True")
-        return entry[2]
+            r = entry[1]
+            settle(-1, r, r.full)
+            if not r.zero_terrain:
+                settle(-1, r, r.terrain)
+            full = r.full.dist  # D_c = 0 wherever D is finite on a zero-terrain map
+            terrain = np.where(np.isfinite(full), 0.0, np.inf) if r.zero_terrain else \
+                r.terrain.dist
+            entry[0] = tuple(r.phi * d.reshape(self.grid.shape) for d in (full, terrain))
+        return entry[0]
+
+    def runs(self, goal_xy):
+        """The goal's two Dijkstra runs (:class:`.compiled_dijkstra.Relaxations`), settled
+        as far as anyone asked: what the compiled search reads its bound from (cached like
+        :meth:`bounds`)."""
+        return self._entry(goal_xy)[1]
 
     def _entry(self, goal_xy) -> list:
-        """The cache entry of one goal: [bounds or None, lists or None, runs or None]."""
+        """The cache entry of one goal: [bounds or None, runs]."""
         gx, gy = float(goal_xy[0]), float(goal_xy[1])
         key = (gx, gy)
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
-        res = self.grid.resolution
-        moves = self._relaxation_moves()
-        source = self._goal_cells(gx, gy)
-        phi = self.cfg.step_m / step_cell_bounds(self.cfg.step_m, res)[0]
-        if self.compiled:
-            entry = [None, None, DijkstraRuns(moves, self._compiled_prices(moves), source,
-                                              phi)]
-        else:
-            if len(source) == 0:
-                dists = [np.full(self.grid.shape, np.inf)] * 2
-            else:
-                if self._graphs is None:
-                    self._graphs = self._relaxation_graphs()
-                dists = [dijkstra(graph, directed=True, indices=source, min_only=True)
-                         for graph in self._graphs]
-            entry = [tuple(phi * dist.reshape(self.grid.shape) for dist in dists), None, None]
-        self.cache[key] = entry
+        from dgt_lib.navigation.planner.compiled_dijkstra import new_run
+
+        template, dearest_m = self._runs_template()
+        source, n = self._goal_cells(gx, gy), template.passable.size
+        self.cache[key] = [None, template._replace(
+            full=new_run(n, source, float(template.lengths.min()), dearest_m),
+            terrain=new_run(1, source[:0]) if template.zero_terrain else new_run(n, source))]
         while len(self.cache) > _CACHED_GOALS:
             self.cache.popitem(last=False)
-        return entry
+        return self.cache[key]
+
+    def _runs_template(self) -> tuple:
+        """(:class:`.compiled_dijkstra.Relaxations` without runs, the dearest move of D
+        [m]): what every goal's runs share, built once per map."""
+        if self._template is None:
+            from dgt_lib.navigation.planner.compiled_dijkstra import Relaxations, new_run
+
+            moves = self._relaxation_moves()
+            layers = moves.layers.reshape(len(moves.layers), -1)
+            finite = layers[np.isfinite(layers)]
+            one_layer, none = len(layers) == 1, new_run(1, np.zeros(0, np.int64))
+            prices = np.zeros((1, 8)) if one_layer else np.ascontiguousarray(np.stack(
+                [layers[moves.near[m]].min(axis=0) for m in range(8)], axis=1))  # T_m(v)
+            phi = self.cfg.step_m / step_cell_bounds(self.cfg.step_m, self.grid.resolution)[0]
+            self._template = (Relaxations(
+                moves.passable.ravel(), moves.steps, moves.lengths, one_layer, layers[0], prices,
+                none, none, not np.any(finite), phi, *self.grid.shape),
+                float(moves.lengths.max()) * (1.0 + (finite.max() if finite.size else 0.0)))
+        return self._template
 
     def _goal_cells(self, gx: float, gy: float) -> np.ndarray:
         """The flat indices, ascending, of the passable cells whose centre lies within
         tolerance + res·√2/2 of the goal (x, y) [m]: the runs' sources. Only the cells of
         a window around the goal are measured (one cell wider than the disc)."""
-        grid, res = self.grid, self.grid.resolution
-        reach = self.cfg.goal_tolerance_m + res * math.sqrt(2) / 2
-        (r0, r1), (c0, c1) = (
-            np.clip(np.asarray(cells) + (-1, 1), 0, n - 1)
-            for cells, n in zip(grid.xy_to_cell((gx - reach, gx + reach),
-                                                (gy - reach, gy + reach)), grid.shape,
-                                strict=True))
-        rows, cols = np.mgrid[r0:r1 + 1, c0:c1 + 1]
+        grid, (H, W) = self.grid, self.grid.shape
+        reach = self.cfg.goal_tolerance_m + grid.resolution * math.sqrt(2) / 2
+        (r0, r1), (c0, c1) = grid.xy_to_cell((gx - reach, gx + reach), (gy - reach, gy + reach))
+        rows, cols = np.mgrid[max(r0 - 1, 0):min(r1 + 2, H), max(c0 - 1, 0):min(c1 + 2, W)]
         X, Y = grid.cell_to_xy(rows, cols)
         inside = (np.hypot(X - gx, Y - gy) <= reach) & ~self.impassable[rows, cols]
-        return (rows * grid.width + cols)[inside]
+        return (rows * W + cols)[inside]
 
     def _relaxation_moves(self) -> Moves:
         """The per-map part of both relaxations (built once): which cells are passable
@@ -195,83 +201,6 @@ class CostToGo:
                             np.asarray(lengths), least, near)
         return self._moves
 
-    def _compiled_prices(self, moves: Moves) -> CompiledPrices:
-        """The terrain prices T_m(v) the compiled runs read (built once per map)."""
-        if self._prices is None:
-            from dgt_lib.navigation.planner.compiled_dijkstra import move_prices
-
-            layers = moves.layers.reshape(len(moves.layers), -1)
-            finite = layers[np.isfinite(layers)]
-            near_m, near = np.nonzero(moves.near)
-            one_layer = len(layers) == 1
-            self._prices = CompiledPrices(
-                one_layer, layers[0], np.zeros((1, 8)) if one_layer else
-                move_prices(layers, near.astype(np.int64), np.searchsorted(near_m, np.arange(9))),
-                not np.any(finite), float(finite.max()) if finite.size else 0.0)
-        return self._prices
-
-    def _relaxation_graphs(self) -> tuple[csr_matrix, csr_matrix]:
-        """The reversed 8-connected graphs (edge v → u carries the cost of the move
-        u → v), for D and D_c, as CSR matrices over flat cell indices."""
-        moves = self._relaxation_moves()
-        passable, steps, lengths = moves.passable, moves.steps, moves.lengths
-        H, W = self.grid.shape
-        index = np.arange(H * W).reshape(H, W)
-        rows, cols, terrain, edge_lengths = [], [], [], []
-        for m, ((dr, dc), length) in enumerate(zip(steps, lengths, strict=True)):
-            least_m = moves.least(m)
-            # moves u -> v = u + (dr, dc) with both cells passable, charged at v
-            u = (slice(max(0, -dr), H - max(0, dr)), slice(max(0, -dc), W - max(0, dc)))
-            v = (slice(max(0, dr), H - max(0, -dr)), slice(max(0, dc), W - max(0, -dc)))
-            ok = passable[u] & passable[v] & np.isfinite(least_m[v])
-            rows.append(index[v][ok])
-            cols.append(index[u][ok])
-            terrain.append(length * least_m[v][ok])
-            edge_lengths.append(np.full(int(ok.sum()), length))
-        index_pairs = (np.concatenate(rows), np.concatenate(cols))
-        terrain, edge_lengths = np.concatenate(terrain), np.concatenate(edge_lengths)
-        shape = (H * W, H * W)
-        return (csr_matrix((edge_lengths + terrain, index_pairs), shape=shape),
-                csr_matrix((terrain, index_pairs), shape=shape))
-
-
-class DijkstraRuns:
-    """One goal's two relaxations D and D_c as compiled Dijkstra runs that go only as far
-    as asked (:func:`.compiled_dijkstra.settle`): the compiled search settles the cells it
-    prices, :meth:`finish` every cell. Either way a settled cell holds the distance scipy's
-    dijkstra gives it.
-
-    moves: the map's :class:`Moves`; prices: its :class:`CompiledPrices`; source: the
-    goal's flat cells; phi: φ (the bound is φ·D). ``relaxations`` is what the compiled search reads
-    (:class:`.compiled_dijkstra.Relaxations`)."""
-
-    def __init__(self, moves: Moves, prices: CompiledPrices, source: np.ndarray, phi: float):
-        from dgt_lib.navigation.planner.compiled_dijkstra import Relaxations, new_run
-
-        self.shape, self.phi = moves.passable.shape, phi
-        self.zero_terrain = prices.zero
-        n = moves.passable.size
-        full = new_run(n, source, float(moves.lengths.min()),
-                       float(moves.lengths.max()) * (1.0 + prices.most))
-        terrain = new_run(1, source[:0]) if prices.zero else new_run(n, source)
-        self.relaxations = Relaxations(moves.passable.ravel(), moves.steps, moves.lengths,
-                                       *prices[:3], full, terrain, prices.zero, float(phi),
-                                       int(self.shape[0]), int(self.shape[1]))
-
-    def finish(self) -> tuple[np.ndarray, np.ndarray]:
-        """(φ·D, φ·D_c), each (H, W): both runs taken to the end."""
-        from dgt_lib.navigation.planner.compiled_dijkstra import settle
-
-        r = self.relaxations
-        settle(-1, r, r.full)
-        full = r.full.dist
-        if self.zero_terrain:
-            terrain = np.where(np.isfinite(full), 0.0, np.inf)
-        else:
-            settle(-1, r, r.terrain)
-            terrain = r.terrain.dist
-        return tuple(self.phi * d.reshape(self.shape) for d in (full, terrain))
-
 
 class Moves(NamedTuple):
     """The 8 grid moves of the 2D relaxations: passable (H, W) bool; steps (8, 2) (Δrow,
@@ -284,24 +213,6 @@ class Moves(NamedTuple):
     lengths: np.ndarray
     layers: np.ndarray
     near: np.ndarray
-
-    def least(self, m: int) -> np.ndarray:
-        """(H, W) the terrain price min_{k ∈ S_m} F_k of entering each cell by move m."""
-        return self.layers[self.near[m]].min(axis=0)
-
-
-class CompiledPrices(NamedTuple):
-    """What the compiled runs read of a map's terrain prices: ``one_layer`` (all costmap
-    layers equal: T_m(v) = ``first_layer[v]`` (H·W,) for every m), else ``prices`` (H·W, 8)
-    T_m(v) (:func:`.compiled_dijkstra.move_prices`); ``zero`` whether every finite price
-    is 0 (a zero costmap: D_c = 0 wherever D is finite, its run skipped), ``most`` the
-    largest finite price."""
-
-    one_layer: bool
-    first_layer: np.ndarray
-    prices: np.ndarray
-    zero: bool
-    most: float
 
 
 def disk_minimum(values: np.ndarray, disk: np.ndarray) -> np.ndarray:

@@ -36,11 +36,11 @@ class HybridAStar:
     footprint: (length_m, width_m) of the vehicle rectangle centred on the pose.
     cfg: :class:`PlannerConfig` (step_m, beta, heuristic, tolerances, caps, ...).
     backend: how the search runs, one of :data:`BACKENDS`; both return the same plans
-        (``tests/test_planner_exact.py``). ``"compiled"`` (default): the search loop and
-        the 2D cost-to-go's Dijkstra compiled by numba (:mod:`.compiled`), 5–20× faster per
-        query (``benchmarks/bench_planner.py --backends compiled,python``);
-        ``"python"``: the reference search (:class:`.search.Search`), plain Python (and
-        scipy's Dijkstra).
+        (``tests/test_planner_exact.py``). ``"compiled"`` (default): the search loop
+        compiled by numba (:mod:`.compiled`), several times faster per query
+        (``benchmarks/bench_planner.py --backends compiled,python``); ``"python"``: the
+        reference search (:class:`.search.Search`) in plain Python. Both read the same
+        maps and the same compiled 2D cost-to-go.
     edge_cost: a function (length s [m], looked-up cost C, β) → g_edge [m] that replaces
         the paper's s(1 + C(1 + βC)) (:func:`.primitives.step_cost`) for primitives and
         shots; the reference search runs it (the heuristic keeps the paper's cost). None:
@@ -66,13 +66,6 @@ class HybridAStar:
         check_config(cfg)
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        if backend == "compiled":
-            try:
-                import numba  # noqa: F401
-            except ImportError as exc:
-                raise ImportError(
-                    "HybridAStar(backend='compiled') needs numba, a dependency of dgt-kit "
-                    "(pip install numba); backend='python' runs without it") from exc
         self.backend = backend
         self.edge_cost = edge_cost
         costmap, occupancy = np.asarray(costmap), np.asarray(occupancy)
@@ -84,15 +77,13 @@ class HybridAStar:
         self.cfg = cfg
         self.grid = grid
         self.maps = PlannerMaps(costmap, occupancy, grid, min_turn_radius_m=min_turn_radius_m,
-                                footprint=footprint, cfg=cfg, compiled=backend == "compiled")
+                                footprint=footprint, cfg=cfg)
         self.n_headings = self.maps.n_headings
         self.min_turn_radius_m = self.maps.min_turn_radius_m
         self.footprint = self.maps.footprint
         self.circle_offsets = self.maps.circle_offsets
-        self.circle_radius_m = self.maps.circle_radius_m
         self.blocked = self.maps.blocked.blocked
         self.clearance_m = self.maps.blocked.clearance_m
-        self._cost_to_go_cache = self.maps.cost_to_go.cache  # the cost-to-go of recent goals
 
     @classmethod
     def for_vehicle(cls, costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec,

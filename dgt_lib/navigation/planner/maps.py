@@ -44,18 +44,18 @@ class PlannerMaps:
 
     costmap: (K, H, W) float64 in [0, 1] (layer k = heading 2πk/K); occupancy: (H, W)
     uint8; grid: their :class:`GridSpec`; min_turn_radius_m [m]; footprint (length_m,
-    width_m); cfg: the :class:`PlannerConfig`; compiled: whether the cost-to-go's Dijkstra
-    is the compiled one.
+    width_m); cfg: the :class:`PlannerConfig`.
 
     Attributes: ``blocked`` (:class:`BlockedMap`), ``cost_flat`` (K·H·W,), ``bin_table``
     and ``bin_reach`` (the layer of every cell move one primitive can make),
     ``substep_m`` the actual sub-step spacing Δ ≤ ``cfg.substep_m`` [m], ``cost_to_go``
-    (:class:`CostToGo`), ``circle_offsets`` [m] and ``circle_radius_m``.
+    (:class:`CostToGo`), ``circle_offsets`` [m] and ``circle_radius_m``, ``compiled`` the
+    arrays the compiled search reads (:class:`CompiledMaps`).
     """
 
     def __init__(self, costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec, *,
                  min_turn_radius_m: float, footprint: tuple[float, float],
-                 cfg: PlannerConfig, compiled: bool):
+                 cfg: PlannerConfig):
         self.cfg, self.grid = cfg, grid
         self.n_headings = costmap.shape[0]
         self.min_turn_radius_m = float(min_turn_radius_m)
@@ -67,7 +67,7 @@ class PlannerMaps:
         self.blocked = BlockedMap(
             occupancy, grid, self.circle_offsets, self.circle_radius_m,
             reach_m=cfg.step_m + float(np.abs(self.circle_offsets).max()),
-            substeps=math.ceil(cfg.step_m / cfg.substep_m), compiled=compiled,
+            substeps=math.ceil(cfg.step_m / cfg.substep_m),
         )
         self.bin_table, self.bin_reach = travel_bin_table(
             cfg.step_m, grid.resolution, self.n_headings)
@@ -75,9 +75,10 @@ class PlannerMaps:
         self.cost_to_go = CostToGo(
             self.costmap, self.blocked.blocked, self.blocked.occupied_distance, grid, cfg,
             clearance_m=self.blocked.clearance_m, min_turn_radius_m=self.min_turn_radius_m,
-            substep_m=self.substep_m, compiled=compiled,
+            substep_m=self.substep_m,
         )
-        self._compiled: CompiledMaps | None = None
+        self.compiled = CompiledMaps(self.blocked.flat, self.cost_flat,
+                                     np.asarray(self.bin_table, dtype=np.int64))
 
     def primitives(self, start_heading: float) -> PrimitiveSet:
         """The arc primitives of a query starting at heading ``start_heading`` [rad]."""
@@ -88,10 +89,3 @@ class PlannerMaps:
             resolution=self.grid.resolution, theta_bins=cfg.theta_bins,
             n_headings=self.n_headings, origin_xy=self.grid.origin_xy,
         )
-
-    def compiled_arrays(self) -> CompiledMaps:
-        """The arrays the compiled search reads (built once)."""
-        if self._compiled is None:
-            self._compiled = CompiledMaps(self.blocked.flat, self.cost_flat,
-                                          np.asarray(self.bin_table, dtype=np.int64))
-        return self._compiled
