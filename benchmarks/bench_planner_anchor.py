@@ -32,17 +32,25 @@ Run (prints the table the README quotes; the anchor's pass is the slow part)::
     .venv/bin/python benchmarks/bench_planner_anchor.py --pythonrobotics ~/src/PythonRobotics
     .venv/bin/python benchmarks/bench_planner_anchor.py --pythonrobotics PATH --repeats 3 \\
         --backends compiled,python
+    .venv/bin/python benchmarks/bench_planner_anchor.py --pythonrobotics PATH --where 20
+
+``--where N`` first runs ours N times per scenario under cProfile and prints the functions
+with the most time of their own: the map set-up's steps (the distance transform, the
+relaxations' terrain prices, the goal's Dijkstra) and the search (the anchor is not
+profiled).
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import cProfile
 import dataclasses
 import importlib
 import io
 import math
 import os
+import pstats
 import subprocess
 import sys
 import time
@@ -200,19 +208,30 @@ OURS_CFG = PlannerConfig(heuristic="cost_to_go", heuristic_weight=1.0, max_time_
                          max_expansions=2_000_000)
 
 
-def run_ours(sc: Scenario, backend: str) -> dict:
+def our_query(sc: Scenario) -> dict:
+    """Our planner's inputs for ``sc``: the costmap, occupancy and grid, start and goal."""
     occ, grid = sc.occupancy()
-    start, goal = _rear_to_centre(sc.start), _rear_to_centre(sc.goal)
-    cost = np.zeros((K, *grid.shape))
+    return dict(costmap=np.zeros((K, *grid.shape)), occupancy=occ, grid=grid,
+                start=_rear_to_centre(sc.start), goal=_rear_to_centre(sc.goal))
+
+
+def plan_ours(q: dict, backend: str) -> tuple[HybridAStar, object]:
+    """What "ours" times: the planner built on the map (set-up), then the query planned."""
+    planner = HybridAStar(q["costmap"], q["occupancy"], q["grid"],
+                          min_turn_radius_m=CENTRE_RADIUS_M, footprint=(LENGTH_M, WIDTH_M),
+                          cfg=OURS_CFG, backend=backend)
+    return planner, planner.plan(q["start"], q["goal"])
+
+
+def run_ours(sc: Scenario, backend: str) -> dict:
+    q = our_query(sc)
     t = time.perf_counter()
-    planner = HybridAStar(cost, occ, grid, min_turn_radius_m=CENTRE_RADIUS_M,
-                          footprint=(LENGTH_M, WIDTH_M), cfg=OURS_CFG, backend=backend)
-    result = planner.plan(start, goal)
+    planner, result = plan_ours(q, backend)
     total = time.perf_counter() - t
     planner.maps.cost_to_go.cache.clear()  # the search alone needs the goal's 2D field built:
-    planner.cost_to_go(goal[:2])
+    planner.cost_to_go(q["goal"][:2])
     t = time.perf_counter()
-    again = planner.plan(start, goal)
+    again = planner.plan(q["start"], q["goal"])
     plan_only = time.perf_counter() - t
     assert again.cost == result.cost and again.expansions == result.expansions
     return dict(time=total, plan=plan_only, success=result.success, cost=result.cost,
@@ -239,6 +258,9 @@ def main() -> None:
     parser.add_argument("--backends", default="compiled",
                         help="our search backends to time: compiled, python (comma-separated)")
     parser.add_argument("--seed", type=int, default=0, help="tree placement")
+    parser.add_argument("--where", type=int, default=0, metavar="N",
+                        help="profile N runs of ours per scenario first and print where the "
+                             "time goes")
     bench = Benchmark("bench_planner_anchor", parser)
     args = parser.parse_args()
     anchor = load_anchor(args.pythonrobotics)
@@ -249,6 +271,9 @@ def main() -> None:
     if "compiled" in backends:
         warm_up()
     all_sc = scenarios(args.seed)
+    if args.where:
+        for name in args.scenarios.split(","):
+            where_time_goes(all_sc[name], args.where)
     rows = []
     for name in args.scenarios.split(","):
         sc = all_sc[name]
@@ -268,6 +293,22 @@ def main() -> None:
         f"PythonRobotics' Hybrid A* (commit {version}) against ours, set-up included "
         f"(median of {args.repeats} "
         f"run{'s' * (args.repeats > 1)} each, interleaved)", columns, rows)}, args.publish)
+
+
+def where_time_goes(sc: Scenario, n: int, top: int = 12) -> None:
+    """Print the functions with the most time of their own over n runs of what "ours"
+    times on ``sc`` (the compiled search and each compiled set-up step are one function
+    each)."""
+    q = our_query(sc)
+    profile = cProfile.Profile()
+    profile.enable()
+    for _ in range(n):
+        plan_ours(q, "compiled")
+    profile.disable()
+    out = io.StringIO()
+    pstats.Stats(profile, stream=out).sort_stats("tottime").print_stats(top)
+    print(f"\n{SCENARIO_NAMES[sc.name]}: where {n} runs of ours spend their time "
+          f"(profiled: read the shares)\n" + out.getvalue().split("\n\n", 2)[-1], flush=True)
 
 
 def _median(runs, key):
