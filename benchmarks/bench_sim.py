@@ -8,7 +8,11 @@ controller), 20 s episodes from random poses, ended early like collection runs
 (immobilized > 10 s, flipped, off the map). Physics share = the part of those wall
 seconds spent inside ``mujoco.mj_step``: the kit's step runs at that fraction of the
 speed of MuJoCo's own stepping of the same model with the same collisions (the rest
-is the kit's control, the underside gate, the checks and the state read-out).
+is the kit's control, the underside gate, the checks and the state read-out). "Of raw
+stepping" checks it in the same run: every ``mj_step`` call of the drive is recorded with
+its input state and replayed bare, one after another, on a fresh ``MjData``; its time
+over the kit's driving time is the kit's speed as a fraction of raw MuJoCo stepping of
+the very same steps.
 RGB-D frames/s at the onboard camera's resolution (``sim.CAMERA``), RGB and depth
 each rendered, on the training, hill and ridge worlds. ``--publish`` writes both tables'
 record (``benchmarks/publish.py``) for docs/speed.md.
@@ -33,19 +37,43 @@ from dgt_lib.world.mujoco_model import CAMERA
 from dgt_lib.world.simulator import CONTROL_DT_S, Simulator
 from dgt_lib.world.terrain import get_world
 
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS | mujoco.mjtState.mjSTATE_CTRL
+"""What a replayed ``mj_step`` call starts from: the physics state and the controls."""
+
 
 class PhysicsClock:
     """Wall seconds spent inside ``mujoco.mj_step`` while :attr:`on` (wraps it while in
-    a ``with`` block)."""
+    a ``with`` block), and each such call's input state, to replay the same calls bare
+    (:meth:`replay_s`)."""
 
     def __init__(self) -> None:
         self.seconds, self.driving_s, self.on, self._step = 0.0, 0.0, False, mujoco.mj_step
+        self.calls: list[tuple[np.ndarray, int]] = []
+        self.model = None
 
     def _timed(self, m, d, nstep=1):
+        if self.on:
+            state = np.empty(mujoco.mj_stateSize(m, FULL))
+            mujoco.mj_getState(m, d, state, FULL)
+            self.calls.append((state, nstep))
+            self.model = m
         t = time.perf_counter()
         self._step(m, d, nstep=nstep)
         if self.on:
             self.seconds += time.perf_counter() - t
+
+    def replay_s(self) -> float:
+        """Wall seconds of the recorded ``mj_step`` calls run again one after another on a
+        fresh ``MjData`` of the same model, each from its recorded state: raw MuJoCo
+        stepping of the very steps the kit drove, without the kit around it."""
+        d = mujoco.MjData(self.model)
+        total = 0.0
+        for state, nstep in self.calls:
+            mujoco.mj_setState(self.model, d, state, FULL)
+            t = time.perf_counter()
+            self._step(self.model, d, nstep=nstep)
+            total += time.perf_counter() - t
+        return total
 
     def __enter__(self) -> PhysicsClock:
         mujoco.mj_step = self._timed
@@ -118,7 +146,8 @@ def main() -> None:
         with PhysicsClock() as clock:
             rtf, rtf_cpu, build_s = physics_rtf(world, name, args.seconds, clock)
         physics.append([name, f"**{rtf:.0f}×**", f"{rtf_cpu:.0f}×",
-                        f"{clock.seconds / clock.driving_s:.2f}", f"{build_s:.2f} s"])
+                        f"{clock.seconds / clock.driving_s:.2f}",
+                        f"{clock.replay_s() / clock.driving_s:.2f}", f"{build_s:.2f} s"])
         print(" | ".join(physics[-1]), flush=True)
     frames = []
     for name in ("training", "hill", "ridge"):
@@ -132,9 +161,10 @@ def main() -> None:
             f"Physics on the training world ({world.grid.shape[1]}×{world.grid.shape[0]} cells), "
             f"{args.seconds:g} simulated s per vehicle at 5 m/s, PID at "
             f"{1 / CONTROL_DT_S:.0f} Hz; physics share: the part of the wall time inside "
-            "`mujoco.mj_step`",
+            "`mujoco.mj_step`; of raw stepping: the same `mj_step` calls replayed bare from "
+            "their recorded states, their time over the kit's",
             ["vehicle", "real time per wall second", "per CPU second", "physics share",
-             "model build"], physics),
+             "of raw stepping", "model build"], physics),
         "frames": table(
             f"RGB-D frames at {CAMERA.width}×{CAMERA.height} (RGB + depth) while driving the jeep",
             ["world", "cells", "frames per wall second", "per CPU second"], frames)},
