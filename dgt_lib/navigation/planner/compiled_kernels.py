@@ -2,7 +2,9 @@
 scalars, the turn tables of :class:`~.primitives.PrimitiveSet`, and the open list, a binary
 heap ordered by (f, insertion count) — the order of Python's heap of (f, count, node)
 tuples. Each transcribes its Python reference with the same floating-point operations in
-the same order. ``p`` is the query's :class:`.compiled.SearchParams`."""
+the same order. ``p`` is the query's :class:`.compiled.SearchParams`. Beside them, the
+exact distance transform of the footprint's blocked map (:class:`~.collision.BlockedMap`),
+scipy's values to the bit."""
 
 from __future__ import annotations
 
