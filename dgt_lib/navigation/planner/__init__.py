@@ -52,7 +52,6 @@ docs/planner.md.
 """
 
 # ruff: noqa: F401 - the names below are this package's interface, re-exported
-from dgt_lib.core.vehicle_spec import footprint_circles
 from dgt_lib.navigation.planner.heuristics import HEURISTICS, CostToGo, step_cell_bounds
 from dgt_lib.navigation.planner.hybrid_astar import BACKENDS, HybridAStar
 from dgt_lib.navigation.planner.maps import PlannerMaps

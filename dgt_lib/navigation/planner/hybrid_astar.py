@@ -9,13 +9,14 @@ import time
 import numpy as np
 
 from dgt_lib.core.config import PlannerConfig
+from dgt_lib.core.constraints import check_section
 from dgt_lib.core.geometry import GridSpec, wrap_angle
 from dgt_lib.core.vehicle_spec import VehicleSpec
 from dgt_lib.navigation.planner.compiled_search import CompiledSearch
 from dgt_lib.navigation.planner.maps import PlannerMaps, Query
 from dgt_lib.navigation.planner.result import InvalidQueryError, PlanResult
 from dgt_lib.navigation.planner.search import EdgeCost, Search
-from dgt_lib.navigation.planner.validation import check_config, check_maps
+from dgt_lib.navigation.planner.validation import check_maps
 
 BLOCKING_CELLS = {1: "occupied cells (steeper than τ_s: a slope, a step or a tree)",
                   2: "unobserved cells (terrain the BEV map did not see)"}
@@ -63,7 +64,7 @@ class HybridAStar:
         edge_cost: EdgeCost | None = None,
     ):
         cfg = PlannerConfig() if cfg is None else cfg
-        check_config(cfg)
+        check_section(cfg, "planner")  # the one table of rules, for a planner made in code too
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         self.backend = backend
@@ -78,10 +79,6 @@ class HybridAStar:
         self.grid = grid
         self.maps = PlannerMaps(costmap, occupancy, grid, min_turn_radius_m=min_turn_radius_m,
                                 footprint=footprint, cfg=cfg)
-        self.n_headings = self.maps.n_headings
-        self.min_turn_radius_m = self.maps.min_turn_radius_m
-        self.footprint = self.maps.footprint
-        self.circle_offsets = self.maps.circle_offsets
         self.blocked = self.maps.blocked.blocked
         self.clearance_m = self.maps.blocked.clearance_m
 
@@ -129,7 +126,7 @@ class HybridAStar:
         if self.collides(start)[0]:
             raise InvalidQueryError(
                 f"start pose ({sx:.2f}, {sy:.2f}, {sth:.2f}) is in an obstacle: the "
-                f"{self.footprint[0]:.2f}×{self.footprint[1]:.2f} m footprint hits "
+                f"{self.maps.footprint[0]:.2f}×{self.maps.footprint[1]:.2f} m footprint hits "
                 f"{self._what_blocks(start)}"
             )
         r, c = self.grid.xy_to_cell(gx, gy)
@@ -158,7 +155,7 @@ class HybridAStar:
         res, (h, w) = self.grid.resolution, self.grid.shape
         n = math.ceil(self.clearance_m / res) + 1
         found = []
-        for off in self.circle_offsets:
+        for off in self.maps.circle_offsets:
             px, py = x + off * math.cos(th), y + off * math.sin(th)
             if not self.grid.contains(px, py):
                 found.append("the map edge")

@@ -1,5 +1,6 @@
-"""Validation of the planner's configuration and maps, and of a query against the
-world alone (:func:`check_query_on_world`, before any map is built)."""
+"""Validation of the planner's maps, and of a query against the world alone
+(:func:`check_query_on_world`, before any map is built). The planner's settings are
+checked against the one table of rules (:mod:`dgt_lib.core.constraints`)."""
 
 from __future__ import annotations
 
@@ -7,19 +8,10 @@ import math
 
 import numpy as np
 
-from dgt_lib.core.config import PlannerConfig
-from dgt_lib.core.constraints import check_section
 from dgt_lib.core.geometry import GridSpec
 from dgt_lib.core.vehicle_spec import VehicleSpec, footprint_circles
 from dgt_lib.navigation.planner.result import InvalidQueryError
 from dgt_lib.world.worlds import World
-
-
-def check_config(cfg: PlannerConfig) -> None:
-    """Raise ValueError for a :class:`PlannerConfig` the planner cannot use: a field outside
-    its rule in the one table of rules (:mod:`dgt_lib.core.constraints`), which a planner
-    made in code (not through a Profile) is checked against too."""
-    check_section(cfg, "planner")
 
 
 def check_maps(costmap: np.ndarray, occupancy: np.ndarray, grid: GridSpec) -> None:
