@@ -112,44 +112,18 @@ def _store(data_dir: Path, config: object, meta: dict[str, object]) -> Path:
     return path
 
 
-def test_an_artifact_stored_with_an_every_field_key_stays_valid(tmp_path, monkeypatch):
-    """Artifacts written before keys left defaults out (hours of `paper` training) are
-    loaded, not rebuilt, when their settings are today's — also when the key named
-    settings deleted since at the value every run used."""
-    monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
-    prof = get_profile("smoke")
-    config = {"stage": "train", "format": 1, "train": prof.train, "bev": prof.bev}
-    old = _legacy_meta({"stage": "train", "train": prof.train})
-    old["train"].update({"weight_decay": 0.0, "label_weighting": "none"})  # deleted since
-    old.pop("format", None)  # stage versions that did not exist then count as 1
-    _store(tmp_path, config, {"config_hash": "0" * 16, "config": old})
-    del old  # the metadata on disk is all that is left
-    assert artifacts.staleness("x.json", config, profile="p") is None
-
-    other = {**config, "train": dataclasses.replace(prof.train, epochs=prof.train.epochs + 1)}
-    assert "train.epochs" in artifacts.staleness("x.json", other, profile="p")
-
-
-def test_a_deleted_setting_that_a_run_had_changed_is_rebuilt(tmp_path, monkeypatch):
+def test_an_artifact_stored_by_an_older_kit_with_an_every_field_key_is_rebuilt(tmp_path,
+                                                                               monkeypatch):
+    """Metadata written before keys left defaults out holds every field and no
+    ``key_form``: the artifact is rebuilt once, and the reason says why."""
     monkeypatch.setenv(artifacts.DATA_ENV_VAR, str(tmp_path))
     prof = get_profile("smoke")
     config = {"stage": "train", "format": 1, "train": prof.train}
-    old = _legacy_meta({"stage": "train", "train": prof.train})
-    old["train"]["label_weighting"] = "inverse_frequency"  # no longer possible today
-    _store(tmp_path, config, {"config_hash": "0" * 16, "config": old})
-    assert "label_weighting" in artifacts.staleness("x.json", config, profile="p")
-
-
-def test_a_deleted_setting_a_stage_keeps_as_a_constant_under_its_name_is_still_compared():
-    """The episode key holds the driver's constants under their old setting names: a key
-    stored in the older form keeps them there (compared), and drops them from the stored
-    ``CollectConfig`` (where today's key no longer has them)."""
-    current = cache_keys.jsonable({"episode": {"steer_tau_s": 2.0}, "collect": CollectConfig()})
-    stored = _legacy_meta({"episode": {"steer_tau_s": 2.0}, "collect": CollectConfig()})
-    stored["collect"]["steer_tau_s"] = 2.0
-    assert cache_keys.legacy_form(stored, current) == current == {"episode": {"steer_tau_s": 2.0}}
-    stored["episode"]["steer_tau_s"] = 3.0
-    assert cache_keys.legacy_form(stored, current) != current
+    _store(tmp_path, config, {"config_hash": "0" * 16,
+                              "config": _legacy_meta({"stage": "train", "train": prof.train})})
+    assert "older kit" in artifacts.staleness("x.json", config, profile="p")
+    artifacts.ensure("x.json", config, lambda: {"value": 2}, profile="p", log=lambda _: None)
+    assert artifacts.staleness("x.json", config, profile="p") is None
 
 
 def test_keys_written_now_are_in_key_form(tmp_path, monkeypatch):

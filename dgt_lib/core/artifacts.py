@@ -27,7 +27,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from dgt_lib.core.cache_keys import KEY_FORM, jsonable, legacy_form
+from dgt_lib.core.cache_keys import KEY_FORM, jsonable
 from dgt_lib.core.faults import STORAGE_ERRNOS
 
 try:
@@ -239,9 +239,9 @@ def _check(path: Path, config: Any) -> str | None:
     except (OSError, ValueError):
         return "unreadable metadata"
     if meta.get("config_hash") != config_hash(config):
+        if meta.get("key_form") != KEY_FORM:
+            return "stored by an older kit, whose keys held every setting"
         current, stored = jsonable(config), meta.get("config")
-        if meta.get("key_form") != KEY_FORM:  # a key stored in the older, every-field form
-            stored = legacy_form(stored, current)
         if stored != current:
             return f"configuration changed ({', '.join(changed_settings(stored, current))})"
     if meta.get("size") != path.stat().st_size or meta.get("sha256") != _file_digest(path):
