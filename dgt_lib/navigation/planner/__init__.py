@@ -51,7 +51,31 @@ The modules, the footprint check, the conventions and the heuristic's proof:
 docs/planner.md.
 """
 
-# ruff: noqa: F401 - the names below are this package's interface, re-exported
+import contextlib
+import hashlib
+from pathlib import Path
+
+
+def drop_stale_numba_cache(package: Path, modules: str = "compiled*") -> None:
+    """Delete numba's cached machine code of ``package``'s ``modules`` once any of their
+    sources changed. numba checks a cached function against its own file only, and
+    ``compiled.search`` carries the helpers of the other ``compiled_*.py`` compiled into
+    it: after an edit to a helper alone, the search would go on running the old helper.
+    A digest of the sources is kept beside the cache (``__pycache__``)."""
+    sources = b"".join(p.read_bytes() for p in sorted(package.glob(f"{modules}.py")))
+    digest = hashlib.sha256(sources).hexdigest()
+    stamp = package / "__pycache__" / f"{modules.strip('*')}.sources.sha256"
+    with contextlib.suppress(OSError):  # a read-only install: numba cannot cache there either
+        if not stamp.exists() or stamp.read_text() != digest:
+            stamp.parent.mkdir(exist_ok=True)
+            for cached in stamp.parent.glob(f"{modules}.nb[ic]"):
+                cached.unlink()
+            stamp.write_text(digest)
+
+
+drop_stale_numba_cache(Path(__file__).parent)
+
+# ruff: noqa: E402, F401 - the names below are this package's interface, re-exported
 from dgt_lib.navigation.planner.heuristics import HEURISTICS, CostToGo, step_cell_bounds
 from dgt_lib.navigation.planner.hybrid_astar import BACKENDS, HybridAStar
 from dgt_lib.navigation.planner.maps import PlannerMaps
