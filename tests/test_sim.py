@@ -259,3 +259,23 @@ def test_mujoco_s_log_of_a_diverging_simulation_goes_to_the_data_directory(tmp_p
                    capture_output=True, timeout=120)
     assert not (cwd / "MUJOCO_LOG.TXT").exists()
     assert "QVEL" in (data / "MUJOCO_LOG.TXT").read_text()
+
+
+def test_a_contact_means_what_its_pair_of_geom_kinds_says():
+    """A wheel touches the terrain or a tree; the chassis counts on the terrain only; any
+    contact with a tree is one; which geom comes first does not matter."""
+    from dgt_lib.world.contacts import (
+        CHASSIS,
+        CHASSIS_ON_TERRAIN,
+        MEANING,
+        ON_TREE,
+        OTHER,
+        TERRAIN,
+        TREE,
+        WHEEL,
+    )
+    assert MEANING[WHEEL + 2][TERRAIN] == MEANING[TERRAIN][WHEEL + 2] == 1 << 2
+    assert MEANING[TREE][WHEEL] == ON_TREE | 1
+    assert MEANING[CHASSIS][TERRAIN] == CHASSIS_ON_TERRAIN
+    assert MEANING[TREE][CHASSIS] == ON_TREE
+    assert MEANING[WHEEL][CHASSIS] == MEANING[OTHER][WHEEL + 3] == 0

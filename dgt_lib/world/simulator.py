@@ -224,6 +224,8 @@ class Simulator:
         if min(self._z.shape) < 2:
             raise ValueError("a world needs at least 2 × 2 height cells")
         self._inv_res = 1.0 / world.resolution
+        g = world.grid
+        self._map = (*g.origin_xy, g.resolution, g.height, g.width)  # for _on_map
         self._x0 = world.grid.origin_xy[0] + 0.5 * world.resolution  # first cell centre
         self._y0 = world.grid.origin_xy[1] + 0.5 * world.resolution
         self._spin_dofs = np.array([m.joint(f"spin_{n}").dofadr[0] for n in WHEEL_NAMES])
@@ -309,14 +311,14 @@ class Simulator:
             throttle, brake = self.speed_controller(speed_cmd_mps, st.speed_mps, st.pitch,
                                                     duration_s)
         self._apply(throttle, brake, steer)
-        vx, vy, vz = self.data.qvel[0:3].tolist()
+        velocity = vx, vy, vz = self.data.qvel[0:3].tolist()
         drag = -0.5 * AIR_DENSITY_KGPM3 * self.vehicle.drag_area_m2 * math.sqrt(
             vx * vx + vy * vy + vz * vz)
         self.data.xfrc_applied[self._chassis, 0:3] = (drag * vx, drag * vy, drag * vz)
         n = max(1, int(round(duration_s / TIMESTEP_S)))
         for done in range(0, n, GATE_STEPS):
             chunk = min(GATE_STEPS, n - done)
-            self._gate_underside(chunk * TIMESTEP_S)
+            self._gate_underside(chunk * TIMESTEP_S, velocity=velocity if done == 0 else None)
             mujoco.mj_step(self.model, self.data, nstep=chunk)
         if diverged(self.data.qpos, self.data.qvel, self._warnings):
             self._done = "diverged"
@@ -325,18 +327,19 @@ class Simulator:
         self._state = self._read_state(dt=n * TIMESTEP_S)
         return self._state
 
-    def _gate_underside(self, horizon_s: float = 0.0, force: bool = False) -> None:
+    def _gate_underside(self, horizon_s: float = 0.0, force: bool = False,
+                        velocity: list[float] | None = None) -> None:
         """Test belly/bumper–terrain collisions only while the terrain may reach the
         underside within ``horizon_s``: box–heightfield tests cost more than the rest
         of a step, and the underside is clear of the ground most of the time. "May
         reach" = the gap over the footprint (:func:`~dgt_lib.world.underside_gate.
         min_underside_gap`) is below UNDERSIDE_MARGIN_M plus the horizontal travel
         (terrain rising up to 1:1 under the vehicle) plus the vertical travel in
-        ``horizon_s``."""
+        ``horizon_s``; ``velocity``: the chassis' (3,) [m/s] if already read."""
         d = self.data
         near = force
         if not near:
-            vx, vy, vz = d.qvel[0:3].tolist()
+            vx, vy, vz = velocity or d.qvel[0:3].tolist()
             reach = UNDERSIDE_MARGIN_M + horizon_s * (
                 math.sqrt(vx * vx + vy * vy + vz * vz) + 2.0 * abs(vz))
             near = min_underside_gap(self._underside, d.xmat[self._chassis],
@@ -366,12 +369,15 @@ class Simulator:
         yaw_rate = float((R @ w_body)[2])
         speed = float(vel @ R[:, 0])
         wheel, chassis_terrain, tree_contact = touching(d, self._geom_kind)
-        self._immobile_s = immobile_time(self._immobile_s, math.hypot(*vel[:2].tolist()), dt)
+        vx, vy, _ = vel.tolist()
+        self._immobile_s = immobile_time(self._immobile_s, math.hypot(vx, vy), dt)
         flipped = r22 < FLIP_UP_Z
         if flipped and self._done is None:
             self._done = "flipped"
-        if self._done is None and not self._on_map(*pos[:2].tolist()):
-            self._done = "off_map"
+        if self._done is None:
+            x, y, _ = pos.tolist()
+            if not self._on_map(x, y):
+                self._done = "off_map"
         return VehicleState(
             time_s=float(d.time), position=pos, yaw=yaw, roll=roll, pitch=pitch,
             velocity=vel, speed_mps=speed, yaw_rate=yaw_rate, angular_rate=w_body,
@@ -382,9 +388,9 @@ class Simulator:
     def _on_map(self, x: float, y: float) -> bool:
         """Whether (x, y) [m] is on the world's grid (:meth:`GridSpec.contains` for one
         point, in scalar arithmetic; NaN is off the map)."""
-        g = self.world.grid
-        col, row = (x - g.origin_xy[0]) / g.resolution, (y - g.origin_xy[1]) / g.resolution
-        return 0 <= row < g.height and 0 <= col < g.width
+        x0, y0, res, rows, cols = self._map
+        col, row = (x - x0) / res, (y - y0) / res
+        return 0 <= row < rows and 0 <= col < cols
 
     # -- rendering -------------------------------------------------------------------------
 
