@@ -198,3 +198,17 @@ def test_the_bottom_line_says_which_claims_reproduce_in_every_run_in_one_and_in_
     for claim in claims.CLAIMS:  # every claim checked is named once, in one group
         if not claim.ours:
             assert both.count(claim.short) <= 1
+
+
+def test_one_seed_on_two_processors_stands_side_by_side_with_its_claims_and_commits():
+    """The same `demo` seed recorded on two processors: both rows, each with its commit,
+    and a claim that held on one and not on the other shows ✓ beside ✗."""
+    other = {**PROC, "model": "Other CPU", "family": "6"}
+    a = tables.Run("a", (_record(0, {"dgt": (5, 6)}, ascents_a=(3, 3)),))
+    b = tables.Run("b", (_record(0, {"dgt": (6, 6)}, ascents_a=(2, 3), processor=other),))
+    rows = [line for line in tables.cross_machine_table([a, b]).splitlines()
+            if line.startswith("| `demo` | 0 |")]
+    assert len(rows) == 4 and all("`abcdef0`" in r for r in rows)
+    assert "5/6" in rows[0] and "6/6" in rows[1] and "Other CPU" in rows[1]
+    assert "3/3 ✓" in rows[2] and "2/3 ✗" in rows[3]
+    assert "no seed" in tables.cross_machine_table([a]).lower()

@@ -248,16 +248,12 @@ SET_HELP = ("change one setting of the profile, e.g. planner.beta=50 or "
             "dgt settings lists them)")
 
 
-def _add_set_option(parser: argparse.ArgumentParser) -> None:
-    """``--set NAME=VALUE``, repeatable: :meth:`Profile.with_overrides` on the command line."""
-    parser.add_argument("--set", action="append", metavar="NAME=VALUE", help=SET_HELP)
-
-
 def _add_profile_options(parser: argparse.ArgumentParser) -> None:
-    """``--profile`` and ``--set``; the command reads ``args.profile_value``."""
+    """``--profile`` and ``--set NAME=VALUE`` (repeatable: :meth:`Profile.with_overrides` on
+    the command line); the command reads ``args.profile_value``."""
     parser.add_argument("--profile", type=_profile_arg, default=None, metavar=PROFILE_METAVAR,
                         help=PROFILE_HELP)
-    _add_set_option(parser)
+    parser.add_argument("--set", action="append", metavar="NAME=VALUE", help=SET_HELP)
 
 
 @contextlib.contextmanager

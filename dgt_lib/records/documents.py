@@ -58,10 +58,6 @@ def _claims(cited: Sequence[Run], _every, _root: Path) -> str:
     return "Checked over:\n\n" + _captions(cited, "docs/") + "\n" + tables.claims_table(cited)
 
 
-def _bottom_line(cited: Sequence[Run], _every, _root: Path) -> str:
-    return tables.bottom_line(cited)
-
-
 FIGURE_FACTS = "docs/figures/figures.json"
 """What ``make figures`` drew, from which run (:data:`dgt_lib.app.figures.FACTS`)."""
 
@@ -110,10 +106,6 @@ def _per_run(cited: Sequence[Run], _every, _root: Path) -> str:
     return "\n".join(f"## `{r.profile}`\n\n" + tables.seeds_sections(r) for r in cited)
 
 
-def _cross_machine(_cited, every: Sequence[Run], _root: Path) -> str:
-    return tables.cross_machine_table(every)
-
-
 def _index(_cited, every: Sequence[Run], _root: Path) -> str:
     return _captions(every, "../") if every else "No run published yet.\n"
 
@@ -121,9 +113,10 @@ def _index(_cited, every: Sequence[Run], _root: Path) -> str:
 Renderer = Callable[[Sequence[Run], Sequence[Run], Path], str]
 """(cited runs, every run, the checkout's root) → the block's Markdown."""
 BLOCKS: dict[str, dict[str, Renderer]] = {
-    "README.md": {"bottom-line": _bottom_line, "hero": _hero, "results": _results,
-                  "claims": _claims, "times": _times},
-    "docs/results.md": {"per-run": _per_run, "cross-machine": _cross_machine},
+    "README.md": {"bottom-line": lambda cited, _every, _root: tables.bottom_line(cited),
+                  "hero": _hero, "results": _results, "claims": _claims, "times": _times},
+    "docs/results.md": {"per-run": _per_run, "cross-machine":
+                        lambda _cited, every, _root: tables.cross_machine_table(every)},
     "docs/runs/README.md": {"index": _index},
 }
 """Each file's generated blocks and the function that renders each."""

@@ -224,20 +224,27 @@ def seeds_sections(run: Run, *, published: bool = True) -> str:
 
 
 def cross_machine_table(runs: Sequence[Run]) -> str:
-    """The same profile and seed run on more than one processor: DGT-Map's arrivals per
-    experiment in each, side by side (physics' last bits follow the processor family)."""
-    lines = []
+    """The same profile and seed run on more than one processor, side by side (physics'
+    last bits follow the processor family): DGT-Map's arrivals per experiment, then the
+    seed's own claims (:data:`~dgt_lib.evaluation.seeds.CLAIMS`: count, and ✓ where it
+    held), each row with the commit it ran."""
+    arrivals, claims = [], []
     for profile in dict.fromkeys(r.profile for r in runs):
         mine = [r for r in runs if r.profile == profile]
         shared = sorted(set.intersection(*(set(r.seeds) for r in mine))) if len(mine) > 1 else []
-        for seed in shared:
-            for run in mine:
-                rec = next(x for x in run.records if x["seed"] == seed)
-                cells = [_kn(pooled([rec], e, v, "dgt")) for e, v, _ in EXPERIMENT_ROWS]
-                lines.append(f"| `{profile}` | {seed} | {run.processor} | " + " | ".join(cells)
-                             + " |")
-    if not lines:
+        for seed, run in ((seed, run) for seed in shared for run in mine):
+            rec = next(x for x in run.records if x["seed"] == seed)
+            row = f"| `{profile}` | {seed} | {run.processor}, `{rec['commit'][:7]}` | "
+            arrivals.append(row + " | ".join(_kn(pooled([rec], e, v, "dgt"))
+                                             for e, v, _ in EXPERIMENT_ROWS) + " |")
+            held = [rec["claims"].get(key) for key in seeds.CLAIMS]
+            claims.append(row + " | ".join("—" if c is None else f"{c[0]}/{c[1]} "
+                                           f"{'✓' if c[2] else '✗'}" for c in held) + " |")
+    if not arrivals:
         return ("No seed of a profile has records from more than one processor yet; when one "
                 "has, this table sets them side by side.\n")
-    head = "| profile | seed | processor | " + " | ".join(x for _, _, x in EXPERIMENT_ROWS)
-    return "\n".join([head + " |", "|" + "---|" * (3 + len(EXPERIMENT_ROWS)), *lines]) + "\n"
+    head, rule = "| profile | seed | processor, commit | ", "|" + "---|" * 3
+    return "\n".join([head + " | ".join(x for _, _, x in EXPERIMENT_ROWS) + " |",
+                      rule + "---|" * len(EXPERIMENT_ROWS), *arrivals, "",
+                      head + " | ".join(t for t, _ in seeds.CLAIMS.values()) + " |",
+                      rule + "---|" * len(seeds.CLAIMS), *claims]) + "\n"
