@@ -208,7 +208,7 @@ def test_one_seed_on_two_processors_stands_side_by_side_with_its_claims_and_comm
     b = tables.Run("b", (_record(0, {"dgt": (6, 6)}, ascents_a=(2, 3), processor=other),))
     rows = [line for line in tables.cross_machine_table([a, b]).splitlines()
             if line.startswith("| `demo` | 0 |")]
-    assert len(rows) == 4 and all("`abcdef0`" in r for r in rows)
+    assert len(rows) == 4 and all("`abcdef0`, MuJoCo 4 |" in r for r in rows)
     assert "5/6" in rows[0] and "6/6" in rows[1] and "Other CPU" in rows[1]
     assert "3/3 ✓" in rows[2] and "2/3 ✗" in rows[3]
     assert "no seed" in tables.cross_machine_table([a]).lower()

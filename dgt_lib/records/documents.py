@@ -106,10 +106,6 @@ def _per_run(cited: Sequence[Run], _every, _root: Path) -> str:
     return "\n".join(f"## `{r.profile}`\n\n" + tables.seeds_sections(r) for r in cited)
 
 
-def _index(_cited, every: Sequence[Run], _root: Path) -> str:
-    return _captions(every, "../") if every else "No run published yet.\n"
-
-
 Renderer = Callable[[Sequence[Run], Sequence[Run], Path], str]
 """(cited runs, every run, the checkout's root) → the block's Markdown."""
 BLOCKS: dict[str, dict[str, Renderer]] = {
@@ -117,7 +113,8 @@ BLOCKS: dict[str, dict[str, Renderer]] = {
                   "hero": _hero, "results": _results, "claims": _claims, "times": _times},
     "docs/results.md": {"per-run": _per_run, "cross-machine":
                         lambda _cited, every, _root: tables.cross_machine_table(every)},
-    "docs/runs/README.md": {"index": _index},
+    "docs/runs/README.md": {"index": lambda _cited, every, _root: (
+        _captions(every, "../") if every else "No run published yet.\n")},
 }
 """Each file's generated blocks and the function that renders each."""
 

@@ -227,14 +227,15 @@ def cross_machine_table(runs: Sequence[Run]) -> str:
     """The same profile and seed run on more than one processor, side by side (physics'
     last bits follow the processor family): DGT-Map's arrivals per experiment, then the
     seed's own claims (:data:`~dgt_lib.evaluation.seeds.CLAIMS`: count, and ✓ where it
-    held), each row with the commit it ran."""
+    held), each row with the commit and the MuJoCo version it ran."""
     arrivals, claims = [], []
     for profile in dict.fromkeys(r.profile for r in runs):
         mine = [r for r in runs if r.profile == profile]
         shared = sorted(set.intersection(*(set(r.seeds) for r in mine))) if len(mine) > 1 else []
         for seed, run in ((seed, run) for seed in shared for run in mine):
             rec = next(x for x in run.records if x["seed"] == seed)
-            row = f"| `{profile}` | {seed} | {run.processor}, `{rec['commit'][:7]}` | "
+            row = (f"| `{profile}` | {seed} | {run.processor}, `{rec['commit'][:7]}`, MuJoCo "
+                   f"{rec['versions'].get('mujoco', '?')} | ")
             arrivals.append(row + " | ".join(_kn(pooled([rec], e, v, "dgt"))
                                              for e, v, _ in EXPERIMENT_ROWS) + " |")
             held = [rec["claims"].get(key) for key in seeds.CLAIMS]
@@ -243,7 +244,7 @@ def cross_machine_table(runs: Sequence[Run]) -> str:
     if not arrivals:
         return ("No seed of a profile has records from more than one processor yet; when one "
                 "has, this table sets them side by side.\n")
-    head, rule = "| profile | seed | processor, commit | ", "|" + "---|" * 3
+    head, rule = "| profile | seed | processor, commit, MuJoCo | ", "|" + "---|" * 3
     return "\n".join([head + " | ".join(x for _, _, x in EXPERIMENT_ROWS) + " |",
                       rule + "---|" * len(EXPERIMENT_ROWS), *arrivals, "",
                       head + " | ".join(t for t, _ in seeds.CLAIMS.values()) + " |",
