@@ -69,7 +69,7 @@ def drop_stale_numba_cache(package: Path, modules: str = "compiled*") -> None:
         if not stamp.exists() or stamp.read_text() != digest:
             stamp.parent.mkdir(exist_ok=True)
             for cached in stamp.parent.glob(f"{modules}.nb[ic]"):
-                cached.unlink()
+                cached.unlink(missing_ok=True)  # another process may have been first
             stamp.write_text(digest)
 
 
