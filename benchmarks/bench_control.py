@@ -74,15 +74,18 @@ def time_compute(cfg: MPPIConfig, occupancy=None, grid=None, calls: int = 200,
     return np.asarray(times[10:]), np.asarray(commands)  # without the warm-up calls
 
 
-def time_noise(cfg: MPPIConfig, calls: int = 200) -> float:
-    """Median milliseconds of one ``compute``'s noise draw (``sampling.draw_noise``)."""
-    ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0)
+def time_noise(cfg: MPPIConfig, backend: str, calls: int = 200) -> tuple[float, np.ndarray]:
+    """Median milliseconds of one ``compute``'s noise draw (``sampling.draw_noise``) with
+    the backend's generator (numpy's, or ``noise_compiled.NormalStream``), and the last
+    call's noise."""
+    ctrl = MPPIController(cfg, wheelbase_m=WHEELBASE_M, max_steer_rad=MAX_STEER_RAD, seed=0,
+                          backend=backend)
     times = []
     for _ in range(calls):
         t0 = CLOCK["now"]()
-        draw_noise(ctrl._rng, ctrl._eps_v, ctrl._eps_w)
+        noise = draw_noise(ctrl._rng, ctrl._eps_v, ctrl._eps_w)
         times.append(CLOCK["now"]() - t0)
-    return 1e3 * float(np.median(times[10:]))
+    return 1e3 * float(np.median(times[10:])), np.stack(noise)
 
 
 def report(label: str, t: np.ndarray) -> None:
@@ -155,12 +158,14 @@ def main() -> None:
         terrain_case(dataclasses.replace(van, **controller_settings(args.controller)), occ,
                      grid, args.terrain_weight)
 
-    noise_ms = time_noise(van)
-    print(f"{'':<9}of which the noise draw (numpy's float32 normals, 2 × "
-          f"{van.time_steps} × {van.batch_size}): {noise_ms:.2f} ms a call — a fixed cost: "
-          "another generator would change every trial's samples")
-    rows.append(["of which the noise draw (2 × 56 × 1,000 normals, numpy's generator)",
-                 f"{noise_ms:.2f} ms", "", "", "", ""])
+    (compiled, ours), (numpy_, theirs) = (time_noise(van, b) for b in BACKENDS)
+    same = np.array_equal(ours, theirs)
+    print(f"{'':<9}of which the noise draw (2 × {van.time_steps} × {van.batch_size} float32 "
+          f"normals): {compiled:.2f} ms compiled, {numpy_:.2f} ms numpy's generator "
+          f"({numpy_ / compiled:.1f}×); the same numbers: {same}")
+    rows.append([f"of which the noise draw (2 × {van.time_steps} × {van.batch_size:,} "
+                 "normals; the numpy reference: numpy's generator)", f"{compiled:.2f} ms", "",
+                 f"{numpy_:.2f} ms", f"{numpy_ / compiled:.1f}×", "yes" if same else "**no**"])
     clock = "this thread's CPU time" if args.cpu_time else "wall clock"
     bench.finish({"mppi": table(
         f"MPPI per `compute` call, {cfg.batch_size} samples × {cfg.time_steps} steps, one "
