@@ -31,7 +31,7 @@ from dgt_lib.world.worlds import World
 # upper body only meets the ground when the vehicle has already flipped).
 BIT_TERRAIN, BIT_LOW, BIT_TREE, BIT_BODY = 1, 2, 4, 8
 TIMESTEP_S = 0.008  # physics step [s]: 5 per 25 Hz control period (4 ms gave the same
-# premises at 0.6–0.7× the speed: issue "Speed", benchmarks/bench_sim.py)
+# premises at 0.6–0.7× the speed: benchmarks/bench_sim.py)
 MAX_DEPTH_M = 40.0  # depth beyond this (and sky) is NaN [m]
 WHEEL_NAMES = ("fl", "fr", "rl", "rr")
 VEHICLE_GEOM_GROUP = 2  # visual group of the vehicle's geoms (hidden from its own camera)
