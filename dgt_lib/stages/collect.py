@@ -205,7 +205,7 @@ def bev_config(world_name: str, profile: Profile) -> dict[str, object]:
     the episodes."""
     cfg: dict[str, object] = {"world": world_name, "bev_format": BEV_FORMAT,
                               "worlds": profile.worlds, "seed": profile.seed, "camera": CAMERA,
-                              "lighting": LIGHTING,
+                              "lighting": LIGHTING, "physics": PHYSICS,
                               "survey": _fields(profile.collect, SURVEY_FIELDS),
                               "bev_settings": profile.bev}  # left out while at its defaults
     if world_name == "training":  # one digest, not 1,300 configurations in the metadata

@@ -50,6 +50,7 @@ from dgt_lib.stages.dataset import dataset_digest, dataset_fingerprint, ensure_d
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.train import ensure_model, inputs_suffix, model_digest
+from dgt_lib.world.mujoco_model import PHYSICS
 from dgt_lib.world.terrain import WORLD_NAMES, get_world
 from dgt_lib.world.worlds import World
 
@@ -75,7 +76,7 @@ def world_bev(world: World | str, profile: Profile | str | None = None, *,
         return ensure_bev(name, prof, progress=progress), bev_relpath(name)
     config = {"stage": "bev", "bev_format": BEV_FORMAT, "heights": world.heights,
               "colors": world.colors, "trees": world.trees, "grid": world.grid,
-              "collect": prof.collect, "bev_settings": prof.bev}
+              "collect": prof.collect, "bev_settings": prof.bev, "physics": PHYSICS}
     relpath = f"bev/custom/{world.name}_{artifacts.config_hash(config)[:10]}.npz"
     arrays = artifacts.ensure(relpath, config,
                               lambda: mapped_world_bev(world, prof, progress=progress)[0]

@@ -64,15 +64,18 @@ LIGHTING = Lighting()
 @dataclass(frozen=True)
 class Physics:
     """What a run's dynamics depend on beyond the world and the vehicle (part of the cache
-    keys of everything simulated: episodes, ground truth, closed-loop trials)."""
+    keys of everything simulated or drawn: episodes, BEV maps, ground truth, closed-loop
+    trials). ``mujoco``: the release running, whose default is the one pyproject.toml pins
+    — another release steps (and may draw) differently, so its artifacts are its own."""
 
     timestep_s: float = TIMESTEP_S
     integrator: str = "implicitfast"
     cone: str = "pyramidal"
     friction: float = FRICTION
+    mujoco: str = "4.0.0"
 
 
-PHYSICS = Physics()
+PHYSICS = Physics(mujoco=mujoco.__version__)
 
 
 def _add_terrain(spec: mujoco.MjSpec, world: World) -> None:

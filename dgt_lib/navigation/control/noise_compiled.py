@@ -18,9 +18,10 @@ import numpy as np
 from numba import njit, uint32, uint64
 from numba.np.random import _constants as zig  # numpy's ziggurat tables, shipped by numba
 
-KI = np.asarray(zig.ki_float, np.uint32)  # numpy's float32 ziggurat: acceptance bounds,
-WI = np.asarray(zig.wi_float, np.float32)  # strip widths, and the density at the strips'
-FI = np.asarray(zig.fi_float, np.float32)  # edges (numpy's ziggurat_constants.h)
+KI, WI, FI = (np.asarray(zig.ki_float, np.uint32), np.asarray(zig.wi_float, np.float32),
+              np.asarray(zig.fi_float, np.float32))
+"""numpy's float32 ziggurat (its ziggurat_constants.h): each strip's acceptance bound on
+the 23 random bits, its width, and the density at its edge."""
 R, INV_R = np.float32(zig.ziggurat_nor_r_f), np.float32(zig.ziggurat_nor_inv_r_f)
 MULT_HI, MULT_LO = uint64(0x2360ED051FC65DA4), uint64(0x4385DF649FCCF645)
 """PCG64's 128-bit multiplier, in halves."""
@@ -74,8 +75,7 @@ def _normal(s):
         idx = r & uint32(0xFF)
         rabs = (r >> uint32(9)) & uint32(0x7FFFFF)
         x = np.float32(np.float32(rabs) * WI[idx])
-        if (r >> uint32(8)) & uint32(1):
-            x = -x
+        x = -x if (r >> uint32(8)) & uint32(1) else x  # the sign bit
         if rabs < KI[idx]:  # ~99 % of draws
             return x
         if idx == 0:  # the tail beyond R
