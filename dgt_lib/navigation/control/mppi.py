@@ -19,9 +19,10 @@ a PID whose feed-forward compensates rolling resistance and drag. One MPPI itera
 5. **send** u*_0 and keep u*_{1…T−1} as the next call's **warm start** (:func:`shift`).
 
 Steps 1–3 run in numpy (``backend="numpy"``, the reference, readable) or in numba's
-kernels (``"compiled"``, :mod:`dgt_lib.navigation.control.mppi_compiled`, the default,
-its noise drawn by :mod:`~dgt_lib.navigation.control.noise_compiled`): the same commands to
-the bit. The twist becomes a steering command with
+kernels (``"compiled"``, :mod:`dgt_lib.navigation.control.mppi_compiled`, the default):
+the same commands to the bit. Both draw their noise from
+:class:`~dgt_lib.navigation.control.noise_compiled.NormalStream`, numpy's
+``default_rng(seed)`` stream compiled. The twist becomes a steering command with
 :func:`~dgt_lib.navigation.control.bicycle.steering_from_twist`; the speed loop is
 ``dgt_lib.world.speed_control.SpeedController``.
 
@@ -49,6 +50,7 @@ from dgt_lib.core.geometry import GridSpec
 from dgt_lib.navigation.control import critics
 from dgt_lib.navigation.control.ancillary import ancillary_count, bias_noise, pure_pursuit_rollout
 from dgt_lib.navigation.control.bicycle import rollout_unicycle
+from dgt_lib.navigation.control.noise_compiled import NormalStream
 from dgt_lib.navigation.control.reference_path import ReferencePath
 from dgt_lib.navigation.control.sampling import (
     draw_noise,
@@ -160,10 +162,9 @@ class MPPIController:
                  backend: str = "compiled", roll_accel_mps2: float | None = None):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        self._generator = np.random.default_rng
-        if backend == "compiled":  # numba: imported when used
-            from dgt_lib.navigation.control import mppi_compiled, noise_compiled
-            self._kernels, self._generator = mppi_compiled, noise_compiled.NormalStream
+        if backend == "compiled":
+            from dgt_lib.navigation.control import mppi_compiled  # numba: imported when used
+            self._kernels = mppi_compiled
         self.backend = backend
         self.cfg = cfg if cfg is not None else MPPIConfig()
         if wheelbase_m <= 0 or not 0 < max_steer_rad < math.pi / 2:
@@ -206,7 +207,7 @@ class MPPIController:
     def reset(self) -> None:
         """Forget the warm start and the progress along the path; reseed the sampler."""
         T = self.cfg.time_steps
-        self._rng = self._generator(self.seed)  # the same noise from either backend
+        self._rng = NormalStream(self.seed)  # numpy's default_rng(seed) normals, compiled
         self._nominal = np.zeros((T, 2), np.float32)  # the warm start, (v, ω) per step
         self._last_v: float | None = None
         half = self.cfg.smoothing_window // 2 if self.cfg.smoothing_window >= 3 else 0

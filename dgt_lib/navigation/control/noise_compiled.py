@@ -7,9 +7,11 @@ transcribes both — PCG64's 128-bit LCG step with its XSL-RR output, numpy's bu
 32-bit halves, and ``random_standard_normal_f`` with its tables, float32 arithmetic and its
 double-precision wedge test — so that it draws the same numbers to the bit from the same
 seed, and the same stream across calls (``tests/test_noise_compiled.py`` compares them
-over millions of draws, the ziggurat's rare tail and wedge branches included). numba's
-own ``Generator.standard_normal`` does not: it tests the wedge in float32 and leaves
-numpy's stream about once in ten million draws.
+over millions of draws, the ziggurat's rare tail and wedge branches included; checked on
+x86-64 Linux with numpy 2.4). Both MPPI backends draw from it, so they agree whatever
+numpy's C compiler made of the ziggurat on another platform. numba's own
+``Generator.standard_normal`` is not numpy's stream: it tests the wedge in float32 and
+left it after 13 million draws of seed 123.
 """
 
 from __future__ import annotations
@@ -93,6 +95,7 @@ def _normal(s):
 
 @njit(cache=True)
 def _fill(s, flat):
+    """Standard normals into every element of the 1-D float32 array ``flat``."""
     for i in range(flat.size):
         flat[i] = _normal(s)
 
