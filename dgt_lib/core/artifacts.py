@@ -21,11 +21,13 @@ import json
 import os
 import pickle
 import tempfile
+from collections import Counter
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+from tqdm import tqdm
 
 from dgt_lib.core.cache_keys import KEY_FORM, jsonable
 from dgt_lib.core.faults import STORAGE_ERRNOS
@@ -256,16 +258,14 @@ def staleness(relpath: str | Path, config: Any, *, profile: str) -> str | None:
 
 
 def report_rebuilds(reasons: list[str | None], what: str,
-                    log: Callable[[str], None] = print) -> None:
+                    log: Callable[[str], None] = tqdm.write) -> None:
     """One line for many artifacts of one kind about to be rebuilt, e.g. "[dgt] 130
     episodes (demo) to rebuild: configuration changed (physics)", instead of a line
     each; nothing when all are missing (a first run) or fresh."""
     stale = [r for r in reasons if r is not None and r != "missing"]
     if not stale:
         return
-    counts: dict[str, int] = {}
-    for reason in stale:
-        counts[reason] = counts.get(reason, 0) + 1
+    counts = Counter(stale)  # in the order first seen
     parts = [f"{n} {reason}" if len(counts) > 1 else reason for reason, n in counts.items()]
     log(f"[dgt] {len(stale)} {what} to rebuild: {'; '.join(parts)}")
 
@@ -276,7 +276,7 @@ def ensure(
     build: Callable[[], T],
     *,
     profile: str,
-    log: Callable[[str], None] = print,
+    log: Callable[[str], None] = tqdm.write,
     fingerprint: Callable[[T], str] | None = None,
 ) -> T:
     """Load ``data/<profile>/<relpath>`` if it was built from ``config``; else build and save it.
