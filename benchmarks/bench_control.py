@@ -4,7 +4,9 @@ Target ≥ 50 Hz (Nav2's C++ MPPI runs at 50–100 Hz). Run: ``python benchmarks
 Prints the time per ``compute`` of both backends (``compiled``, the default, and the numpy
 reference) without and with an occupancy grid — with one footprint circle and with the
 three of the mercedes_van that closed-loop trials use — checks that both return the same
-commands, and the closed-loop tracking error on the kinematic bicycle.
+commands, times the noise draw (``noise_compiled.NormalStream`` against numpy's generator,
+and whether they draw the same numbers), and the closed-loop tracking error on the
+kinematic bicycle.
 
 ``--terrain-weight W`` adds the terrain critic (``MPPIConfig.terrain_weight`` W, a random
 8-heading costmap on the grid) to the trials' case, times it on and off in the same run
