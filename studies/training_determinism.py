@@ -44,12 +44,12 @@ def child(profile_name: str, seed: int, kind: str, steps: int | None) -> None:
     from dgt_lib.perception.dataset import PatchDataset
     from dgt_lib.stages.dataset import DATASET_RELPATH
     from dgt_lib.stages.paths import data_dir
-    from dgt_lib.stages.train import default_rgb_weights, parse_kind
+    from dgt_lib.stages.train import parse_kind, rgb_weights_for
 
     prof = get_profile(profile_name).with_(seed=seed)
     dataset = PatchDataset.from_arrays(artifacts.load(data_dir(prof) / DATASET_RELPATH))
     cfg = dataclasses.replace(prof.train, epochs=1)
-    rgb = default_rgb_weights() if cfg.width == 64 else None
+    rgb = rgb_weights_for(cfg)
     losses: list[float] = []
 
     def on_batch_end(epoch: int, step: int, loss: float) -> None:

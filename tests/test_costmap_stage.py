@@ -58,9 +58,9 @@ def built(tmp_path, monkeypatch, dataset):
                         lambda prof, progress=True: dataset_fingerprint(dataset))
     monkeypatch.setattr(costmaps, "ensure_tau_s", lambda prof: 0.6)
     real_load = costmaps.ensure_model
-    monkeypatch.setattr(costmaps, "ensure_model",
-                        lambda *a, **k: log.append("load model") or real_load(*a, **k,
-                                                                              device="cpu"))
+    monkeypatch.setattr(costmaps, "ensure_model",  # on the CPU, also where CUDA is
+                        lambda prof, *a, **k: log.append("load model") or real_load(
+                            prof.with_(execution=replace(prof.execution, device="cpu")), *a, **k))
     real_network, real_slope = costmaps.directional_costmap, costmaps.slope_costmap
     monkeypatch.setattr(costmaps, "directional_costmap",
                         lambda *a, **k: log.append("network") or real_network(*a, **k))

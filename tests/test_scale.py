@@ -284,6 +284,5 @@ def test_ensure_model_trains_on_the_profiles_device(data_dir, monkeypatch):
     prof = get_profile("smoke")
     for device in ("cpu", "auto"):
         with pytest.raises(KeyboardInterrupt):
-            train.ensure_model(prof.with_(execution=ExecutionConfig(device=device)), None,
-                               seed=12345)
+            train.ensure_model(prof.with_(execution=ExecutionConfig(device=device)), None)
     assert [d.type for d in asked] == ["cpu", "cuda"]

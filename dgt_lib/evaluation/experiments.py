@@ -24,8 +24,6 @@ queries for every method; :class:`ExperimentResult` turns them into the paper's 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from concurrent.futures import Executor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -113,7 +111,7 @@ EXPERIMENTS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     "experiment2_jeep": ("ridge", ("jeep",), METHODS),
     "experiment3": ("eval", ("jeep", "vw_van"), ("dgt", "single-task", "binary")),
 }
-"""Each experiment's world, vehicles and default methods (paper: Experiments 1–3;
+"""Each experiment's world, vehicles and methods (paper: Experiments 1–3;
 ``experiment2_jeep``: Experiment 2's queries for the jeep, which the paper's text claims
 but its table does not measure)."""
 
@@ -151,8 +149,7 @@ def experiment_queries(name: str, profile: Profile, load_maps: MapsLoader
 
 
 def run_experiment(name: str, profile: Profile | str | None = None, *,
-                   load_maps: MapsLoader, executor: Executor | None = None,
-                   progress: bool = True, methods: Sequence[str] | None = None,
+                   load_maps: MapsLoader, progress: bool = True,
                    journal: str | Path | None = None) -> ExperimentResult:
     """Run experiment ``"experiment1"`` (hill), ``"experiment2"`` (ridge) or
     ``"experiment3"`` (eval, random pairs) at the profile's n.
@@ -164,16 +161,15 @@ def run_experiment(name: str, profile: Profile | str | None = None, *,
     if name not in EXPERIMENTS:
         raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(EXPERIMENTS)}")
     prof = as_profile(profile)
-    _, vehicles, default_methods = EXPERIMENTS[name]
+    _, vehicles, methods = EXPERIMENTS[name]
     world = experiment_world(name, prof)
-    methods = tuple(methods or default_methods)
     queries = experiment_queries(name, prof, load_maps)
     for v in vehicles:  # build every costmap here first, so that workers only load them
         for m in methods:
             load_maps(world, m, v, prof)
     tasks = [t for v in vehicles
              for t in trial_tasks(name, world, v, queries[v], methods, prof)]
-    results = run_trials(tasks, load_maps, executor, workers=prof.workers, progress=progress,
+    results = run_trials(tasks, load_maps, workers=prof.workers, progress=progress,
                          journal=journal, backend=prof.execution.executor,
                          address=prof.execution.address)
     return ExperimentResult(name, world, results)

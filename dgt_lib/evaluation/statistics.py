@@ -81,13 +81,10 @@ def reason_counts(outcomes: Iterable[TrialOutcome]) -> dict[str, int]:
     return counts
 
 
-def markdown_table(
-    rows: Sequence[Mapping], title: str | None = None, labels: Mapping[str, str] | None = None
-) -> str:
+def markdown_table(rows: Sequence[Mapping], title: str | None = None) -> str:
     """A markdown table of :func:`success_rows` output (with the paper's columns when
-    the rows carry them). Methods are shown by ``labels`` (default
-    :data:`METHOD_LABELS`; unknown keys as they are)."""
-    labels = METHOD_LABELS if labels is None else labels
+    the rows carry them). Methods are shown by :data:`METHOD_LABELS` (unknown keys as
+    they are)."""
     with_paper = any("paper_k" in r for r in rows)
     head = ["method", "k / n", "SR %", "95 % CI %"]
     if with_paper:
@@ -96,7 +93,7 @@ def markdown_table(
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [
-            labels.get(r["method"], str(r["method"])),
+            METHOD_LABELS.get(r["method"], str(r["method"])),
             f"{r['k']} / {r['n']}",
             f"{r['sr_pct']:.1f}",
             f"{r['ci_low_pct']:.1f}–{r['ci_high_pct']:.1f}",

@@ -241,31 +241,27 @@ def follow_path(
     path_xy: np.ndarray,
     *,
     speed_mps: float = 5.0,
-    start_yaw: float | None = None,
     max_time_s: float = 120.0,
     goal_tolerance_m: float = 3.0,
     immobilized_limit_s: float = 10.0,
-    reset: bool = True,
 ) -> Trajectory:
     """Drive along a (M, 2) waypoint path at ``speed_mps`` with pure pursuit and the
-    PID speed controller at 25 Hz, from its first point (``reset=True``, heading
-    along the path unless ``start_yaw``) until within ``goal_tolerance_m`` of its
-    last point, immobilized for ``immobilized_limit_s`` (paper: 10 s), a simulator
-    ``done_reason``, or ``max_time_s``. ``end_reason`` is ``"goal"``, ``"timeout"``,
-    ``"immobilized"`` or the simulator's ``done_reason``."""
+    PID speed controller at 25 Hz, from its first point, heading along the path, until
+    within ``goal_tolerance_m`` of its last point, immobilized for
+    ``immobilized_limit_s`` (paper: 10 s), a simulator ``done_reason``, or
+    ``max_time_s``. ``end_reason`` is ``"goal"``, ``"timeout"``, ``"immobilized"`` or
+    the simulator's ``done_reason``."""
     path = np.asarray(path_xy, np.float64)
-    if reset:
-        d0 = path[1] - path[0]
-        yaw = math.atan2(d0[1], d0[0]) if start_yaw is None else start_yaw
-        sim.reset(path[0, 0], path[0, 1], yaw)
+    d0 = path[1] - path[0]
+    sim.reset(path[0, 0], path[0, 1], math.atan2(d0[1], d0[0]))
     steer = PurePursuit(path, sim.vehicle)
     rule = OutcomeRule(goal_tolerance_m, immobilized_limit_s, max_time_s)
     return _record(sim, lambda st: (speed_mps, steer(st)), rule, goal=path[-1])
 
 
 def drive_straight(sim: Simulator, x: float, y: float, yaw: float, *, speed_mps: float = 5.0,
-                   steer: float = 0.0, duration_s: float = 10.0) -> Trajectory:
-    """Reset at (x, y, yaw) and drive ``duration_s`` at a fixed speed command and steer."""
+                   duration_s: float = 10.0) -> Trajectory:
+    """Reset at (x, y, yaw) and drive ``duration_s`` straight at a fixed speed command."""
     sim.reset(x, y, yaw)
-    return _record(sim, lambda st: (speed_mps, steer),
+    return _record(sim, lambda st: (speed_mps, 0.0),
                    OutcomeRule(immobilized_limit_s=math.inf, time_limit_s=duration_s))

@@ -301,14 +301,13 @@ def window_counts(mask: np.ndarray) -> np.ndarray:
 
 
 def unrotate_map(layers: np.ndarray, transform: RotationTransform,
-                 nearest: bool = False,
                  cells: tuple[slice, slice] | None = None) -> np.ndarray:
     """Bring per-pixel values of the rotated frame back onto the BEV grid.
 
-    layers: (C, D, D) or (D, D) in rotated pixel coordinates. Each BEV cell
-    centre is looked up at its rotated position (bilinear, or nearest for
-    labels). Returns (C, H, W) or (H, W) float32; cells that fall outside the
-    rotated image get 0 (cannot happen for maps rotated by :func:`rotate_map`).
+    layers: (C, D, D) or (D, D) in rotated pixel coordinates. Each BEV cell centre is
+    looked up at its rotated position (bilinear). Returns (C, H, W) or (H, W) float32;
+    cells that fall outside the rotated image get 0 (cannot happen for maps rotated by
+    :func:`rotate_map`).
     cells: only the BEV cells ``[rows, cols]`` (unit-step slices): returns (C, r, c),
     equal to that part of the whole map's result.
     """
@@ -324,10 +323,9 @@ def unrotate_map(layers: np.ndarray, transform: RotationTransform,
     else:
         x, y = transform.grid.cell_to_xy(*np.mgrid[cells[0], cells[1]])
     row, col = transform.xy_to_rotated(x, y)
-    interp = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
     out = np.empty((layers.shape[0], *x.shape), dtype=np.float32)
     for k, layer in enumerate(layers):
         out[k] = cv2.remap(np.ascontiguousarray(layer), col.astype(np.float32),
-                           row.astype(np.float32), interpolation=interp,
+                           row.astype(np.float32), interpolation=cv2.INTER_LINEAR,
                            borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     return out[0] if squeeze else out

@@ -16,7 +16,7 @@ Nothing here changes the keys of the multi-task and single-task models or their 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -45,9 +45,6 @@ from dgt_lib.stages.train import (
     rgb_weights_for,
 )
 from dgt_lib.world.worlds import World
-
-if TYPE_CHECKING:
-    import torch
 
 FILM_HIDDEN = 64
 """Units of the FiLM generator's hidden layer of the cached models."""
@@ -80,8 +77,7 @@ def conditioned_relpath(leave_out: str | None, generated: int = 0,
 
 
 def conditioned_config(profile: Profile, dataset: PatchDataset | None,
-                       leave_out: str | None = None, *, seed: int | None = None,
-                       rgb_weights: str | Path | None = None,
+                       leave_out: str | None = None, *,
                        dataset_hash: str | None = None) -> dict[str, Any]:
     """The cache key of a conditioned model: the multi-task model's
     (:func:`~dgt_lib.stages.train.model_config`) with its own kind, heads, the vehicle
@@ -89,8 +85,7 @@ def conditioned_config(profile: Profile, dataset: PatchDataset | None,
     (``conditioned.generated_vehicles`` > 0 only, so the others keep their keys) their
     number, their dataset's fingerprint and the near-copy rule. Computed without torch."""
     prof = as_profile(profile)
-    base = model_config(prof, dataset, "multitask", seed=seed, rgb_weights=rgb_weights,
-                        dataset_hash=dataset_hash)
+    base = model_config(prof, dataset, "multitask", dataset_hash=dataset_hash)
     config = {**base, "kind": "conditioned", "vehicles": list(seen_vehicles(leave_out)),
               "leave_out": leave_out, "film_hidden": FILM_HIDDEN,
               "conditioned_format": CONDITIONED_FORMAT}
@@ -112,9 +107,7 @@ def conditioned_heads(profile: Profile, leave_out: str | None) -> list[VehicleSp
 
 
 def ensure_conditioned_model(profile: Profile, dataset: PatchDataset,
-                             leave_out: str | None = None, *, seed: int | None = None,
-                             device: str | torch.device | None = None, progress: bool = True,
-                             rgb_weights: str | Path | None = None,
+                             leave_out: str | None = None, *, progress: bool = True,
                              dataset_hash: str | None = None) -> TrainResult:
     """The conditioned model trained without ``leave_out`` (None: on all four vehicles)
     from the cache, trained if needed, as :func:`~dgt_lib.stages.train.ensure_model`
@@ -128,17 +121,15 @@ def ensure_conditioned_model(profile: Profile, dataset: PatchDataset,
     from dgt_lib.learning.training import resolve_device
 
     prof = as_profile(profile)
-    device = resolve_device(device if device is not None else prof.execution.device)
-    seed = prof.seed if seed is None else seed
-    rgb_weights = rgb_weights_for(prof.train, rgb_weights)
-    config = conditioned_config(prof, dataset, leave_out, seed=seed, rgb_weights=rgb_weights,
-                                dataset_hash=dataset_hash)
+    device = resolve_device(prof.execution.device)
+    config = conditioned_config(prof, dataset, leave_out, dataset_hash=dataset_hash)
     n_generated = prof.conditioned.generated_vehicles
     relpath = conditioned_relpath(leave_out, n_generated, prof.train.inputs)
     snapshot = data_dir(prof) / relpath.with_suffix(".resume.pt")
     heads = conditioned_heads(prof, leave_out)
-    run = {"seed": seed, "film_hidden": FILM_HIDDEN, "device": device, "progress": progress,
-           "rgb_weights": rgb_weights, "keep_best_on_interrupt": False,
+    run = {"seed": prof.seed, "film_hidden": FILM_HIDDEN, "device": device,
+           "progress": progress, "rgb_weights": rgb_weights_for(prof.train),
+           "keep_best_on_interrupt": False,
            "snapshot_path": snapshot, "snapshot_key": config,
            "snapshot_every_s": SNAPSHOT_EVERY_S}
 

@@ -46,7 +46,7 @@ from dgt_lib.stages.collect import (
     mapped_world_bev,
     warn_if_unobserved,
 )
-from dgt_lib.stages.dataset import dataset_digest, dataset_fingerprint, ensure_dataset
+from dgt_lib.stages.dataset import dataset_digest, ensure_dataset
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
 from dgt_lib.stages.train import ensure_model, inputs_suffix, model_digest
@@ -103,20 +103,17 @@ def load_model(profile: Profile | str | None, kind: str = "multitask", *,
 
 
 def ensure_slope_models(profile: Profile | str | None = None, *,
-                        dataset: PatchDataset | None = None, dataset_hash: str | None = None,
+                        dataset_hash: str | None = None,
                         progress: bool = True) -> dict[str, SlopeModel]:
     """The slope-based baseline's {θ0, θmin, θmax, p_u, p_d} per vehicle, fitted with
     Optuna on the training split (cached as ``baselines/slope_models.json``, keyed by the
     dataset's :func:`~dgt_lib.stages.dataset.dataset_fingerprint`, ``dataset_hash`` when
-    the caller has it: the dataset is then loaded only to fit)."""
+    the caller has it: the dataset is loaded only to fit)."""
     prof = as_profile(profile)
-    if dataset_hash is None:
-        dataset_hash = (dataset_fingerprint(dataset) if dataset is not None
-                        else dataset_digest(prof, progress=progress))
+    dataset_hash = dataset_hash or dataset_digest(prof, progress=progress)
 
     def build() -> dict[str, dict[str, float]]:
-        ds = dataset if dataset is not None else ensure_dataset(prof, progress=progress)
-        train = ds.part("train")
+        train = ensure_dataset(prof, progress=progress).part("train")
         theta = forward_slope(train.patches, train.observed)
         out = {}
         for v, name in enumerate(VEHICLES):

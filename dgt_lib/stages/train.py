@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from dgt_lib.core import artifacts
 from dgt_lib.core.config import VEHICLES, Profile, TrainConfig
@@ -26,9 +26,6 @@ from dgt_lib.perception.dataset import PatchDataset
 from dgt_lib.stages.dataset import dataset_fingerprint, ensure_dataset
 from dgt_lib.stages.output import StageOutput
 from dgt_lib.stages.paths import cache_dir, data_dir
-
-if TYPE_CHECKING:
-    import torch
 
 MODEL_KINDS: tuple[str, ...] = ("multitask",) + tuple(f"single:{v}" for v in VEHICLES)
 """The models of ``ensure_model``: multi-task, and one single-task model per vehicle."""
@@ -82,32 +79,28 @@ def default_rgb_weights() -> Path | None:
     return next((p for p in candidates if p.is_file()), None)
 
 
-def rgb_weights_for(cfg: TrainConfig, rgb_weights: str | Path | None) -> Path | str | None:
-    """The ImageNet RGB weights a training uses: ``rgb_weights`` when given, else
+def rgb_weights_for(cfg: TrainConfig) -> Path | None:
+    """The ImageNet RGB weights a training of ``cfg`` starts from:
     :func:`default_rgb_weights` for width 64 (the ResNet-18 they fit), else None."""
-    if rgb_weights is None and cfg.width == 64:
-        return default_rgb_weights()
-    return rgb_weights
+    return default_rgb_weights() if cfg.width == 64 else None
 
 
 def model_config(profile: Profile, dataset: PatchDataset | None, kind: str = "multitask", *,
-                 seed: int | None = None, rgb_weights: str | Path | None = None,
                  dataset_hash: str | None = None) -> dict[str, Any]:
     """What model ``kind`` of ``profile`` depends on (its artifact's cache key): the
     dataset (``dataset_hash``, default :func:`dataset_fingerprint`), ``profile.train`` (its
-    settings at their defaults left out, :mod:`dgt_lib.core.cache_keys`), the kind, the seed
-    (default ``profile.seed``), whether ImageNet RGB weights were used (``rgb_weights``,
-    default :func:`default_rgb_weights`, only with width 64) and the checkpoint layout.
-    Computed without torch."""
+    settings at their defaults left out, :mod:`dgt_lib.core.cache_keys`), the kind,
+    ``profile.seed``, whether ImageNet RGB weights were used (:func:`rgb_weights_for`) and
+    the checkpoint layout. Computed without torch."""
     vehicles = parse_kind(kind)
     cfg = profile.train
-    rgb_weights = rgb_weights_for(cfg, rgb_weights)
+    rgb_weights = rgb_weights_for(cfg)
     rgb = None
     if rgb_weights is not None:
         rgb = {"file": Path(rgb_weights).name, "bytes": Path(rgb_weights).stat().st_size}
     return {"stage": "train", "kind": kind, "vehicles": list(vehicles),
             "dataset": dataset_hash or dataset_fingerprint(dataset), "train": cfg,
-            "seed": profile.seed if seed is None else seed, "rgb_weights": rgb,
+            "seed": profile.seed, "rgb_weights": rgb,
             "checkpoint_version": CHECKPOINT_VERSION}
 
 
@@ -116,10 +109,7 @@ def ensure_model(
     dataset: PatchDataset,
     kind: str = "multitask",
     *,
-    seed: int | None = None,
-    device: str | torch.device | None = None,
     progress: bool = True,
-    rgb_weights: str | Path | None = None,
     dataset_hash: str | None = None,
 ) -> TrainResult:
     """The trained model ``kind`` of ``profile`` from the artifact cache, trained if needed.
@@ -139,26 +129,23 @@ def ensure_model(
     loses at most the time since). The snapshot is deleted once
     the model is cached.
 
-    device: where the model trains and is returned (default ``profile.execution.device``:
-    a CUDA GPU when there is one); not part of the cache key — a checkpoint holds
-    CPU tensors and loads on any device.
+    The model trains and is returned on ``profile.execution.device`` (a CUDA GPU when there
+    is one); not part of the cache key — a checkpoint holds CPU tensors and loads on any
+    device.
     """
     from dgt_lib.learning.run import train_model  # torch: only here
     from dgt_lib.learning.training import resolve_device
 
     vehicles = parse_kind(kind)
-    device = resolve_device(device if device is not None else profile.execution.device)
+    device = resolve_device(profile.execution.device)
     cfg = profile.train
-    seed = profile.seed if seed is None else seed
-    rgb_weights = rgb_weights_for(cfg, rgb_weights)
-    config = model_config(profile, dataset, kind, seed=seed, rgb_weights=rgb_weights,
-                          dataset_hash=dataset_hash)
+    config = model_config(profile, dataset, kind, dataset_hash=dataset_hash)
     snapshot = data_dir(profile) / snapshot_relpath(kind, cfg.inputs)
 
     def build() -> dict[str, Any]:
         return checkpoint_dict(train_model(
-            dataset, cfg, vehicles=vehicles, seed=seed, device=device, progress=progress,
-            rgb_weights=rgb_weights, keep_best_on_interrupt=False,
+            dataset, cfg, vehicles=vehicles, seed=profile.seed, device=device,
+            progress=progress, rgb_weights=rgb_weights_for(cfg), keep_best_on_interrupt=False,
             snapshot_path=snapshot, snapshot_key=config, snapshot_every_s=SNAPSHOT_EVERY_S))
 
     ckpt = artifacts.ensure(model_relpath(kind, cfg.inputs), config, build,
