@@ -212,3 +212,23 @@ def test_one_seed_on_two_processors_stands_side_by_side_with_its_claims_and_comm
     assert "5/6" in rows[0] and "6/6" in rows[1] and "Other CPU" in rows[1]
     assert "3/3 ✓" in rows[2] and "2/3 ✗" in rows[3]
     assert "no seed" in tables.cross_machine_table([a]).lower()
+
+
+def test_a_cited_run_repeated_on_another_processor_is_set_beside_it_claim_by_claim(tmp_path):
+    """The cited run and a rerun of the same seeds elsewhere: one claims table with a
+    column pair per processor, a verdict that flips shown in both; a rerun of other seeds
+    (one seed of three) is not pooled beside it."""
+    other = {**PROC, "model": "Other CPU", "family": "6"}
+    hill = {"dgt": (3, 3), "iso": (0, 3), "binary": (0, 3)}
+    cited = tables.Run("demo_a", (_record(0, hill), _record(1, hill)))
+    again = tables.Run("demo_b", (_record(0, hill, processor=other),
+                                  _record(1, hill, ascents_a=(2, 3), processor=other)))
+    part = tables.Run("demo_c", (_record(0, hill, processor=other),))
+    text = documents._claims_elsewhere([cited], [cited, again, part], tmp_path)
+    head = next(line for line in text.splitlines() if line.startswith("| claim"))
+    assert "`demo`, 2 seeds, Test CPU | verdict | `demo`, 2 seeds, Other CPU | verdict" in head
+    gentle = next(line for line in text.splitlines() if "Route A" in line)
+    assert "2 of 2 seeds" in gentle and "1 of 2 seeds" in gentle
+    assert "runs/demo_b/" in text and "demo_c" not in text
+    alone = documents._claims_elsewhere([cited], [cited, part], tmp_path)
+    assert "has been repeated on another processor yet" in alone

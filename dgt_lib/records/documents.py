@@ -106,13 +106,24 @@ def _per_run(cited: Sequence[Run], _every, _root: Path) -> str:
     return "\n".join(f"## `{r.profile}`\n\n" + tables.seeds_sections(r) for r in cited)
 
 
+def _claims_elsewhere(cited: Sequence[Run], every: Sequence[Run], _root: Path) -> str:
+    """Each cited run beside its reruns on other processors (same profile, same seeds),
+    claim by claim."""
+    groups = [[run, *(r for r in every if r.profile == run.profile and r.seeds == run.seeds
+                      and r.processor != run.processor)] for run in cited]
+    blocks = [_captions(g, "") + "\n" + tables.claims_table(g, by_processor=True)
+              for g in groups if len(g) > 1]
+    return "\n".join(blocks) or "No cited run has been repeated on another processor yet.\n"
+
+
 Renderer = Callable[[Sequence[Run], Sequence[Run], Path], str]
 """(cited runs, every run, the checkout's root) → the block's Markdown."""
 BLOCKS: dict[str, dict[str, Renderer]] = {
     "README.md": {"bottom-line": lambda cited, _every, _root: tables.bottom_line(cited),
                   "hero": _hero, "results": _results, "claims": _claims, "times": _times},
     "docs/results.md": {"per-run": _per_run, "cross-machine":
-                        lambda _cited, every, _root: tables.cross_machine_table(every)},
+                        lambda _cited, every, _root: tables.cross_machine_table(every),
+                        "claims-elsewhere": _claims_elsewhere},
     "docs/runs/README.md": {"index": lambda _cited, every, _root: (
         _captions(every, "../") if every else "No run published yet.\n")},
 }

@@ -112,12 +112,14 @@ def results_table(runs: Sequence[Run]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def claims_table(runs: Sequence[Run]) -> str:
+def claims_table(runs: Sequence[Run], by_processor: bool = False) -> str:
     """Each claim of :data:`~dgt_lib.records.claims.CLAIMS`: the paper's numbers, what each
-    run measured, and the verdict by the claim's rule."""
+    run measured, and the verdict by the claim's rule; ``by_processor``: each run's column
+    names its processor (runs of one profile on several)."""
     head = ["claim", "the paper"]
     for run in runs:
-        head += [f"`{run.profile}`, {n_seeds(len(run.seeds))}", "verdict"]
+        where = f", {run.processor.split(' (')[0]}" if by_processor else ""
+        head += [f"`{run.profile}`, {n_seeds(len(run.seeds))}{where}", "verdict"]
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for claim in CLAIMS:
         cells = [claim.text + (" (ours)" if claim.ours else ""), claim.paper]

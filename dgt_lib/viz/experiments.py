@@ -177,11 +177,10 @@ QUERY_FATES = {"kept": ("k", "-", 1.6, "kept"),
 """How :func:`plot_query_draw` draws each fate of a candidate: colour, line, width, legend."""
 
 
-def plot_query_draw(world: World, hazard_mask: np.ndarray, draw, ax=None, title: str = ""):
+def plot_query_draw(world: World, hazard_mask: np.ndarray, draw, title: str = ""):
     """Every candidate of a query draw (``QueryDraw.tried``) as its straight line on the
     world's heights with the hazard cells (red), styled by its fate (:data:`QUERY_FATES`)."""
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 6.5))
+    _, ax = plt.subplots(figsize=(7, 6.5))
     ax.imshow(world.heights, origin="lower", extent=world.grid.extent, cmap="terrain")
     ax.imshow(np.ma.masked_equal(hazard_mask, False), origin="lower", extent=world.grid.extent,
               cmap="autumn", alpha=0.6)

@@ -28,16 +28,15 @@ PAPER_DATASET: dict[str, tuple[int, int]] = {
 """(patches, trajectories) per vehicle as the paper reports them (Experiments → Dataset)."""
 
 
-def plot_locomotion_curve(u: float | None = None, sigma: float | None = None, ax=None):
+def plot_locomotion_curve():
     """L (solid) and the cost C = 1 − L (dashed) against the speed ratio
-    ‖Δx‖ / (u·Δt) from standing still (0) to twice the commanded speed (2),
-    computed by :func:`dgt_lib.perception.locomotion.locomotion`."""
+    ‖Δx‖ / (u·Δt) from standing still (0) to twice the commanded speed (2), at the
+    collection's speed u and the paper's σ, computed by
+    :func:`dgt_lib.perception.locomotion.locomotion`."""
     from dgt_lib.perception.locomotion import SIGMA, TARGET_SPEED_MPS, locomotion
 
-    u = TARGET_SPEED_MPS if u is None else u
-    sigma = SIGMA if sigma is None else sigma
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6.5, 3.6), constrained_layout=True)
+    u, sigma = TARGET_SPEED_MPS, SIGMA
+    _, ax = plt.subplots(figsize=(6.5, 3.6), constrained_layout=True)
     ratio = np.linspace(0.0, 2.0, 401)
     dt = 1.0  # [s]; L depends on the ratio only
     L = locomotion(ratio * u * dt, dt, u=u, sigma=sigma)

@@ -180,12 +180,11 @@ def plot_motion_primitives(pose, min_turn_radius_m: float, grid, n_headings: int
     return fig
 
 
-def plot_cost_amplification(betas: Sequence[float] = (0.0, 10.0, 50.0, 150.0), ax=None):
+def plot_cost_amplification(betas: Sequence[float] = (0.0, 10.0, 50.0, 150.0)):
     """C' = C(1 + βC) against C ∈ [0, 1] for each β (log y axis). Returns the figure."""
     from dgt_lib.navigation.planner import amplified_cost
 
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6, 4))
+    _, ax = plt.subplots(figsize=(6, 4))
     c = np.linspace(0.0, 1.0, 201)
     for beta in betas:
         ax.plot(c, 1.0 + amplified_cost(c, beta), label=f"β = {beta:g}")
@@ -281,15 +280,14 @@ OUTCOME_COLORS = {"pushed": "tab:green", "collides": "tab:red", "closed": "0.5",
 """Colours of :func:`plot_expansions` by what became of a primitive."""
 
 
-def plot_expansions(world: World, expansions: Sequence, ax=None, *, title: str = "",
+def plot_expansions(world: World, expansions: Sequence, *, title: str = "",
                     margin_m: float = 6.0):
     """The first steps of a Hybrid A* search (:class:`planner.Expansion` s from
     ``Search.steps()``) over the hill-shaded heights: each popped node (numbered in
     expansion order for the first 10) and a segment to the end of each of its three
     primitives, coloured by what became of it (pushed, collides, closed, not cheaper).
     Zoomed to the expanded area plus ``margin_m``. Returns the figure."""
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 6.5))
+    _, ax = plt.subplots(figsize=(7, 6.5))
     shade = LightSource(azdeg=315, altdeg=45).hillshade(
         world.heights.astype(np.float64), vert_exag=2.0, dx=world.resolution,
         dy=world.resolution)

@@ -57,11 +57,10 @@ def plot_worlds(worlds: Sequence[World]):
     return fig
 
 
-def plot_slope_histogram(worlds: Sequence[World], ax=None):
+def plot_slope_histogram(worlds: Sequence[World]):
     """Histogram of cell slopes [deg] per world, with each vehicle's torque-limited
     climbing grade marked."""
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 3.5), constrained_layout=True)
+    _, ax = plt.subplots(figsize=(7, 3.5), constrained_layout=True)
     for w in worlds:
         ax.hist(w.slope_deg().ravel(), bins=np.arange(0, 61, 1.0), histtype="step",
                 density=True, label=w.name)
@@ -125,12 +124,11 @@ def plot_rgbd(frame, title: str = ""):
     return fig
 
 
-def plot_speed_vs_distance(runs: Mapping[str, object], ax=None, title: str = ""):
+def plot_speed_vs_distance(runs: Mapping[str, object], title: str = ""):
     """Measured speed [m/s] against signed distance driven [m] for several
     :class:`~dgt_lib.navigation.drive.Trajectory` runs, each labelled with how it ended, with
     height along the run on a second axis."""
-    if ax is None:
-        _, ax = plt.subplots(figsize=(8, 3.8), constrained_layout=True)
+    _, ax = plt.subplots(figsize=(8, 3.8), constrained_layout=True)
     ax2 = ax.twinx()
     for i, (label, tr) in enumerate(runs.items()):
         color = f"C{i}"
@@ -190,14 +188,12 @@ def survey_footprints(world: World, poses: Sequence[tuple[np.ndarray, np.ndarray
     return boxes
 
 
-def plot_survey(world: World, poses: Sequence[tuple[np.ndarray, np.ndarray]], intrinsics,
-                ax=None):
+def plot_survey(world: World, poses: Sequence[tuple[np.ndarray, np.ndarray]], intrinsics):
     """The mapping survey over a world's heights: camera positions (dots, numbered
     in order) and their ground footprints (:func:`survey_footprints`)."""
     from matplotlib.patches import Rectangle
 
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6.5, 6), constrained_layout=True)
+    _, ax = plt.subplots(figsize=(6.5, 6), constrained_layout=True)
     im = ax.imshow(world.heights, origin="lower", extent=world.extent, cmap="terrain")
     ax.figure.colorbar(im, ax=ax, shrink=0.8, label="height [m]")
     boxes = survey_footprints(world, poses, intrinsics)
