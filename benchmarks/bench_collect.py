@@ -25,6 +25,12 @@ Run: ``.venv/bin/python benchmarks/bench_collect.py [--profile paper] [--episode
    (~35 ms on llvmpipe); printed: the switches, the distinct tiles, how many switches an
    LRU cache of K uploaded tiles would have served, and the memory one more OpenGL
    context of a tile takes (the cost of holding a tile uploaded).
+6. ``--frame-levers N``: two levers that would change every frame, timed on N onboard
+   poses of the training world: the frame on its collection tile, the same without
+   multisampling (``vis.quality.offsamples`` 0: the RGB pass is not antialiased), and on a
+   crop of the world to the frame's frustum (its horizontal bounding box up to the
+   collection's depth), with the heightfield and texture uploads a crop per frame would
+   add. Medians in ms, and the cells drawn.
 
 Timings on the shared 2-core machine vary with its load; the load average is printed.
 """
@@ -238,6 +244,70 @@ def tile_cache(prof, n_episodes: int, sizes: list[int]) -> None:
           f"resident ({len(grown)} contexts)")
 
 
+def _ms(fn, *args, **kwargs) -> float:
+    """Milliseconds ``fn(*args, **kwargs)`` took."""
+    t0 = time.perf_counter()
+    fn(*args, **kwargs)
+    return 1e3 * (time.perf_counter() - t0)
+
+
+def frame_levers(prof, n_poses: int) -> None:
+    import mujoco
+
+    from dgt_lib.world.simulator import FrameRenderers, Simulator
+
+    world = get_world("training", prof)
+    tiles = rendering.TerrainRenderer(world, prof.collect.frame_max_depth_m)
+    cam, res = tiles.camera, world.grid.resolution
+    driver, rng = Simulator(world, "jeep"), np.random.default_rng(0)
+    x0, x1, y0, y1 = world.extent
+    ms: dict[str, list[float]] = {"tile": [], "tile, no multisampling": [],
+                                  "frustum crop": [], "crop's uploads": []}
+    cells = []
+    for _ in range(n_poses):
+        driver.reset(rng.uniform(x0 + 40, x1 - 40), rng.uniform(y0 + 40, y1 - 40),
+                     rng.uniform(0, 2 * np.pi))
+        for _ in range(10):
+            driver.step(speed_cmd_mps=5.0, steer=0.2)
+        pose = rendering.onboard_camera_pose(driver)
+        tiles.render(pose)  # the tile uploaded: a frame that needs no switch
+        ms["tile"].append(_ms(tiles.render, pose))
+        sim = tiles._tile(tiles._current)
+        sim.model.vis.quality.offsamples = 0  # read when a context is made
+        plain = FrameRenderers.create(sim.model, cam.height, cam.width, separate_depth=False)
+        sim.share_renderers(plain)
+        sim.render_rgbd(pose, intrinsics=cam, show_vehicle=False)
+        ms["tile, no multisampling"].append(
+            _ms(sim.render_rgbd, pose, intrinsics=cam, show_vehicle=False))
+        plain.close()
+        sim.model.vis.quality.offsamples = 4
+        sim.share_renderers(tiles._renderers)
+        bx0, bx1, by0, by1 = tiles.footprint(pose)  # the crop: a renderer of its own size
+        crop = rendering.TerrainRenderer(world, tiles.max_depth_m)
+        rows, cols = world.grid.xy_to_rc(np.array([bx0, bx1]), np.array([by0, by1]))
+        r0, c0 = max(0, int(rows.min()) - 1), max(0, int(cols.min()) - 1)
+        crop.tile_shape = (min(int(rows.max()) + 2, world.grid.height) - r0,
+                           min(int(cols.max()) + 2, world.grid.width) - c0)
+        cropped = crop._tile((r0, c0))
+        own = FrameRenderers.create(cropped.model, cam.height, cam.width)
+        cropped.share_renderers(own)
+        cropped.render_rgbd(pose, intrinsics=cam, show_vehicle=False)
+        ms["frustum crop"].append(
+            _ms(cropped.render_rgbd, pose, intrinsics=cam, show_vehicle=False))
+        own.rgb._gl_context.make_current()
+        m, context = cropped.model, own.rgb._mjr_context
+        ms["crop's uploads"].append(
+            _ms(mujoco.mjr_uploadHField, m, context, m.hfield("terrain").id)
+            + _ms(mujoco.mjr_uploadTexture, m, context, m.texture("terrain_tex").id))
+        own.close()
+        cells.append(crop.tile_shape[0] * crop.tile_shape[1])
+    print(f"{n_poses} onboard frames on the training world ({prof.collect.frame_max_depth_m:g} m "
+          f"depth); tile {tiles.tile_shape[0] * tiles.tile_shape[1]:,} cells, frustum crop "
+          f"median {np.median(cells):,.0f} cells ({res} m)")
+    for name, values in ms.items():
+        print(f"  {name:24s} {np.median(values):6.1f} ms")
+
+
 def _children_cpu() -> float:
     """User + system CPU seconds of this process's reaped child processes."""
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -255,6 +325,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2, help="rounds of --lp-threads")
     parser.add_argument("--tile-cache", nargs="+", type=int, metavar="K",
                         help="tile uploads an LRU cache of K tiles would save, on --episodes")
+    parser.add_argument("--frame-levers", type=int, default=0, metavar="N",
+                        help="time N onboard frames on their tile, without multisampling, "
+                             "and on a crop to their frustum")
     parser.add_argument("--frames-digest", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     prof = get_profile(args.profile)
@@ -264,6 +337,8 @@ def main() -> None:
         return lp_threads(prof, args.lp_threads, args.episodes, args.repeats)
     if args.tile_cache:
         return tile_cache(prof, args.episodes, args.tile_cache)
+    if args.frame_levers:
+        return frame_levers(prof, args.frame_levers)
     cfg = prof.collect
     print(f"profile {prof.name}: training world {get_world('training', prof).grid.shape} "
           f"cells, {cfg.episode_duration_s:.0f} s episodes, a frame every "
