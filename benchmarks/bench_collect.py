@@ -273,14 +273,14 @@ def frame_levers(prof, n_poses: int) -> None:
         tiles.render(pose)  # the tile uploaded: a frame that needs no switch
         ms["tile"].append(_ms(tiles.render, pose))
         sim = tiles._tile(tiles._current)
-        sim.model.vis.quality.offsamples = 0  # read when a context is made
+        samples, sim.model.vis.quality.offsamples = sim.model.vis.quality.offsamples, 0
         plain = FrameRenderers.create(sim.model, cam.height, cam.width, separate_depth=False)
         sim.share_renderers(plain)
         sim.render_rgbd(pose, intrinsics=cam, show_vehicle=False)
         ms["tile, no multisampling"].append(
             _ms(sim.render_rgbd, pose, intrinsics=cam, show_vehicle=False))
         plain.close()
-        sim.model.vis.quality.offsamples = 4
+        sim.model.vis.quality.offsamples = samples  # read only when a context is made
         sim.share_renderers(tiles._renderers)
         bx0, bx1, by0, by1 = tiles.footprint(pose)  # the crop: a renderer of its own size
         crop = rendering.TerrainRenderer(world, tiles.max_depth_m)
