@@ -232,3 +232,22 @@ def test_a_cited_run_repeated_on_another_processor_is_set_beside_it_claim_by_cla
     assert "runs/demo_b/" in text and "demo_c" not in text
     alone = documents._claims_elsewhere([cited], [cited, part], tmp_path)
     assert "has been repeated on another processor yet" in alone
+
+
+def test_the_time_table_sets_a_profiles_other_runs_below_its_cited_one(tmp_path):
+    """A learner whose machine is not the cited one sees every published run's seed time:
+    the cited run first, then the profile's other runs linked, another profile's not mixed
+    in; the label drops the vendor's ® marks."""
+    def timed(rec: dict, seconds: float) -> dict:
+        return {**rec, "stage_times": [{"stage": "collect", "seconds": seconds,
+                                        "load_1min_before": 1.0}]}
+    other = {**PROC, "model": "Intel(R) Xeon(R) Processor", "family": "6"}
+    cited = tables.Run("demo_a", (timed(_record(0, {}), 1140.0),))
+    again = tables.Run("demo_b", (timed(_record(0, {}, processor=other), 420.0),))
+    paper = tables.Run("paper_c", (timed(_record(0, {}, profile="paper"), 4500.0),))
+    rows = [line for line in documents._times([cited], [cited, again, paper], tmp_path)
+            .splitlines() if line.startswith("| `")]
+    assert len(rows) == 2
+    assert "| cited | Test CPU" in rows[0] and "| 19 min |" in rows[0]
+    assert "[another run](docs/runs/demo_b/) | Intel Xeon Processor (family 6" in rows[1]
+    assert "| 7 min |" in rows[1]

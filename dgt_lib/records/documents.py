@@ -87,18 +87,24 @@ def _hero(cited: Sequence[Run], _every, root: Path) -> str:
             f"{jeep.measured}, the van's round in {van.measured}.*\n")
 
 
-def _times(cited: Sequence[Run], _every, _root: Path) -> str:
-    lines = ["| profile | processor | one seed's stages, median over its seeds | load |",
-             "| --- | --- | --- | --- |"]
+def _times(cited: Sequence[Run], every: Sequence[Run], _root: Path) -> str:
+    """One seed's stage time per published run: each profile's cited run, then its runs on
+    other processors (a learner's machine is rarely the cited one)."""
+    lines = ["| profile | run | processor | one seed's stages, median over its seeds | load |",
+             "| --- | --- | --- | --- | --- |"]
     for run in cited:
-        times = [t for r in run.records for t in r.get("stage_times", [])]
-        totals = [sum(t["seconds"] for t in r.get("stage_times", [])) for r in run.records]
-        loads = [t["load_1min_before"] for t in times if t.get("load_1min_before") is not None]
-        if totals:
-            lines.append(f"| `{run.profile}` ({tables.n_seeds(len(run.seeds))}) | "
-                         f"{run.processor} | {median(totals) / 60:.0f} min | "
-                         f"{min(loads, default=0):.1f}–{max(loads, default=0):.1f} at "
-                         "the stages' starts |")
+        others = [r for r in every if r.profile == run.profile and r.name != run.name]
+        for r in [run, *others]:
+            times = [t for rec in r.records for t in rec.get("stage_times", [])]
+            totals = [sum(t["seconds"] for t in rec.get("stage_times", [])) for rec in r.records]
+            loads = [t["load_1min_before"] for t in times
+                     if t.get("load_1min_before") is not None]
+            if totals:
+                which = "cited" if r is run else f"[another run](docs/runs/{r.name}/)"
+                lines.append(f"| `{r.profile}` ({tables.n_seeds(len(r.seeds))}) | {which} | "
+                             f"{r.processor} | {median(totals) / 60:.0f} min | "
+                             f"{min(loads, default=0):.1f}–{max(loads, default=0):.1f} at "
+                             "the stages' starts |")
     return "\n".join(lines) + "\n"
 
 

@@ -64,7 +64,8 @@ def processor_label(proc: dict) -> str:
     flags = ", ".join(f.upper().replace("_TILE", "").replace("512F", "-512")
                       for f in proc.get("flags", []))
     inner = ", ".join(x for x in (fam, flags) if x)
-    return f"{proc['model']}{f' ({inner})' if inner else ''}, {proc['cpus']} CPUs"
+    name = re.sub(r"\s*\((R|TM)\)", "", str(proc["model"]))
+    return f"{name}{f' ({inner})' if inner else ''}, {proc['cpus']} CPUs"
 
 
 def processor_slug(proc: dict) -> str:
