@@ -153,9 +153,8 @@ def spec_fields(spec: VehicleSpec) -> dict[str, object]:
     derived = {"max_steer_deg": math.degrees(spec.max_steer_rad),
                "camera.forward_m": spec.camera.forward_m, "camera.up_m": spec.camera.up_m,
                "camera.pitch_down_deg": math.degrees(spec.camera.pitch_down_rad)}
-    out = {name: derived[name] if name in derived else getattr(spec, name)
-           for name in FIELD_RULES}
-    return out
+    return {name: derived[name] if name in derived else getattr(spec, name)
+            for name in FIELD_RULES}
 
 
 def fields_to_spec(f: Mapping[str, object]) -> VehicleSpec:

@@ -93,18 +93,16 @@ def _times(cited: Sequence[Run], every: Sequence[Run], _root: Path) -> str:
     lines = ["| profile | run | processor | one seed's stages, median over its seeds | load |",
              "| --- | --- | --- | --- | --- |"]
     for run in cited:
-        others = [r for r in every if r.profile == run.profile and r.name != run.name]
-        for r in [run, *others]:
+        for r in [run, *(o for o in every if o.profile == run.profile and o.name != run.name)]:
             times = [t for rec in r.records for t in rec.get("stage_times", [])]
-            totals = [sum(t["seconds"] for t in rec.get("stage_times", [])) for rec in r.records]
-            loads = [t["load_1min_before"] for t in times
-                     if t.get("load_1min_before") is not None]
-            if totals:
+            loads = [t["load_1min_before"] for t in times if t.get("load_1min_before") is not None]
+            if times:
                 which = "cited" if r is run else f"[another run](docs/runs/{r.name}/)"
+                minutes = median(sum(t["seconds"] for t in rec.get("stage_times", []))
+                                 for rec in r.records) / 60
                 lines.append(f"| `{r.profile}` ({tables.n_seeds(len(r.seeds))}) | {which} | "
-                             f"{r.processor} | {median(totals) / 60:.0f} min | "
-                             f"{min(loads, default=0):.1f}–{max(loads, default=0):.1f} at "
-                             "the stages' starts |")
+                             f"{r.processor} | {minutes:.0f} min | {min(loads, default=0):.1f}–"
+                             f"{max(loads, default=0):.1f} at the stages' starts |")
     return "\n".join(lines) + "\n"
 
 

@@ -60,12 +60,11 @@ def processor() -> dict[str, object]:
 
 def processor_label(proc: dict) -> str:
     """A short human name: ``AMD EPYC (family 25 model 1, AVX2), 2 CPUs``."""
-    fam = f"family {proc['family']} model {proc['model_id']}" if proc.get("family") else ""
-    flags = ", ".join(f.upper().replace("_TILE", "").replace("512F", "-512")
-                      for f in proc.get("flags", []))
-    inner = ", ".join(x for x in (fam, flags) if x)
+    inner = [f"family {proc['family']} model {proc['model_id']}"] if proc.get("family") else []
+    inner += [f.upper().replace("_TILE", "").replace("512F", "-512") for f in proc.get("flags", [])]
     name = re.sub(r"\s*\((R|TM)\)", "", str(proc["model"]))
-    return f"{name}{f' ({inner})' if inner else ''}, {proc['cpus']} CPUs"
+    parens = f" ({', '.join(inner)})" if inner else ""
+    return f"{name}{parens}, {proc['cpus']} CPUs"
 
 
 def processor_slug(proc: dict) -> str:

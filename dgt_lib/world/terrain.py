@@ -437,8 +437,7 @@ def _cached(name: str, config: WorldsConfig, seed: int) -> World:
     if name == "training":
         return make_training(config.training_size_m, res, seed + config.training_seed)
     if name == "eval":
-        world = make_training(config.eval_size_m, res, seed + config.eval_seed, name="eval")
-        return world
+        return make_training(config.eval_size_m, res, seed + config.eval_seed, name="eval")
     if name == "eval_hazard":
         return make_eval_hazard(config.eval_size_m, res, seed + config.eval_seed)
     if name == "hill":

@@ -149,10 +149,7 @@ def _settle(target, r, run, full):
             old = where[u]
             if old == -2 or not passable[u]:
                 continue
-            if one_layer:  # T_m(v)
-                t = first_layer[v]
-            else:
-                t = prices[v, m]
+            t = first_layer[v] if one_layer else prices[v, m]  # T_m(v)
             if t == np.inf:
                 continue
             if full:
