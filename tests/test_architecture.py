@@ -212,7 +212,7 @@ def test_the_paper_path_is_counted_and_does_not_reach_beyond():
     assert "beyond" not in counts and sum(counts.values()) > 5000
 
 
-PAPER_PATH_BUDGET = 12_929
+PAPER_PATH_BUDGET = 12_925
 """Code lines the paper path (notebooks 01–09 and what they reach) may hold: the size it
 has, lowered whenever the code shrinks (aim: 8,000)."""
 PACKAGE_BUDGET = 17_214

@@ -251,3 +251,20 @@ def test_the_time_table_sets_a_profiles_other_runs_below_its_cited_one(tmp_path)
     assert "| cited | Test CPU" in rows[0] and "| 19 min |" in rows[0]
     assert "[another run](docs/runs/demo_b/) | Intel Xeon Processor (family 6" in rows[1]
     assert "| 7 min |" in rows[1]
+
+
+def test_a_rerun_of_some_of_the_cited_seeds_is_set_beside_those_seeds_only(tmp_path):
+    """The cited run has seeds 0–2, the rerun elsewhere 0–1: the claims table pools seeds
+    0–1 of both, so a route that failed only in the cited seed 2 is reproduced in both."""
+    other = {**PROC, "model": "Other CPU", "family": "6"}
+    cited = tables.Run("paper_a", (_record(0, {}, profile="paper"),
+                                   _record(1, {}, profile="paper"),
+                                   _record(2, {}, ascents_a=(2, 3), profile="paper")))
+    again = tables.Run("paper_b", (_record(0, {}, processor=other, profile="paper"),
+                                   _record(1, {}, processor=other, profile="paper")))
+    text = documents._claims_elsewhere([cited], [cited, again], tmp_path)
+    assert "`paper`, 2 seeds (0, 1), Test CPU" in text and "runs/paper_a/" in text
+    gentle = next(line for line in text.splitlines() if "Route A" in line)
+    assert gentle.count("2 of 2 seeds") == 2 and "**not reproduced**" not in gentle
+    whole = tables.claims_table([cited])
+    assert "**not reproduced**" in next(ln for ln in whole.splitlines() if "Route A" in ln)

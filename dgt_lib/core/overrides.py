@@ -105,9 +105,8 @@ def _scalar(value: object, hint: type) -> object:
         if (isinstance(number, (int, float)) and not isinstance(number, bool)
                 and not math.isnan(number)):
             return float(number)
-    elif hint is str:
-        if isinstance(value, str):
-            return value.strip()
+    elif hint is str and isinstance(value, str):
+        return value.strip()
     raise ValueError(value)
 
 

@@ -111,12 +111,16 @@ def _per_run(cited: Sequence[Run], _every, _root: Path) -> str:
 
 
 def _claims_elsewhere(cited: Sequence[Run], every: Sequence[Run], _root: Path) -> str:
-    """Each cited run beside its reruns on other processors (same profile, same seeds),
-    claim by claim."""
-    groups = [[run, *(r for r in every if r.profile == run.profile and r.seeds == run.seeds
-                      and r.processor != run.processor)] for run in cited]
-    blocks = [_captions(g, "") + "\n" + tables.claims_table(g, by_processor=True)
-              for g in groups if len(g) > 1]
+    """Each cited run beside its reruns on other processors, claim by claim, over the seeds
+    a rerun ran (two or more of the cited run's: one seed is the per-seed table's)."""
+    groups: list[list[Run]] = []
+    for run in cited:
+        elsewhere = [r for r in every if r.profile == run.profile and r.processor != run.processor
+                     and len(r.seeds) > 1 and set(r.seeds) <= set(run.seeds)]
+        for seeds in dict.fromkeys(tuple(r.seeds) for r in elsewhere):  # the cited, cut to them
+            groups.append([Run(run.name, tuple(x for x in run.records if x["seed"] in seeds)),
+                           *(r for r in elsewhere if tuple(r.seeds) == seeds)])
+    blocks = [_captions(g, "") + "\n" + tables.claims_table(g, by_processor=True) for g in groups]
     return "\n".join(blocks) or "No cited run has been repeated on another processor yet.\n"
 
 

@@ -152,10 +152,7 @@ def _settle(target, r, run, full):
             t = first_layer[v] if one_layer else prices[v, m]  # T_m(v)
             if t == np.inf:
                 continue
-            if full:
-                alt = dv + (lengths[m] + lengths[m] * t)
-            else:
-                alt = dv + lengths[m] * t
+            alt = dv + (lengths[m] + lengths[m] * t) if full else dv + lengths[m] * t
             if alt < dist[u]:
                 dist[u] = alt
                 if old == -1:
