@@ -88,8 +88,8 @@ def _hero(cited: Sequence[Run], _every, root: Path) -> str:
 
 
 def _times(cited: Sequence[Run], every: Sequence[Run], _root: Path) -> str:
-    """One seed's stage time per published run: each profile's cited run, then its runs on
-    other processors (a learner's machine is rarely the cited one)."""
+    """One seed's stage time per published run: each profile's cited run, then the
+    profile's other published runs (a learner's machine is rarely the cited one's)."""
     lines = ["| profile | run | processor | one seed's stages, median over its seeds | load |",
              "| --- | --- | --- | --- | --- |"]
     for run in cited:
