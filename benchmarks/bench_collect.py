@@ -25,12 +25,13 @@ Run: ``.venv/bin/python benchmarks/bench_collect.py [--profile paper] [--episode
    (~35 ms on llvmpipe); printed: the switches, the distinct tiles, how many switches an
    LRU cache of K uploaded tiles would have served, and the memory one more OpenGL
    context of a tile takes (the cost of holding a tile uploaded).
-6. ``--frame-levers N``: two levers that would change every frame, timed on N onboard
+6. ``--frame-levers N``: levers that would change every frame, timed on N onboard
    poses of the training world: the frame on its collection tile, the same without
-   multisampling (``vis.quality.offsamples`` 0: the RGB pass is not antialiased), and on a
+   multisampling (``vis.quality.offsamples`` 0: the RGB pass is not antialiased), on a
    crop of the world to the frame's frustum (its horizontal bounding box up to the
    collection's depth), with the heightfield and texture uploads a crop per frame would
-   add. Medians in ms, and the cells drawn.
+   add, and the depth image ray-cast by MuJoCo instead (``mj_multiRay``, one ray through
+   each pixel's centre on the same tile, no colour). Medians in ms, and the cells drawn.
 
 Timings on the shared 2-core machine vary with its load; the load average is printed.
 """
@@ -262,7 +263,14 @@ def frame_levers(prof, n_poses: int) -> None:
     driver, rng = Simulator(world, "jeep"), np.random.default_rng(0)
     x0, x1, y0, y1 = world.extent
     ms: dict[str, list[float]] = {"tile": [], "tile, no multisampling": [],
-                                  "frustum crop": [], "crop's uploads": []}
+                                  "frustum crop": [], "crop's uploads": [],
+                                  "ray-cast depth": []}
+    tan_v = np.tan(0.5 * cam.fovy_rad)  # a ray through each pixel's centre, camera frame
+    u = ((np.arange(cam.width) + 0.5) / cam.width * 2 - 1) * tan_v * cam.width / cam.height
+    v = (1 - (np.arange(cam.height) + 0.5) / cam.height * 2) * tan_v
+    rays = np.stack(np.broadcast_arrays(u[None, :], v[:, None], -1.0), -1).reshape(-1, 3)
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    hit, dist = np.zeros(len(rays), np.int32), np.zeros(len(rays))
     cells = []
     for _ in range(n_poses):
         driver.reset(rng.uniform(x0 + 40, x1 - 40), rng.uniform(y0 + 40, y1 - 40),
@@ -281,6 +289,10 @@ def frame_levers(prof, n_poses: int) -> None:
             _ms(sim.render_rgbd, pose, intrinsics=cam, show_vehicle=False))
         plain.close()
         sim.model.vis.quality.offsamples = samples  # read only when a context is made
+        ms["ray-cast depth"].append(_ms(
+            mujoco.mj_multiRay, sim.model, sim.data, np.asarray(pose[0], np.float64),
+            (rays @ np.asarray(pose[1]).T).ravel(), None, 1, -1, hit, dist, None, len(rays),
+            tiles.max_depth_m))
         sim.share_renderers(tiles._renderers)
         bx0, bx1, by0, by1 = tiles.footprint(pose)  # the crop: a renderer of its own size
         crop = rendering.TerrainRenderer(world, tiles.max_depth_m)
@@ -327,7 +339,7 @@ def main() -> None:
                         help="tile uploads an LRU cache of K tiles would save, on --episodes")
     parser.add_argument("--frame-levers", type=int, default=0, metavar="N",
                         help="time N onboard frames on their tile, without multisampling, "
-                             "and on a crop to their frustum")
+                             "on a crop to their frustum, and their depth ray-cast")
     parser.add_argument("--frames-digest", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     prof = get_profile(args.profile)
