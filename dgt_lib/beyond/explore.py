@@ -1,6 +1,6 @@
 """Driving an unknown world while mapping it: onboard frames → BEV → incremental
-directional costmap → Hybrid A* replanning → MPPI (ours; the paper's Conclusion names
-incremental updates as future work, its experiments plan on a map built beforehand).
+directional costmap → Hybrid A* replanning → MPPI (ours; the paper's Limitations & Future
+Work name incremental updates as future work, its experiments plan on a map built beforehand).
 
 :func:`explore` starts with nothing observed. Every ``frame_period_s`` of simulated time
 the onboard camera's RGB-D frame is added to a :class:`~dgt_lib.perception.bev.BEVAccumulator`

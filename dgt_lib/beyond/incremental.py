@@ -1,5 +1,5 @@
-"""Directional costmaps that update while the map grows (the paper's Conclusion names
-incremental updates as future work; this is ours).
+"""Directional costmaps that update while the map grows (the paper's Limitations & Future
+Work name incremental updates as future work; this is ours).
 
 A vehicle exploring an unknown world adds one RGB-D frame at a time to its BEV map; a
 frame changes a few thousand cells. :class:`IncrementalCostmap` keeps the K heading

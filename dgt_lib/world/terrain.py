@@ -4,7 +4,7 @@
   flat to beyond what the weakest vehicle climbs, bumps and sharp ridges
   (paper, Dataset: "hilly terrain with occasional trees and paths").
 - ``hill`` (Experiment 1): a base and a summit plateau joined by Route A (long,
-  gentle) and Route B (short, with a ≈25° section of ≥ 8 m rise that carla_cola
+  gentle) and Route B (short, with a 26° section of 12 m rise that carla_cola
   descends but cannot ascend). Everywhere else the plateau has cliffs.
 - ``ridge`` (Experiment 2): a 0.7 m sharp ridge with 14° flanks across the whole
   map width, with one smoothed section. The jeep crosses the sharp ridge, the
