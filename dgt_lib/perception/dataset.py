@@ -143,7 +143,8 @@ def patch_times(times_s: np.ndarray, valid: np.ndarray, interval_s: float, start
 
     Every ``interval_s`` from ``start_s`` (no patches while the vehicle accelerates
     from rest) to the end of the run, except where the label window touches an
-    invalid sample (``valid`` False: a simulator glitch, paper: pre-filtering).
+    invalid sample (``valid`` False: a simulator glitch,
+    :data:`~dgt_lib.perception.locomotion.MAX_ANGULAR_RATE_DPS`).
     times_s: (T,) [s]; valid: (T,) bool. Returns (M,) float64, possibly empty.
     """
     t = np.asarray(times_s, dtype=np.float64)

@@ -7,8 +7,9 @@ Ornstein–Uhlenbeck process, :class:`OUSteering`, turned home near the map edge
 trunks ahead), and ends after ``episode_duration_s`` (paper: 100 s), when immobilized, or
 at a simulator end. The pose is recorded at 25 Hz; an onboard RGB-D frame every 5 m
 driven is accumulated into the episode's BEV; samples above 100°/s are simulator
-glitches (paper: pre-filtering). Stalls and why a run ends at the first: docs/stages.md →
-Collection. Caching and parallel runs are :mod:`dgt_lib.stages.collect`'s job.
+glitches (the pre-filtering in the paper's source, left out of its text). Stalls and why a
+run ends at the first: docs/stages.md → Collection. Caching and parallel runs are
+:mod:`dgt_lib.stages.collect`'s job.
 """
 
 from __future__ import annotations

@@ -32,7 +32,8 @@ WINDOW_S = 1.0
 """Default sliding-window length [s] for :func:`locomotion_signal` (see module docstring)."""
 MAX_ANGULAR_RATE_DPS = 100.0
 """A sample turning faster than this [°/s] is a simulator glitch: not valid, so no label or
-patch is taken at it and no onboard frame is mapped (paper: pre-filtering)."""
+patch is taken at it and no onboard frame is mapped (the pre-filtering of the paper's LaTeX
+source, a passage its published text leaves out)."""
 
 
 def locomotion(displacement_m, dt_s, u: float = TARGET_SPEED_MPS, sigma: float = SIGMA):
