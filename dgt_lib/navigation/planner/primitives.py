@@ -112,7 +112,7 @@ class TurnTable(NamedTuple):
 
 class Successor(NamedTuple):
     """Where one primitive ends and the costmap layer its move is priced in: end position
-    (x, y) [m], its cell (row, col), and k* = ``layer`` (:func:`directional_layer` of the
+    (x, y) [m], its cell (row, col), and k* = ``layer`` (:func:`travel_heading_bin` of the
     cell move from the parent's cell, or of the mid-arc heading when the cell is kept)."""
 
     x: float
