@@ -73,7 +73,7 @@ class CollectConfig:
     """
 
     episodes: tuple[int, int, int, int] = (40, 40, 30, 20)  # per vehicle, VEHICLES order
-    episode_duration_s: float = 100.0  # paper: runs end at 100 s or when immobilized
+    episode_duration_s: float = 100.0  # the paper's source: runs end at 100 s or when stuck
     speed_mps: float = 5.0  # u, commanded speed (paper: Locomotion)
     immobilized_limit_s: float = 5.0  # stuck this long ends a run (ours; evaluation uses 10 s)
     frame_spacing_m: float = 5.0  # onboard RGB-D frame every 5 m driven (≈1 Hz at u) [m]
