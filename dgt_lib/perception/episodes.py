@@ -5,8 +5,8 @@ A vehicle spawns at a random free pose (:func:`spawn_pose`), drives forward at u
 under the simulator's PID speed controller with smooth random steering (an
 Ornstein–Uhlenbeck process, :class:`OUSteering`, turned home near the map edge and around
 trunks ahead), and ends after ``episode_duration_s`` (100 s in the paper's source), when
-immobilized, or at a simulator end. The pose is recorded at 25 Hz; an onboard RGB-D frame every 5 m
-driven is accumulated into the episode's BEV; samples above 100°/s are simulator
+immobilized, or at a simulator end. The pose is recorded at 25 Hz; an onboard RGB-D frame
+every 5 m driven is accumulated into the episode's BEV; samples above 100°/s are simulator
 glitches (the pre-filtering in the paper's source, left out of its text). Stalls and why a
 run ends at the first: docs/stages.md → Collection. Caching and parallel runs are
 :mod:`dgt_lib.stages.collect`'s job.
