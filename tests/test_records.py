@@ -268,3 +268,29 @@ def test_a_rerun_of_some_of_the_cited_seeds_is_set_beside_those_seeds_only(tmp_p
     assert gentle.count("2 of 2 seeds") == 2 and "**not reproduced**" not in gentle
     whole = tables.claims_table([cited])
     assert "**not reproduced**" in next(ln for ln in whole.splitlines() if "Route A" in ln)
+
+
+def test_the_hero_figure_comes_from_the_first_seed_where_the_route_claims_held(tmp_path):
+    """The cited `demo` run's seed 0 sent the jeep round the ridge (0/6 straight) and seed 1
+    the van round in only 3 of its 6 plans: the hero is drawn from seed 2, and the
+    caption of figures drawn from another published run names that run and says how often
+    the claims held."""
+    cited, every = documents.load_runs(ROOT)
+    demo = next(r for r in cited if r.profile == "demo")
+    assert tables.seeds_holding(demo.records)[0] == 2
+    root = _copy_docs(tmp_path)
+    other = next(r for r in every if r.profile == "demo" and r not in cited)
+    held = tables.seeds_holding(other.records)
+    facts = {"profile": "demo", "seed": held[0], "processor": other.records[0]["processor"],
+             "hero_routes": {"ascent": "A", "descent": "B", "jeep": "sharp",
+                             "mercedes_van": "smooth"}}
+    (root / documents.FIGURE_FACTS).write_text(json.dumps(facts))
+    text = documents._hero(cited, every, root)
+    assert f"seed {held[0]} of [another published run](docs/runs/{other.name}/)" in text
+    assert (f"the first of its seeds in which all four route claims held (they held in "
+            f"{len(held)} of {len(other.seeds)})") in text
+    assert "the jeep goes straight across the sharp ridge" in text
+    facts["processor"] = PROC  # drawn on a machine no published run was made on
+    (root / documents.FIGURE_FACTS).write_text(json.dumps(facts))
+    with pytest.raises(ValueError, match="not published"):
+        documents._hero(cited, every, root)

@@ -66,18 +66,23 @@ ROUTE_WORDS = {"A": "by Route A", "B": "by Route B", "other": "by neither route"
                "smooth": "round by the smoothed section", "no path": "finds no path"}
 
 
-def _hero(cited: Sequence[Run], _every, root: Path) -> str:
+def _hero(cited: Sequence[Run], every: Sequence[Run], root: Path) -> str:
     facts = json.loads((root / FIGURE_FACTS).read_text())
-    run = next((r for r in cited if r.profile == facts["profile"]
+    run = next((r for r in [*cited, *every] if r.profile == facts["profile"]
                 and facts["seed"] in r.seeds
                 and r.records[0]["processor"] == facts["processor"]), None)
     if run is None:
         raise ValueError(f"{FIGURE_FACTS}: the figures were drawn from a `{facts['profile']}` "
-                         "run the README does not cite: run `make figures` on the cited run")
+                         "run not published in docs/runs/: run `make figures` on a published run")
     routes = {k: ROUTE_WORDS.get(v, v) for k, v in facts["hero_routes"].items()}
     jeep, van = (tables.verdicts_by_key(run)[k] for k in ("ridge_jeep_sharp", "ridge_smooth"))
-    return (f"*Drawn by `make figures` from `{run.profile}` seed {facts['seed']} of the run the "
-            f"tables below cite. Left: carla_cola's DGT-Map cost layer for heading north on "
+    held = tables.seeds_holding(run.records)
+    which = ("the run the tables below cite" if run in cited else
+             f"[another published run](docs/runs/{run.name}/), on {run.processor}")
+    chosen = (f", the first of its seeds in which all four route claims held (they held in "
+              f"{len(held)} of {len(run.seeds)})" if held[:1] == [facts["seed"]] else "")
+    return (f"*Drawn by `make figures` from `{run.profile}` seed {facts['seed']} of {which}"
+            f"{chosen}. Left: carla_cola's DGT-Map cost layer for heading north on "
             f"the hill (bright = costly) and DGT-Map's plans for Experiment 1's first ascent, "
             f"{routes['ascent']}, and first descent, {routes['descent']}. Middle and right: "
             f"the same ridge through two heads of the same network, the jeep's and the "

@@ -30,6 +30,15 @@ EXPERIMENT_ROWS: tuple[tuple[str, str, str], ...] = (
 )
 """The README results table's rows: (experiment, vehicle, label)."""
 
+ROUTE_CLAIMS = ("hill_ascent_A", "hill_descent_B", "ridge_smooth", "ridge_jeep_sharp")
+"""The claims about which way DGT-Map's plans go (the README's hero figure draws them)."""
+
+
+def seeds_holding(records: Sequence[dict], names: Sequence[str] = ROUTE_CLAIMS) -> list[int]:
+    """The seeds whose run record (:mod:`dgt_lib.records.record`) says every claim of
+    ``names`` held in it, in order."""
+    return [r["seed"] for r in records if all(r["claims"][name][2] for name in names)]
+
 
 @dataclass(frozen=True)
 class Run:
