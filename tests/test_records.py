@@ -286,9 +286,9 @@ def test_the_hero_figure_comes_from_the_first_seed_where_the_route_claims_held(t
                              "mercedes_van": "smooth"}}
     (root / documents.FIGURE_FACTS).write_text(json.dumps(facts))
     text = documents._hero(cited, every, root)
-    assert f"seed {held[0]} of [another published run](docs/runs/{other.name}/)" in text
-    assert (f"the first of its seeds in which all four route claims held (they held in "
-            f"{len(held)} of {len(other.seeds)})") in text
+    assert f"seed {held[0]} of [a published `demo` run on {other.processor}](docs/runs/" in text
+    assert (f"the first of its seeds in which all four route claims held ({len(held)} of its "
+            f"{len(other.seeds)}; 5 of 8 in the run the tables below cite)") in text
     assert "the jeep goes straight across the sharp ridge" in text
     facts["processor"] = PROC  # drawn on a machine no published run was made on
     (root / documents.FIGURE_FACTS).write_text(json.dumps(facts))

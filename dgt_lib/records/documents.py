@@ -78,10 +78,12 @@ def _hero(cited: Sequence[Run], every: Sequence[Run], root: Path) -> str:
     jeep, van = (tables.verdicts_by_key(run)[k] for k in ("ridge_jeep_sharp", "ridge_smooth"))
     held = tables.seeds_holding(run.records)
     which = ("the run the tables below cite" if run in cited else
-             f"[another published run](docs/runs/{run.name}/), on {run.processor}")
-    chosen = (f", the first of its seeds in which all four route claims held (they held in "
-              f"{len(held)} of {len(run.seeds)})" if held[:1] == [facts["seed"]] else "")
-    return (f"*Drawn by `make figures` from `{run.profile}` seed {facts['seed']} of {which}"
+             f"[a published `{run.profile}` run on {run.processor}](docs/runs/{run.name}/)")
+    cite = "".join(f"; {len(tables.seeds_holding(r.records))} of {len(r.seeds)} in the run the "
+                   "tables below cite" for r in cited if r.profile == run.profile and r != run)
+    chosen = (f", the first of its seeds in which all four route claims held ({len(held)} of "
+              f"its {len(run.seeds)}{cite})" if held[:1] == [facts["seed"]] else "")
+    return (f"*Drawn by `make figures` from seed {facts['seed']} of {which}"
             f"{chosen}. Left: carla_cola's DGT-Map cost layer for heading north on "
             f"the hill (bright = costly) and DGT-Map's plans for Experiment 1's first ascent, "
             f"{routes['ascent']}, and first descent, {routes['descent']}. Middle and right: "
