@@ -4,7 +4,9 @@ kernel, as ``Run All`` would, under a profile.
     .venv/bin/python benchmarks/bench_notebooks.py --profile demo
     .venv/bin/python benchmarks/bench_notebooks.py --profile demo --notebooks 03 04 --cells 5
 
-Prints one row per notebook (wall seconds, its slowest cells) and the total. The notebooks
+Prints one row per notebook (wall seconds, its slowest cells) and the total; ``--publish``
+writes them as a record (``benchmarks/publish.py``) that docs/speed.md quotes and the
+notebooks' *Time* notes link to. The notebooks
 read the profile's artifact cache; a notebook whose artifacts are not cached builds them
 first (the pipeline's stages), so time a warm cache — run ``dgt reproduce --profile P
 --seeds 1`` before — unless that first wait is what you want to measure. The executed
@@ -24,6 +26,12 @@ from pathlib import Path
 
 import nbformat
 from nbclient import NotebookClient
+from publish import Benchmark
+
+from dgt_lib.core.config import get_profile
+from dgt_lib.records.record import SUMMARY_NAME
+from dgt_lib.records.study import table
+from dgt_lib.stages.paths import results_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOKS = ROOT / "notebooks"
@@ -42,7 +50,7 @@ def _cell_seconds(cell) -> float | None:
 
 def _first_line(cell) -> str:
     lines = [s for s in "".join(cell.source).splitlines() if s.strip() and not s.startswith("#")]
-    text = lines[0] if lines else ""
+    text = lines[0].replace("|", "\\|") if lines else ""  # a table cell
     return text if len(text) <= 60 else text[:57] + "..."
 
 
@@ -72,6 +80,7 @@ def main() -> None:
     parser.add_argument("--timeout", type=int, default=1800, help="per cell [s]")
     parser.add_argument("--keep", type=Path, default=None,
                         help="directory for the executed copies (default: a temporary one)")
+    bench = Benchmark("bench_notebooks", parser)
     args = parser.parse_args()
 
     paths = sorted(NOTEBOOKS.glob("[0-9][0-9]*_*.ipynb"))
@@ -82,17 +91,24 @@ def main() -> None:
             sys.exit(f"no notebook matches {args.notebooks} in {NOTEBOOKS}")
     keep = args.keep or Path(tempfile.mkdtemp(prefix="bench_notebooks_"))
     keep.mkdir(parents=True, exist_ok=True)
-    print(f"profile {args.profile}, {os.cpu_count()} CPUs, load average "
-          f"{os.getloadavg()[0]:.2f} at the start; executed copies in {keep}\n")
-    print("| notebook | wall [s] | slowest cells [s] |\n| --- | --- | --- |")
-    total = 0.0
+    warm = (results_dir(get_profile(args.profile)) / SUMMARY_NAME).exists()
+    print(f"profile {args.profile} ({'warm: seed 0 has run' if warm else 'seed 0 not run'}), "
+          f"{os.cpu_count()} CPUs; executed copies in {keep}\n")
+    rows, total = [], 0.0
     for path in paths:
         wall, cells = run_notebook(path, args.profile, args.timeout, keep)
         total += wall
-        slow = "; ".join(f"{s:.1f} (cell {i}: `{line}`)" for s, i, line in cells[:args.cells])
-        print(f"| {path.stem} | {wall:.1f} | {slow} |", flush=True)
-    print(f"| **all {len(paths)}** | **{total:.1f}** | load average {os.getloadavg()[0]:.2f} "
-          f"at the end |")
+        slow = "; ".join(f"{s:.0f} (cell {i}: `{line}`)" for s, i, line in cells[:args.cells])
+        rows.append([path.stem, f"{wall:.0f}", slow])
+        print(" | ".join(rows[-1]), flush=True)
+    rows.append([f"**all {len(paths)}**", f"**{total:.0f}**", ""])
+    cache = ("seed 0's artifacts cached beforehand" if warm else
+             "seed 0 not run before: the first notebooks build its artifacts")
+    bench.finish({"notebooks": table(
+        f"Each notebook top to bottom in a fresh kernel on `{args.profile}`, {cache}: wall "
+        f"seconds, and its slowest code cells (index: first line)",
+        ["notebook", "wall [s]", "slowest cells [s]"], rows)}, args.publish,
+        profile=args.profile)
 
 
 if __name__ == "__main__":
