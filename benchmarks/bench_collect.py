@@ -32,6 +32,16 @@ Run: ``.venv/bin/python benchmarks/bench_collect.py [--profile paper] [--episode
    collection's depth), with the heightfield and texture uploads a crop per frame would
    add, and the depth image ray-cast by MuJoCo instead (``mj_multiRay``, one ray through
    each pixel's centre on the same tile, no colour). Medians in ms, and the cells drawn.
+7. ``--tile-lattice 16:reach 8:box``: the collection's own episodes (``--episodes`` per
+   vehicle) rendered on other terrain tiles — ``S:reach``, tiles on an S m lattice reaching
+   the frame's farthest point from the camera in every direction (the collection's, S =
+   :data:`~dgt_lib.world.rendering.TILE_STRIDE_M`), ``S:box``, tiles only as large as the
+   frustum's horizontal bounding box can get (its half-extent's maximum over camera
+   headings, pitch ±45° and roll ±35°); ``:flat`` appended draws the colour without
+   multisampling. Printed per lattice: the time inside ``render`` (tile switches
+   included), the switches, the frames whose box a tile missed, and against the first
+   lattice the in-range depth's median |Δ| and share of pixels off by more than 1 cm, and
+   the colour's.
 
 Timings on the shared 2-core machine vary with its load; the load average is printed.
 """
@@ -320,6 +330,96 @@ def frame_levers(prof, n_poses: int) -> None:
         print(f"  {name:24s} {np.median(values):6.1f} ms")
 
 
+def box_half_extent_m(max_depth_m: float, cam) -> float:
+    """The largest horizontal half-extent [m] of a frame's frustum box (camera and far
+    corners at ``max_depth_m``) over camera yaw, pitch ±45° and roll ±35°."""
+    tan_x, tan_y = rendering._tan_half_fov(cam)
+    corners = np.array([[sx * tan_x, sy * tan_y, -1.0] for sx in (-1, 1) for sy in (-1, 1)])
+    corners *= max_depth_m
+    forward = np.array([[0, 0, -1], [-1, 0, 0], [0, 1, 0]], float)  # looking along +x
+    best = 0.0
+    for yaw in np.radians(np.arange(0, 360, 5)):
+        for pitch in np.radians(np.arange(-45, 46, 5)):
+            for roll in np.radians(np.arange(-35, 36, 5)):
+                cy, sy, cp, sp, cr, sr = (np.cos(yaw), np.sin(yaw), np.cos(pitch),
+                                          np.sin(pitch), np.cos(roll), np.sin(roll))
+                rot = (np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+                       @ np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+                       @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]]) @ forward)
+                pts = np.vstack([np.zeros(3), corners @ rot.T])[:, :2]
+                best = max(best, float((pts.max(0) - pts.min(0)).max()) / 2)
+    return best
+
+
+def tile_lattice(prof, n_episodes: int, specs: list[str]) -> None:
+    import math
+
+    from dgt_lib.world.simulator import FrameRenderers
+
+    world = get_world("training", prof)
+    depth_m, res = prof.collect.frame_max_depth_m, world.grid.resolution
+    box = box_half_extent_m(depth_m, rendering.CAMERA)
+    print(f"{n_episodes} collection episodes per vehicle on the {world.grid.shape} training "
+          f"world; frame reach {rendering.frame_reach_m(depth_m):.1f} m, frustum box "
+          f"half-extent ≤ {box:.1f} m; load average {os.getloadavg()[0]:.1f}")
+    render, create, stride = rendering.TerrainRenderer.render, FrameRenderers.create, \
+        rendering.TILE_STRIDE_M
+    base: list = []
+    for spec in specs:
+        step, bound, *flat = spec.split(":")
+        frames, spent, missed, switches = [], [0.0], [0], [0]
+        rendering.TILE_STRIDE_M = float(step)
+        rendering._RENDERERS.clear()
+        renderer = rendering.terrain_renderer(world, depth_m)
+        if bound == "box":
+            n = int(math.ceil(2 * (box + 0.5 * float(step) + res) / res))
+            renderer.tile_shape = tuple(min(n, m) for m in world.grid.shape)
+
+        def timed(self, pose, frames=frames, spent=spent, missed=missed, switches=switches):
+            before, t0 = self._current, time.perf_counter()
+            frame = render(self, pose)
+            spent[0] += time.perf_counter() - t0
+            switches[0] += self._current != before
+            missed[0] += not self._covers(self._current, self.footprint(pose))
+            frames.append((frame.rgb, frame.depth))
+            return frame
+
+        def plain(model, height, width, separate_depth=None):
+            samples, model.vis.quality.offsamples = model.vis.quality.offsamples, 0
+            try:
+                return create(model, height, width, separate_depth)
+            finally:
+                model.vis.quality.offsamples = samples
+
+        rendering.TerrainRenderer.render = timed
+        FrameRenderers.create = staticmethod(plain) if flat else create
+        try:
+            for i in range(n_episodes):
+                for v in VEHICLES:
+                    run_episode(world, v, episode_seed(prof.seed, v, i), prof.collect, index=i)
+        finally:
+            rendering.TerrainRenderer.render, FrameRenderers.create = render, create
+            rendering.TILE_STRIDE_M = stride
+            renderer._renderers.close()
+            rendering._RENDERERS.clear()
+        line = (f"  {spec:14s} tile {renderer.tile_shape[0]}×{renderer.tile_shape[1]}: "
+                f"{1e3 * spent[0] / len(frames):5.1f} ms a frame ({len(frames)} frames, "
+                f"{switches[0]} switches, {missed[0]} boxes missed)")
+        if base:
+            d_depth, off, d_rgb = [], 0, []
+            for (rgb0, d0), (rgb1, d1) in zip(base, frames, strict=True):
+                both = (d0 <= depth_m) & (d1 <= depth_m)  # NaN compares False
+                d_depth.append(np.abs(d0[both] - d1[both]))
+                off += int((np.abs(d0[both] - d1[both]) > 0.01).sum())
+                d_rgb.append(np.abs(rgb0[both].astype(int) - rgb1[both].astype(int)))
+            d_depth, d_rgb = np.concatenate(d_depth), np.concatenate(d_rgb)
+            line += (f"; depth median |Δ| {np.median(d_depth):.1e} m, {off / d_depth.size:.2%}"
+                     f" of pixels off > 1 cm; colour mean |Δ| {d_rgb.mean():.2f} of 255")
+        else:
+            base = frames
+        print(line, flush=True)
+
+
 def _children_cpu() -> float:
     """User + system CPU seconds of this process's reaped child processes."""
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -340,6 +440,9 @@ def main() -> None:
     parser.add_argument("--frame-levers", type=int, default=0, metavar="N",
                         help="time N onboard frames on their tile, without multisampling, "
                              "on a crop to their frustum, and their depth ray-cast")
+    parser.add_argument("--tile-lattice", nargs="+", metavar="S:reach|S:box[:flat]",
+                        help="render --episodes on other tile lattices (the first is the "
+                             "reference), e.g. 16:reach 8:box 8:box:flat")
     parser.add_argument("--frames-digest", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     prof = get_profile(args.profile)
@@ -351,6 +454,8 @@ def main() -> None:
         return tile_cache(prof, args.episodes, args.tile_cache)
     if args.frame_levers:
         return frame_levers(prof, args.frame_levers)
+    if args.tile_lattice:
+        return tile_lattice(prof, args.episodes, args.tile_lattice)
     cfg = prof.collect
     print(f"profile {prof.name}: training world {get_world('training', prof).grid.shape} "
           f"cells, {cfg.episode_duration_s:.0f} s episodes, a frame every "
