@@ -273,15 +273,16 @@ def test_a_rerun_of_some_of_the_cited_seeds_is_set_beside_those_seeds_only(tmp_p
 def test_the_hero_figure_comes_from_the_first_seed_where_the_route_claims_held(tmp_path):
     """The cited `demo` run's seed 0 sent the jeep round the ridge (0/6 straight) and seed 1
     the van round in only 3 of its 6 plans: the hero is drawn from seed 2, and the
-    caption of figures drawn from another published run names that run and says how often
-    the claims held."""
+    caption of figures drawn from another published run names that run (found by its seed's
+    results, not by the processor) and says how often the claims held."""
     cited, every = documents.load_runs(ROOT)
     demo = next(r for r in cited if r.profile == "demo")
     assert tables.seeds_holding(demo.records)[0] == 2
     root = _copy_docs(tmp_path)
     other = next(r for r in every if r.profile == "demo" and r not in cited)
     held = tables.seeds_holding(other.records)
-    facts = {"profile": "demo", "seed": held[0], "processor": other.records[0]["processor"],
+    drawn = next(r for r in other.records if r["seed"] == held[0])
+    facts = {"profile": "demo", "seed": held[0], "results": tables.results_digest(drawn),
              "hero_routes": {"ascent": "A", "descent": "B", "jeep": "sharp",
                              "mercedes_van": "smooth"}}
     (root / documents.FIGURE_FACTS).write_text(json.dumps(facts))
@@ -290,7 +291,7 @@ def test_the_hero_figure_comes_from_the_first_seed_where_the_route_claims_held(t
     assert (f"the first of its seeds in which all four route claims held ({len(held)} of its "
             f"{len(other.seeds)}; 5 of 8 in the run the tables below cite)") in text
     assert "the jeep goes straight across the sharp ridge" in text
-    facts["processor"] = PROC  # drawn on a machine no published run was made on
+    facts["results"] = tables.results_digest({**drawn, "claims": {}})  # results nobody published
     (root / documents.FIGURE_FACTS).write_text(json.dumps(facts))
-    with pytest.raises(ValueError, match="not published"):
+    with pytest.raises(ValueError, match="no run in docs/runs/ recorded"):
         documents._hero(cited, every, root)

@@ -51,8 +51,9 @@ from dgt_lib.world.terrain import get_world  # noqa: E402
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "figures"
 FACTS = "figures.json"
-"""Beside the figures: the run they were drawn from and what the hero figure shows (the
-route of each plan), for the README's caption (``make docs``)."""
+"""Beside the figures: the run they were drawn from (with a digest of its seed record's
+results, which ``make docs`` finds among the published runs' records) and what the hero
+figure shows (the route of each plan), for the README's caption."""
 MAX_BYTES = 300_000
 """The largest PNG the repository takes [bytes]."""
 DPI = 80
@@ -79,17 +80,6 @@ def _plan(maps, vehicle: str, query, prof: Profile) -> PlanResult:
     planner = HybridAStar.for_vehicle(maps.costmap("dgt", vehicle), maps.occupancy, maps.grid,
                                       get_vehicle(vehicle), prof.planner)
     return planner.plan(query.start, query.goal)
-
-
-def _named(world, plans: dict[str, PlanResult]) -> dict[str, PlanResult]:
-    """Plans keyed by what they did: '<name>: Route A' on the hill, '<name>: sharp
-    crossing' on the ridge (:func:`classify_route`)."""
-    out = {}
-    for name, plan in plans.items():
-        route = classify_route(world, plan.path) if plan.success else ""
-        where = f"Route {route}" if world.name == "hill" else f"{route} crossing"
-        out[f"{name}: {where}" if route else name] = plan
-    return out
 
 
 @lru_cache(maxsize=2)
@@ -123,14 +113,16 @@ def hero(prof: Profile):
     hill, ridge = get_world("hill", prof), get_world("ridge", prof)
     hill_maps = ensure_world_costmaps("hill", ("carla_cola",), prof, progress=False)
     ridge_maps = ensure_world_costmaps("ridge", ("mercedes_van", "jeep"), prof, progress=False)
-    plans = hero_plans(prof)
+    plans, routes = hero_plans(prof), hero_routes(prof)  # each plan labelled with its route
+    named = {k: f"{k}: Route {r}" if k in ("ascent", "descent") else f"{k}: {r} crossing"
+             for k, r in routes.items() if r != "no path"}
     fig, axes = plt.subplots(1, 3, figsize=(18, 6.2), gridspec_kw={"width_ratios": [1.4, 1, 1]},
                              layout="constrained")
-    viz.plot_plans(hill, _named(hill, {k: plans[k] for k in ("ascent", "descent")}), axes[0],
+    viz.plot_plans(hill, {named.get(k, k): plans[k] for k in ("ascent", "descent")}, axes[0],
                    background=hill_maps.costmap("dgt", "carla_cola")[k_north],
                    title="Hill, carla_cola: DGT-Map cost heading north")
     for ax, vehicle in zip(axes[1:], ("jeep", "mercedes_van"), strict=True):
-        viz.plot_plans(ridge, _named(ridge, {vehicle: plans[vehicle]}), ax,
+        viz.plot_plans(ridge, {named.get(vehicle, vehicle): plans[vehicle]}, ax,
                        background=ridge_maps.costmap("dgt", vehicle)[k_north],
                        title=f"Ridge, {vehicle}: DGT-Map cost heading north")
     fig.colorbar(ScalarMappable(Normalize(0, 1), cmap=COST_CMAP), ax=list(axes), shrink=0.8,
@@ -200,7 +192,8 @@ def make_figures(profile: str | Profile = "demo", out: Path = OUT,
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = [save_png(FIGURES[name](prof), out / f"{name}.png") for name in names]
-    made = {**provenance(), "profile": prof.name, "seed": prof.seed}
+    made = {**provenance(), "profile": prof.name, "seed": prof.seed, "results": next(  # its run
+        (tables.results_digest(s) for s in seed_summaries(prof) if s["seed"] == prof.seed), None)}
     if "hero" in names:
         made["hero_routes"] = hero_routes(prof)
     (out / FACTS).write_text(json.dumps(made, indent=1) + "\n")

@@ -8,6 +8,7 @@ the records hold, so the same records always render the same text.
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,6 +39,13 @@ def seeds_holding(records: Sequence[dict], names: Sequence[str] = ROUTE_CLAIMS) 
     """The seeds whose run record (:mod:`dgt_lib.records.record`) says every claim of
     ``names`` held in it, in order."""
     return [r["seed"] for r in records if all(r["claims"][name][2] for name in names)]
+
+
+def results_digest(record: dict) -> str:
+    """A digest of what a seed's run record says it found (experiments and claims): equal
+    for two runs of a seed that reached the same results, wherever they ran."""
+    found = json.dumps([record["experiments"], record["claims"]], sort_keys=True)
+    return hashlib.sha256(found.encode()).hexdigest()[:16]
 
 
 @dataclass(frozen=True)
